@@ -1,0 +1,231 @@
+"""The benchmark data set: generated, seeded, cached in build/bench/.
+
+- ``stars_<count>.gpkg``: ``count`` concave star-shaped polygons, each with one island, 20 to 60
+  vertices per polygon (40 on average: 2,000,000 vertices for the default 50,000 polygons),
+  one per cell of a 100 m grid in EPSG:32733, plus ``stars_<count>_dem.tif`` covering them.
+- ``islands_<vertices>.gpkg``: one large concave polygon with ``vertices`` vertices in all, of
+  which a fifth in ``vertices / 100`` star-shaped islands (the scaling test: 10,000 and 100,000).
+
+Usage: python bench/generate.py [--count N] [--force]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+import shapely
+from osgeo import gdal, ogr, osr
+
+ROOT = Path(__file__).resolve().parent.parent
+BENCH_DIR = ROOT / "build" / "bench"
+EPSG = 32733
+ORIGIN_X, ORIGIN_Y = 500_000.0, 6_000_000.0
+SPACING = 100.0  # metres between the centres of neighbouring star polygons
+DEM_CELL = 25.0
+SEED = 7_2024
+DEFAULT_COUNT = 50_000
+ISLAND_VERTICES = 20  # per island of the large polygons
+
+gdal.UseExceptions()
+ogr.UseExceptions()
+
+Rings = list[np.ndarray]
+
+
+def spatial_reference() -> osr.SpatialReference:
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(EPSG)
+    srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    return srs
+
+
+def star_ring(
+    rng: np.random.Generator,
+    centre: tuple[float, float],
+    count: int,
+    outer: float,
+    inner: float,
+    jitter: float,
+    phase: float = 0.0,
+) -> np.ndarray:
+    """A counter-clockwise star-shaped ring: radii alternate between outer and inner tips."""
+    angles = phase + 2.0 * np.pi * np.arange(count) / count
+    radii = np.where(np.arange(count) % 2 == 0, outer, inner)
+    radii = radii * (1.0 + rng.uniform(-jitter, jitter, count))
+    return np.column_stack(
+        [centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles)]
+    )
+
+
+def star_polygons(count: int = DEFAULT_COUNT, seed: int = SEED) -> list[Rings]:
+    """``count`` star polygons with one island each, on a square grid (row-major)."""
+    rng = np.random.default_rng(seed)
+    side = math.ceil(math.sqrt(count))
+    totals = rng.integers(20, 61, count)
+    polygons: list[Rings] = []
+    for index, total in enumerate(totals):
+        row, column = divmod(index, side)
+        centre = (ORIGIN_X + (column + 0.5) * SPACING, ORIGIN_Y + (row + 0.5) * SPACING)
+        island_count = max(3, int(total) // 5)
+        outer = star_ring(
+            rng, centre, int(total) - island_count, 45.0, 26.0, 0.12, rng.uniform(0, np.pi)
+        )
+        # island: clockwise (as OGC wants), well inside the star's inner radius
+        island = star_ring(rng, centre, island_count, 11.0, 7.0, 0.1, rng.uniform(0, np.pi))
+        polygons.append([outer, island[::-1].copy()])
+    return polygons
+
+
+def polygon_with_islands(vertices: int, seed: int = SEED) -> Rings:
+    """One concave polygon of ``vertices`` vertices in all, ``vertices // 100`` islands."""
+    rng = np.random.default_rng(seed + vertices)
+    islands_wanted = vertices // 100
+    island_vertices = islands_wanted * ISLAND_VERTICES
+    # the islands sit on a square grid inside a disc well within the outer ring
+    radius = 1000.0 * math.sqrt(vertices / 10_000)
+    spacing = math.sqrt(math.pi * (0.8 * radius) ** 2 / islands_wanted) * 0.95
+    steps = np.arange(-radius, radius + spacing, spacing)
+    grid_x, grid_y = np.meshgrid(steps, steps)
+    centres = np.column_stack([grid_x.ravel(), grid_y.ravel()])
+    centres = centres[np.hypot(centres[:, 0], centres[:, 1]) < 0.8 * radius]
+    centres = centres[np.argsort(np.hypot(centres[:, 0], centres[:, 1]), kind="stable")]
+    centres = centres[:islands_wanted]
+    if len(centres) < islands_wanted:
+        raise RuntimeError("island grid too small")
+    outer_count = vertices - island_vertices
+    angles = 2.0 * np.pi * np.arange(outer_count) / outer_count
+    # concave: a coastline of bays (a slow wave) and small teeth (alternating radii)
+    radii = radius * (
+        1.0
+        + 0.06 * np.sin(37.0 * angles)
+        + np.where(np.arange(outer_count) % 2 == 0, 0.01, -0.01)
+        + rng.uniform(-0.005, 0.005, outer_count)
+    )
+    outer = np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
+    rings = [outer + (ORIGIN_X, ORIGIN_Y)]
+    for cx, cy in centres:
+        island = star_ring(
+            rng, (cx, cy), ISLAND_VERTICES, 0.3 * spacing, 0.18 * spacing, 0.1, rng.uniform(0, 1)
+        )
+        rings.append(island[::-1] + (ORIGIN_X, ORIGIN_Y))
+    return rings
+
+
+def to_shapely(rings: Rings) -> shapely.Polygon:
+    return shapely.Polygon(rings[0], rings[1:])
+
+
+def write_gpkg(path: Path, polygons: list[Rings], layer_name: str) -> None:
+    """Write 2D polygons (with an ``id`` field) to a GeoPackage layer, in one transaction."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_suffix(".partial.gpkg")
+    if partial.exists():
+        partial.unlink()
+    dataset = ogr.GetDriverByName("GPKG").CreateDataSource(str(partial))
+    layer = dataset.CreateLayer(layer_name, spatial_reference(), ogr.wkbPolygon)
+    layer.CreateField(ogr.FieldDefn("id", ogr.OFTInteger))
+    definition = layer.GetLayerDefn()
+    wkbs = shapely.to_wkb([to_shapely(rings) for rings in polygons], flavor="iso")
+    layer.StartTransaction()
+    for index, wkb in enumerate(wkbs):
+        feature = ogr.Feature(definition)
+        feature.SetField("id", index)
+        feature.SetGeometry(ogr.CreateGeometryFromWkb(wkb))
+        layer.CreateFeature(feature)
+    layer.CommitTransaction()
+    dataset = None
+    partial.rename(path)
+
+
+def dem_height(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Rolling terrain for the benchmark DEM (metres)."""
+    return (
+        300.0
+        + 120.0 * np.sin(x / 1700.0) * np.cos(y / 2300.0)
+        + 40.0 * np.sin((x + y) / 450.0)
+        + 8.0 * np.cos(x / 90.0) * np.sin(y / 110.0)
+    )
+
+
+def write_dem(path: Path, xmin: float, ymin: float, xmax: float, ymax: float) -> None:
+    """A float32 GeoTIFF with ``DEM_CELL`` cells covering the box with one cell of margin."""
+    columns = math.ceil((xmax - xmin) / DEM_CELL) + 2
+    rows = math.ceil((ymax - ymin) / DEM_CELL) + 2
+    left, top = xmin - DEM_CELL, ymin - DEM_CELL + rows * DEM_CELL
+    xs = left + (np.arange(columns) + 0.5) * DEM_CELL
+    ys = top - (np.arange(rows) + 0.5) * DEM_CELL
+    grid_x, grid_y = np.meshgrid(xs, ys)
+    partial = path.with_suffix(".partial.tif")
+    dataset = gdal.GetDriverByName("GTiff").Create(
+        str(partial), columns, rows, 1, gdal.GDT_Float32, ["COMPRESS=DEFLATE", "TILED=YES"]
+    )
+    dataset.SetGeoTransform((left, DEM_CELL, 0.0, top, 0.0, -DEM_CELL))
+    dataset.SetProjection(spatial_reference().ExportToWkt())
+    dataset.GetRasterBand(1).WriteArray(dem_height(grid_x, grid_y).astype(np.float32))
+    dataset = None
+    partial.rename(path)
+
+
+def stars_paths(count: int) -> tuple[Path, Path]:
+    return BENCH_DIR / f"stars_{count}.gpkg", BENCH_DIR / f"stars_{count}_dem.tif"
+
+
+def islands_path(vertices: int) -> Path:
+    return BENCH_DIR / f"islands_{vertices}.gpkg"
+
+
+def ensure_stars(count: int = DEFAULT_COUNT, force: bool = False) -> tuple[Path, Path]:
+    """The star polygons' GeoPackage and DEM, generated unless already cached."""
+    gpkg, dem = stars_paths(count)
+    if force or not gpkg.exists():
+        write_gpkg(gpkg, star_polygons(count), "stars")
+    if force or not dem.exists():
+        side = math.ceil(math.sqrt(count))
+        rows = math.ceil(count / side)
+        write_dem(
+            dem, ORIGIN_X, ORIGIN_Y, ORIGIN_X + side * SPACING, ORIGIN_Y + rows * SPACING
+        )
+    return gpkg, dem
+
+
+def ensure_islands(vertices: int, force: bool = False) -> Path:
+    """The large polygon's GeoPackage, generated unless already cached."""
+    path = islands_path(vertices)
+    if force or not path.exists():
+        write_gpkg(path, [polygon_with_islands(vertices)], "islands")
+    return path
+
+
+def read_rings(path: Path) -> list[Rings]:
+    """Every polygon of the GeoPackage's first layer as a list of (n, 2) float64 rings.
+
+    Rings keep the GeoPackage's orientation; the closing point is dropped.
+    """
+    dataset = ogr.Open(str(path))
+    layer = dataset.GetLayer(0)
+    wkbs = [bytes(feature.GetGeometryRef().ExportToIsoWkb()) for feature in layer]
+    polygons: list[Rings] = []
+    for geometry in shapely.from_wkb(wkbs):
+        parts = shapely.get_parts(geometry)
+        for part in parts:
+            rings = [part.exterior, *part.interiors]
+            polygons.append([shapely.get_coordinates(ring)[:-1] for ring in rings])
+    return polygons
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--count", type=int, default=DEFAULT_COUNT)
+    parser.add_argument("--force", action="store_true", help="regenerate even when cached")
+    arguments = parser.parse_args()
+    for path in ensure_stars(arguments.count, arguments.force):
+        print(path)
+    for vertices in (10_000, 100_000):
+        print(ensure_islands(vertices, arguments.force))
+
+
+if __name__ == "__main__":
+    main()
