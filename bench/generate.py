@@ -55,9 +55,7 @@ def star_ring(
     angles = phase + 2.0 * np.pi * np.arange(count) / count
     radii = np.where(np.arange(count) % 2 == 0, outer, inner)
     radii = radii * (1.0 + rng.uniform(-jitter, jitter, count))
-    return np.column_stack(
-        [centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles)]
-    )
+    return np.column_stack([centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles)])
 
 
 def star_polygons(count: int = DEFAULT_COUNT, seed: int = SEED) -> list[Rings]:
@@ -105,12 +103,13 @@ def polygon_with_islands(vertices: int, seed: int = SEED) -> Rings:
         + rng.uniform(-0.005, 0.005, outer_count)
     )
     outer = np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
-    rings = [outer + (ORIGIN_X, ORIGIN_Y)]
+    origin = np.array([ORIGIN_X, ORIGIN_Y])
+    rings = [outer + origin]
     for cx, cy in centres:
         island = star_ring(
             rng, (cx, cy), ISLAND_VERTICES, 0.3 * spacing, 0.18 * spacing, 0.1, rng.uniform(0, 1)
         )
-        rings.append(island[::-1] + (ORIGIN_X, ORIGIN_Y))
+        rings.append(island[::-1] + origin)
     return rings
 
 
@@ -185,9 +184,7 @@ def ensure_stars(count: int = DEFAULT_COUNT, force: bool = False) -> tuple[Path,
     if force or not dem.exists():
         side = math.ceil(math.sqrt(count))
         rows = math.ceil(count / side)
-        write_dem(
-            dem, ORIGIN_X, ORIGIN_Y, ORIGIN_X + side * SPACING, ORIGIN_Y + rows * SPACING
-        )
+        write_dem(dem, ORIGIN_X, ORIGIN_Y, ORIGIN_X + side * SPACING, ORIGIN_Y + rows * SPACING)
     return gpkg, dem
 
 
