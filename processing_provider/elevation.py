@@ -1,0 +1,309 @@
+"""Elevation sources: give every ring vertex of a batch of features its z, in bulk."""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import numpy as np
+from qgis.core import (
+    NULL,
+    Qgis,
+    QgsCoordinateTransform,
+    QgsCsException,
+    QgsExpression,
+    QgsExpressionContext,
+    QgsGeometry,
+    QgsPointXY,
+    QgsRasterDataProvider,
+    QgsRectangle,
+)
+
+from ..bsp_triangulate.raster_sampling import fill_along_ring, sample_grid
+from .geometry_io import FeatureRings
+
+ELEVATION_NONE = 0
+ELEVATION_GEOMETRY = 1
+ELEVATION_EXPRESSION = 2
+ELEVATION_DEM = 3
+
+INTERPOLATION_METHODS = ("bilinear", "nearest")
+
+NODATA_FILL = 0
+NODATA_FAIL = 1
+
+_RASTER_DTYPES = {
+    Qgis.Byte: np.uint8,
+    Qgis.UInt16: np.uint16,
+    Qgis.Int16: np.int16,
+    Qgis.UInt32: np.uint32,
+    Qgis.Int32: np.int32,
+    Qgis.Float32: np.float32,
+    Qgis.Float64: np.float64,
+}
+
+# One multipoint WKB point: byte order, type 1 (Point), x, y.
+_WKB_POINT = np.dtype([("order", "u1"), ("type", "<u4"), ("x", "<f8"), ("y", "<f8")])
+_WKB_MULTIPOINT_HEADER = 9
+
+
+def _rings(batch: list[FeatureRings]):
+    """(item, ring) for every ring of every usable feature of the batch."""
+    for item in batch:
+        if item.ok:
+            for part in item.parts:
+                for ring in part:
+                    yield item, ring
+
+
+class ElevationSource:
+    """Sets z of the rings of a batch in place; marks features it cannot serve with an error."""
+
+    def __init__(self) -> None:
+        self.warnings: list[str] = []
+
+    def apply(self, batch: list[FeatureRings]) -> None:
+        raise NotImplementedError
+
+
+class FlatElevation(ElevationSource):
+    """z = 0 everywhere."""
+
+    def apply(self, batch: list[FeatureRings]) -> None:
+        for _item, ring in _rings(batch):
+            ring[:, 2] = 0.0
+
+
+class GeometryElevation(ElevationSource):
+    """The geometry's own z; missing z (repairs, densified points) filled along the ring."""
+
+    def apply(self, batch: list[FeatureRings]) -> None:
+        for item, ring in _rings(batch):
+            if not item.has_z:
+                if not self.warnings:
+                    self.warnings.append("the input has no Z values: z = 0 is used")
+                ring[:, 2] = 0.0
+                continue
+            z = ring[:, 2]
+            missing = ~np.isfinite(z)
+            if missing.all():
+                item.error = "no vertex of a ring has a Z value"
+            elif missing.any():
+                ring[:, 2] = fill_along_ring(np.where(missing, np.nan, z), ring[:, :2])
+
+
+class ExpressionElevation(ElevationSource):
+    """One z per feature from an expression evaluated on the feature."""
+
+    def __init__(self, expression: QgsExpression, context: QgsExpressionContext) -> None:
+        super().__init__()
+        self.expression = expression
+        self.context = context
+        self.expression.prepare(self.context)
+
+    def value(self, item: FeatureRings) -> float | str:
+        """The expression's number for a feature, or the reason there is none."""
+        self.context.setFeature(item.feature)
+        value = self.expression.evaluate(self.context)
+        if self.expression.hasEvalError():
+            return f"Z expression error: {self.expression.evalErrorString()}"
+        if value is None or value == NULL:
+            return "Z expression returned NULL"
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            return f"Z expression returned {value!r}, not a number"
+        if not np.isfinite(number):
+            return f"Z expression returned {number}"
+        return number
+
+    def apply(self, batch: list[FeatureRings]) -> None:
+        for item in batch:
+            if not item.ok:
+                continue
+            value = self.value(item)
+            if isinstance(value, str):
+                item.error = value
+                continue
+            for part in item.parts:
+                for ring in part:
+                    ring[:, 2] = value
+
+
+def transform_xy(xy: np.ndarray, transform: QgsCoordinateTransform) -> np.ndarray:
+    """Transform (n, 2) coordinates in one call via a multipoint geometry; NaN where it fails."""
+    points = np.zeros(len(xy), dtype=_WKB_POINT)
+    points["order"] = 1
+    points["type"] = 1
+    points["x"] = xy[:, 0]
+    points["y"] = xy[:, 1]
+    header = np.array([1], "u1").tobytes() + np.array([4, len(xy)], "<u4").tobytes()
+    geometry = QgsGeometry()
+    geometry.fromWkb(header + points.tobytes())
+    try:
+        geometry.transform(transform)
+    except QgsCsException:
+        return _transform_each(xy, transform)
+    out = np.frombuffer(bytes(geometry.asWkb())[_WKB_MULTIPOINT_HEADER:], dtype=_WKB_POINT)
+    if len(out) != len(xy):
+        return _transform_each(xy, transform)
+    return np.column_stack([out["x"], out["y"]])
+
+
+def _transform_each(xy: np.ndarray, transform: QgsCoordinateTransform) -> np.ndarray:
+    """Point by point fallback after a bulk failure, so one bad point only loses itself."""
+    out = np.full_like(xy, np.nan)
+    for i, (x, y) in enumerate(xy):
+        try:
+            point = transform.transform(QgsPointXY(float(x), float(y)))
+        except QgsCsException:
+            continue
+        out[i] = (point.x(), point.y())
+    return out
+
+
+class DemSampler:
+    """Samples one band of a raster at arrays of points, reading it in cached tiles."""
+
+    TILE = 1024
+    MARGIN = 2
+    CACHE = 8
+
+    def __init__(
+        self,
+        provider: QgsRasterDataProvider,
+        band: int,
+        method: str = "bilinear",
+        transform: QgsCoordinateTransform | None = None,
+    ) -> None:
+        self.provider = provider
+        self.band = band
+        self.method = method
+        self.transform = transform
+        extent = provider.extent()
+        self.cols, self.rows = provider.xSize(), provider.ySize()
+        if self.cols <= 0 or self.rows <= 0:
+            raise ValueError("the DEM has no fixed cell size")
+        self.xmin, self.ymax = extent.xMinimum(), extent.yMaximum()
+        self.xres = extent.width() / self.cols
+        self.yres = extent.height() / self.rows
+        self.tiles_x = -(-self.cols // self.TILE)
+        self._cache: OrderedDict[int, tuple] = OrderedDict()
+
+    def sample(self, xy: np.ndarray) -> np.ndarray:
+        """Values at (n, 2) points in the layer's CRS; NaN outside the DEM and on nodata."""
+        if self.transform is not None and len(xy):
+            xy = transform_xy(xy, self.transform)
+        values = np.full(len(xy), np.nan)
+        with np.errstate(invalid="ignore"):
+            col = np.floor((xy[:, 0] - self.xmin) / self.xres)
+            row = np.floor((self.ymax - xy[:, 1]) / self.yres)
+        inside = np.isfinite(col) & np.isfinite(row)
+        inside &= (col >= 0) & (col < self.cols) & (row >= 0) & (row < self.rows)
+        index = np.flatnonzero(inside)
+        if not len(index):
+            return values
+        keys = (row[index] // self.TILE).astype(np.int64) * self.tiles_x + (
+            col[index] // self.TILE
+        ).astype(np.int64)
+        order = np.argsort(keys, kind="stable")
+        keys, index = keys[order], index[order]
+        starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+        for start, stop in zip(starts, np.r_[starts[1:], len(keys)]):
+            chosen = index[start:stop]
+            array, geotransform, nodata = self._tile(int(keys[start]))
+            values[chosen] = sample_grid(
+                array, geotransform, xy[chosen, 0], xy[chosen, 1], self.method, nodata
+            )
+        return values
+
+    def _tile(self, key: int) -> tuple:
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        tile_row, tile_col = divmod(key, self.tiles_x)
+        r0 = max(tile_row * self.TILE - self.MARGIN, 0)
+        r1 = min((tile_row + 1) * self.TILE + self.MARGIN, self.rows)
+        c0 = max(tile_col * self.TILE - self.MARGIN, 0)
+        c1 = min((tile_col + 1) * self.TILE + self.MARGIN, self.cols)
+        tile = self._read(r0, r1, c0, c1)
+        self._cache[key] = tile
+        if len(self._cache) > self.CACHE:
+            self._cache.popitem(last=False)
+        return tile
+
+    def _read(self, r0: int, r1: int, c0: int, c1: int) -> tuple:
+        """Rows r0:r1, columns c0:c1 of the band as (array, GDAL geotransform, nodata)."""
+        left, top = self.xmin + c0 * self.xres, self.ymax - r0 * self.yres
+        rect = QgsRectangle(left, self.ymax - r1 * self.yres, self.xmin + c1 * self.xres, top)
+        block = self.provider.block(self.band, rect, c1 - c0, r1 - r0)
+        if block is None or not block.isValid():
+            raise ValueError(f"cannot read band {self.band} of the DEM")
+        dtype = _RASTER_DTYPES.get(block.dataType())
+        if dtype is None:
+            raise ValueError(f"unsupported DEM data type {block.dataType()}")
+        array = np.frombuffer(bytes(block.data()), dtype=dtype).reshape(r1 - r0, c1 - c0)
+        nodata = block.noDataValue() if block.hasNoDataValue() else None
+        user_ranges = self.provider.userNoDataValues(self.band)
+        if user_ranges:
+            array, nodata = _mask_ranges(array, user_ranges, nodata)
+        geotransform = (left, self.xres, 0.0, top, 0.0, -self.yres)
+        return array, geotransform, nodata
+
+
+def _mask_ranges(array: np.ndarray, ranges, nodata: float | None) -> tuple[np.ndarray, float]:
+    """Set cells inside the user's nodata ranges (bounds included) to a nodata value."""
+    if nodata is None:
+        nodata = -np.finfo(np.float64).max
+    array = array.astype(np.float64)
+    masked = np.zeros(array.shape, dtype=bool)
+    for value_range in ranges:
+        low, high = value_range.min(), value_range.max()
+        inside = np.ones(array.shape, dtype=bool)
+        if np.isfinite(low):
+            inside &= array >= low
+        if np.isfinite(high):
+            inside &= array <= high
+        masked |= inside
+    array[masked] = nodata
+    return array, nodata
+
+
+class DemElevation(ElevationSource):
+    """z sampled from a DEM band at every vertex; nodata and outside cells filled or failed."""
+
+    def __init__(self, sampler: DemSampler, nodata_policy: int = NODATA_FILL) -> None:
+        super().__init__()
+        self.sampler = sampler
+        self.nodata_policy = nodata_policy
+
+    def apply(self, batch: list[FeatureRings]) -> None:
+        rings = list(_rings(batch))
+        if not rings:
+            return
+        xy = np.concatenate([ring[:, :2] for _item, ring in rings])
+        values = self.sampler.sample(xy)
+        offsets = np.cumsum([0] + [len(ring) for _item, ring in rings])
+        for (item, ring), start, stop in zip(rings, offsets[:-1], offsets[1:]):
+            if item.error is not None:
+                continue
+            z = values[start:stop]
+            missing = np.isnan(z)
+            if not missing.any():
+                ring[:, 2] = z
+            elif missing.all():
+                item.error = "no vertex of a ring lies on a valid DEM cell"
+            elif self.nodata_policy == NODATA_FAIL:
+                item.error = (
+                    f"{int(missing.sum())} of {len(z)} vertices of a ring fall on DEM nodata "
+                    "or outside the DEM"
+                )
+            else:
+                ring[:, 2] = fill_along_ring(z, ring[:, :2])
+
+
+def scale_z(batch: list[FeatureRings], scale: float, offset: float) -> None:
+    """z = z * scale + offset on every ring of the usable features."""
+    if scale == 1.0 and offset == 0.0:
+        return
+    for _item, ring in _rings(batch):
+        ring[:, 2] = ring[:, 2] * scale + offset

@@ -1,0 +1,127 @@
+"""Input features to numpy rings: WKB in bulk, curves segmentized, the invalid-polygon policy."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+from qgis.core import QgsFeature, QgsFeedback, QgsGeometry, QgsWkbTypes
+
+from ..bsp_triangulate.wkb import polygons_from_wkb
+
+INVALID_REPAIR = 0
+INVALID_FAIL = 1
+INVALID_AS_GIVEN = 2
+
+Ring = np.ndarray
+Polygon = list  # list of rings, outer ring first
+
+
+@dataclass
+class FeatureRings:
+    """One input feature as polygons of (n, 3) float64 rings, or the reason it is not usable."""
+
+    feature: QgsFeature
+    parts: list[Polygon] = field(default_factory=list)
+    error: str | None = None
+    repaired: bool = False
+    has_z: bool = False
+
+    @property
+    def fid(self) -> int:
+        return self.feature.id()
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None and bool(self.parts)
+
+    @property
+    def is_empty(self) -> bool:
+        return self.error is None and not self.parts
+
+    def vertex_count(self) -> int:
+        return sum(len(ring) for part in self.parts for ring in part)
+
+
+def _as_xyz(ring) -> np.ndarray:
+    """A ring as an (n, 3) float64 array; z is 0 where the input has none."""
+    array = np.asarray(ring, dtype=np.float64)
+    if array.ndim != 2 or len(array) == 0:
+        return np.zeros((0, 3))
+    if array.shape[1] == 3:
+        return np.ascontiguousarray(array)
+    out = np.zeros((len(array), 3))
+    width = min(array.shape[1], 3)
+    out[:, :width] = array[:, :width]
+    return out
+
+
+def _polygon_parts(geometry: QgsGeometry) -> list[Polygon]:
+    """Every polygon in ``geometry`` (collections filtered to their polygons) as lists of rings."""
+    flat = QgsWkbTypes.flatType(geometry.wkbType())
+    if flat == QgsWkbTypes.GeometryCollection:
+        parts: list[Polygon] = []
+        for member in geometry.asGeometryCollection():
+            if member.type() == QgsWkbTypes.PolygonGeometry:
+                parts.extend(_polygon_parts(member))
+        return parts
+    if geometry.type() != QgsWkbTypes.PolygonGeometry:
+        return []
+    polygons, _has_z = polygons_from_wkb(bytes(geometry.asWkb()))
+    return [[_as_xyz(ring) for ring in polygon] for polygon in polygons if len(polygon)]
+
+
+def read_feature(feature: QgsFeature, invalid_policy: int) -> FeatureRings:
+    """Convert one feature: segmentize curves, apply the invalid-polygon policy, read WKB."""
+    item = FeatureRings(feature)
+    geometry = feature.geometry()
+    if geometry is None or geometry.isNull() or geometry.isEmpty():
+        return item
+    item.has_z = QgsWkbTypes.hasZ(geometry.wkbType())
+    if QgsWkbTypes.isCurvedType(geometry.wkbType()):
+        geometry = QgsGeometry(geometry.constGet().segmentize())
+    if invalid_policy != INVALID_AS_GIVEN and not geometry.isGeosValid():
+        if invalid_policy == INVALID_FAIL:
+            item.error = f"invalid polygon ({_validity_message(geometry)})"
+            return item
+        repaired = geometry.makeValid()
+        if repaired.isNull():
+            reason = repaired.lastError() or _validity_message(geometry)
+            item.error = f"invalid polygon that could not be repaired ({reason})"
+            return item
+        geometry = repaired
+        item.repaired = True
+    try:
+        item.parts = _polygon_parts(geometry)
+    except (ValueError, IndexError) as error:
+        item.error = f"unreadable geometry: {error}"
+    return item
+
+
+def _validity_message(geometry: QgsGeometry) -> str:
+    errors = geometry.validateGeometry(QgsGeometry.ValidatorGeos)
+    return "; ".join(error.what() for error in errors[:3]) or "not valid"
+
+
+def feature_batches(
+    features: Iterable[QgsFeature],
+    invalid_policy: int,
+    max_features: int = 2000,
+    max_vertices: int = 200_000,
+    feedback: QgsFeedback | None = None,
+) -> Iterator[list[FeatureRings]]:
+    """Group converted features in batches bounded by feature and vertex counts (streaming)."""
+    batch: list[FeatureRings] = []
+    vertices = 0
+    for feature in features:
+        if feedback is not None and feedback.isCanceled():
+            break
+        item = read_feature(feature, invalid_policy)
+        batch.append(item)
+        vertices += item.vertex_count()
+        if len(batch) >= max_features or vertices >= max_vertices:
+            yield batch
+            batch, vertices = [], 0
+    if batch:
+        yield batch
