@@ -1,19 +1,64 @@
-# Set-up and checks of BSP Triangulate. `make test` and `make demo` install what is missing.
+# Set-up and checks of BSP Triangulate. `make demo` and `make test` install whatever is missing:
+# QGIS from Debian's packages, then a venv on /usr/bin/python3 with the pinned dev packages.
+#
+#   make demo       set up, then run scripts/demo.py
+#   make test       set up, then the whole suite on this machine's QGIS (3.22 on Debian 12)
+#                   and on QGIS 3.40 (Debian 13 chroot, built once and cached), plus ruff
+#   make test-host  the suite on this machine's QGIS only, plus ruff (fast, for development)
+#   make test-340   the suite on QGIS 3.40 in the chroot only
+#   make package    dist/bsptriangulate-<version>.zip for the QGIS plugin manager
+SHELL := /bin/bash
 VENV ?= .venv
 PY := $(VENV)/bin/python
+PYTEST_ARGS ?=
+SUDO := $(shell [ "$$(id -u)" -eq 0 ] || echo sudo)
+# Debian 12's qgis_process wrapper is broken; its qgis_process.bin works. Tests pick the same.
+QGIS_PROCESS := $(shell command -v qgis_process.bin || command -v qgis_process)
+APT_PACKAGES := python3-qgis qgis python3-venv python3-pip
 
-.PHONY: test test-host lint venv
+export QT_QPA_PLATFORM := offscreen
 
-venv: $(VENV)/.done
-$(VENV)/.done: requirements-dev.txt
-	/usr/bin/python3 -m venv --system-site-packages $(VENV)
-	$(PY) -m pip install -q -r requirements-dev.txt
-	touch $@
+.PHONY: demo test test-host test-340 pytest lint qgis venv package bench clean
+
+demo: venv
+	$(PY) scripts/demo.py
+
+test: test-host test-340
+
+test-host: pytest lint
+
+test-340:
+	scripts/chroot_qgis340.sh make VENV=/opt/bsptriangulate-venv pytest PYTEST_ARGS="$(PYTEST_ARGS)"
+
+# pytest's exit code 5 (no test collected) fails here too, as any non-zero code does.
+pytest: venv
+	@$(PY) -c 'import qgis.core, sys; print("QGIS", qgis.core.Qgis.version(), "Python", sys.version.split()[0])'
+	$(PY) -m pytest -q $(PYTEST_ARGS)
 
 lint: venv
 	$(PY) -m ruff check .
 
-test-host: venv
-	QT_QPA_PLATFORM=offscreen $(PY) -m pytest -q
+qgis:
+	@/usr/bin/python3 -c 'import qgis.core' 2>/dev/null || { \
+		echo "Installing QGIS from Debian's packages"; \
+		$(SUDO) apt-get update -qq && \
+		$(SUDO) env DEBIAN_FRONTEND=noninteractive \
+			apt-get install -y -qq --no-install-recommends $(APT_PACKAGES); }
+	@/usr/bin/python3 -c 'import ensurepip' 2>/dev/null || \
+		$(SUDO) env DEBIAN_FRONTEND=noninteractive \
+			apt-get install -y -qq --no-install-recommends python3-venv python3-pip
 
-test: test-host lint
+venv: $(VENV)/.done
+$(VENV)/.done: requirements-dev.txt | qgis
+	/usr/bin/python3 -m venv --system-site-packages $(VENV)
+	$(PY) -m pip install -q -r requirements-dev.txt
+	touch $@
+
+package:
+	/usr/bin/python3 scripts/package.py
+
+bench: venv
+	$(PY) bench/run_all.py
+
+clean:
+	rm -rf dist build .pytest_cache .ruff_cache .hypothesis

@@ -1,16 +1,24 @@
-"""Shared test set-up: offscreen Qt, a throwaway QGIS profile, the plugin as a package."""
+"""Shared test set-up: offscreen Qt, a throwaway QGIS profile, the plugin as a package, and a
+qgis_process runner that loads the plugin from a throwaway plugin folder."""
 
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
+import shutil
+import subprocess
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 SHARED_DATA = ROOT.parent / "shared" / "data"
 PLUGIN_PACKAGE = "bsptriangulate"
+QGIS_PROCESS_TIMEOUT_S = 600
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 os.environ.setdefault("QGIS_CUSTOM_CONFIG_PATH", tempfile.mkdtemp(prefix="bsptri-qgis-profile-"))
@@ -27,3 +35,85 @@ def load_plugin_package():
     sys.modules[PLUGIN_PACKAGE] = module
     spec.loader.exec_module(module)
     return module
+
+
+def qgis_process_binary() -> str | None:
+    """``qgis_process.bin`` where it exists (Debian 12's wrapper script is broken), else
+    ``qgis_process``; None when QGIS has neither."""
+    return shutil.which("qgis_process.bin") or shutil.which("qgis_process")
+
+
+def json_from_output(stdout: str) -> dict:
+    """The JSON document in qgis_process's ``--json`` output (it may print other lines first)."""
+    start = stdout.find("{")
+    if start < 0:
+        raise ValueError(f"no JSON in qgis_process output: {stdout[-2000:]!r}")
+    return json.loads(stdout[start:])
+
+
+@dataclass
+class QgisProcess:
+    """Runs qgis_process with its own profile and a plugin folder that holds ``bsptriangulate``."""
+
+    binary: str
+    profile: Path
+    plugin_dir: Path
+
+    def env(self) -> dict[str, str]:
+        env = dict(os.environ)
+        env.update(
+            QT_QPA_PLATFORM="offscreen",
+            QGIS_CUSTOM_CONFIG_PATH=str(self.profile),
+            QGIS_PLUGINPATH=str(self.plugin_dir),
+        )
+        return env
+
+    def run(self, *args: str, check: bool = True) -> subprocess.CompletedProcess:
+        """Run ``qgis_process ARGS``; on failure show its output in the assertion."""
+        proc = subprocess.run(
+            [self.binary, *args],
+            env=self.env(),
+            capture_output=True,
+            text=True,
+            timeout=QGIS_PROCESS_TIMEOUT_S,
+            stdin=subprocess.DEVNULL,
+        )
+        if check:
+            assert proc.returncode == 0, (
+                f"qgis_process {' '.join(args)} exited {proc.returncode}\n"
+                f"stdout:\n{proc.stdout[-4000:]}\nstderr:\n{proc.stderr[-4000:]}"
+            )
+        return proc
+
+    def run_json(self, *args: str) -> dict:
+        """Run ``qgis_process --json ARGS`` and return its parsed JSON answer."""
+        return json_from_output(self.run("--json", *args).stdout)
+
+
+def make_qgis_process(workdir: Path, plugin_source: Path | None) -> QgisProcess:
+    """A qgis_process runner with a profile under ``workdir`` and plugin ``bsptriangulate``
+    enabled: ``plugin_source`` linked into a plugin folder on QGIS_PLUGINPATH, or, when None,
+    as already installed in the profile's own ``python/plugins`` (as the plugin manager does)."""
+    binary = qgis_process_binary()
+    if binary is None:
+        pytest.fail("neither qgis_process.bin nor qgis_process is on PATH (is QGIS installed?)")
+    profile = workdir / "profile"
+    plugin_dir = workdir / "plugins"
+    profile.mkdir(parents=True, exist_ok=True)
+    plugin_dir.mkdir(parents=True)
+    if plugin_source is not None:
+        (plugin_dir / PLUGIN_PACKAGE).symlink_to(plugin_source.resolve(), target_is_directory=True)
+    runner = QgisProcess(binary, profile, plugin_dir)
+    runner.run("plugins", "enable", PLUGIN_PACKAGE)
+    return runner
+
+
+def profile_plugins_dir(profile: Path) -> Path:
+    """Where the plugin manager installs plugins in the default profile under ``profile``."""
+    return profile / "profiles" / "default" / "python" / "plugins"
+
+
+@pytest.fixture(scope="session")
+def qgis_process(tmp_path_factory: pytest.TempPathFactory) -> QgisProcess:
+    """qgis_process with this work tree enabled as plugin ``bsptriangulate``."""
+    return make_qgis_process(tmp_path_factory.mktemp("qgis-process"), ROOT)
