@@ -78,13 +78,13 @@ exec unshare --mount --propagation private bash -euo pipefail -c '
         mount --bind "$SHARED" "$ROOTFS$PARENT/shared"
     fi
     if [ $# -eq 0 ]; then set -- bash; fi
-    exec chroot "$ROOTFS" /usr/bin/env -i \
-        PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin \
-        HOME=/root LANG=C.UTF-8 TERM="${TERM:-dumb}" CI="${CI:-}" \
-        QT_QPA_PLATFORM=offscreen \
-        PIP_INDEX_URL="${PIP_INDEX_URL:-https://pypi.org/simple}" \
-        PIP_EXTRA_INDEX_URL="${PIP_EXTRA_INDEX_URL:-}" \
-        PIP_DISABLE_PIP_VERSION_CHECK=1 \
-        http_proxy="${http_proxy:-}" https_proxy="${https_proxy:-}" \
+    # A clean environment, plus the host'"'"'s package index and proxy settings where set.
+    env_vars=(PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin HOME=/root
+        LANG=C.UTF-8 TERM="${TERM:-dumb}" QT_QPA_PLATFORM=offscreen PIP_DISABLE_PIP_VERSION_CHECK=1)
+    for name in CI PIP_INDEX_URL PIP_EXTRA_INDEX_URL PIP_TRUSTED_HOST PIP_DEFAULT_TIMEOUT \
+        http_proxy https_proxy no_proxy HTTP_PROXY HTTPS_PROXY NO_PROXY PYTEST_ADDOPTS; do
+        if [ -n "${!name:-}" ]; then env_vars+=("$name=${!name}"); fi
+    done
+    exec chroot "$ROOTFS" /usr/bin/env -i "${env_vars[@]}" \
         bash -c "cd \"\$0\" && exec \"\$@\"" "$REPO" "$@"
 ' bash "$@"
