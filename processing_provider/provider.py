@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import traceback
 from pathlib import Path
 
-from qgis.core import QgsProcessingProvider
+from qgis.core import Qgis, QgsMessageLog, QgsProcessingProvider
 from qgis.PyQt.QtGui import QIcon
 
 ICONS = Path(__file__).resolve().parent.parent / "icons"
@@ -20,12 +21,22 @@ class BspTriangulateProvider(QgsProcessingProvider):
         return self.tr("BSP Triangulate")
 
     def longName(self) -> str:  # noqa: N802 - QGIS API name
-        return self.name()
+        return self.tr("BSP Triangulate: recursive BSP-tree polygon triangulation")
 
     def icon(self) -> QIcon:
-        return QIcon(str(ICONS / "provider.svg"))
+        return QIcon(self.svgIconPath())
+
+    def svgIconPath(self) -> str:  # noqa: N802 - QGIS API name
+        return str(ICONS / "provider.svg")
 
     def loadAlgorithms(self) -> None:  # noqa: N802 - QGIS API name
-        from .triangulate_algorithm import TriangulateAlgorithm
+        # Called from C++: an exception escaping here would abort the whole application,
+        # so a broken algorithm module is logged and leaves the provider empty instead.
+        try:
+            from .triangulate_algorithm import TriangulateAlgorithm
 
-        self.addAlgorithm(TriangulateAlgorithm())
+            self.addAlgorithm(TriangulateAlgorithm())
+        except Exception:
+            QgsMessageLog.logMessage(
+                traceback.format_exc(), self.name(), Qgis.MessageLevel.Critical
+            )
