@@ -1,0 +1,569 @@
+"""Processing algorithm ``bsptriangulate:triangulate``: polygons to a 3D triangle mesh."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from qgis.core import (
+    QgsCoordinateTransform,
+    QgsExpression,
+    QgsFeatureRequest,
+    QgsProcessing,
+    QgsProcessingAlgorithm,
+    QgsProcessingContext,
+    QgsProcessingException,
+    QgsProcessingFeatureSource,
+    QgsProcessingFeedback,
+    QgsProcessingOutputNumber,
+    QgsProcessingParameterBand,
+    QgsProcessingParameterDefinition,
+    QgsProcessingParameterDistance,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterExpression,
+    QgsProcessingParameterFeatureSink,
+    QgsProcessingParameterFeatureSource,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterLayer,
+    QgsRasterLayer,
+    QgsWkbTypes,
+)
+from qgis.PyQt.QtCore import QCoreApplication
+from qgis.PyQt.QtGui import QIcon
+
+from ..bsp_triangulate import TriangulationError, triangulate_many
+from ..bsp_triangulate.densify import densify_ring
+from . import elevation
+from .geometry_io import FeatureRings, feature_batches
+from .outputs import (
+    MESH_EXTENSIONS,
+    BatchMesh,
+    MeshAccumulator,
+    TriangleStylePostProcessor,
+    add_features,
+    load_mesh_on_completion,
+    tree_features,
+    tree_fields,
+    triangle_features,
+    triangle_fields,
+)
+
+ICON = Path(__file__).resolve().parent.parent / "icons" / "triangulate.svg"
+APEX_RULES = ("first", "elevation")
+MAX_LISTED_IDS = 200
+
+
+class TriangulateAlgorithm(QgsProcessingAlgorithm):
+    """Triangulates each polygon with Qiang Liu's recursive BSP-tree algorithm."""
+
+    INPUT = "INPUT"
+    ELEVATION_SOURCE = "ELEVATION_SOURCE"
+    Z_EXPRESSION = "Z_EXPRESSION"
+    DEM = "DEM"
+    DEM_BAND = "DEM_BAND"
+    DEM_INTERPOLATION = "DEM_INTERPOLATION"
+    DEM_NODATA = "DEM_NODATA"
+    Z_OFFSET = "Z_OFFSET"
+    Z_SCALE = "Z_SCALE"
+    MAX_SEGMENT_LENGTH = "MAX_SEGMENT_LENGTH"
+    APEX_RULE = "APEX_RULE"
+    PLANAR_TOLERANCE = "PLANAR_TOLERANCE"
+    INVALID_POLYGONS = "INVALID_POLYGONS"
+    OUTPUT_MESH = "OUTPUT_MESH"
+    OUTPUT_TRIANGLES = "OUTPUT_TRIANGLES"
+    OUTPUT_TREE = "OUTPUT_TREE"
+    FEATURE_COUNT = "FEATURE_COUNT"
+    TRIANGLE_COUNT = "TRIANGLE_COUNT"
+    FAILED_COUNT = "FAILED_COUNT"
+    EMPTY_COUNT = "EMPTY_COUNT"
+
+    BATCH_FEATURES = 2000
+    BATCH_VERTICES = 200_000
+
+    def tr(self, text: str) -> str:
+        return QCoreApplication.translate("TriangulateAlgorithm", text)
+
+    def createInstance(self) -> TriangulateAlgorithm:  # noqa: N802 - QGIS API name
+        return TriangulateAlgorithm()
+
+    def name(self) -> str:
+        return "triangulate"
+
+    def displayName(self) -> str:  # noqa: N802 - QGIS API name
+        return self.tr("Triangulate polygons (BSP tree)")
+
+    def group(self) -> str:
+        return self.tr("Triangulation")
+
+    def groupId(self) -> str:  # noqa: N802 - QGIS API name
+        return "triangulation"
+
+    def icon(self) -> QIcon:
+        return QIcon(str(ICON))
+
+    def tags(self) -> list[str]:
+        return self.tr("triangulation,mesh,tin,3d,bsp,polygon,dem,terrain").split(",")
+
+    def shortDescription(self) -> str:  # noqa: N802 - QGIS API name
+        return self.tr("Triangulates polygons with islands into a 3D mesh (recursive BSP tree).")
+
+    def shortHelpString(self) -> str:  # noqa: N802 - QGIS API name
+        return self.tr(
+            "<p>Triangulates every polygon of the input layer with Qiang Liu's recursive "
+            "BSP-tree algorithm: concave polygons, islands (holes), multi-part and 3D polygons. "
+            "Every output vertex is an input vertex (or a point added by densification).</p>"
+            "<h3>Parameters</h3>"
+            "<p><b>Input polygon layer</b>: polygons or multipolygons, with or without Z. Curved "
+            "geometries are segmentized.</p>"
+            "<p><b>Elevation source</b>: where vertex z comes from. <i>None</i>: z = 0. "
+            "<i>Geometry Z</i>: the geometry's own z (0 if the layer has none). "
+            "<i>Expression</i>: one value per feature from the Z expression. <i>DEM</i>: "
+            "sampled from a raster band at every vertex (reprojected when the DEM's CRS "
+            "differs).</p>"
+            "<p><b>Z expression</b>: expression (or field name) evaluated on each feature; its "
+            "number is the z of all vertices of the feature.</p>"
+            "<p><b>DEM</b>, <b>DEM band</b>: the elevation raster and its band (default 1).</p>"
+            "<p><b>DEM interpolation</b>: bilinear between cell centres (default) or the "
+            "nearest cell.</p>"
+            "<p><b>Vertices on DEM nodata</b>: <i>fill</i> interpolates their z from the "
+            "nearest valid vertices along the ring (default); <i>fail</i> rejects the feature. "
+            "Vertices outside the DEM count as nodata.</p>"
+            "<p><b>Z offset</b>, <b>Z scale</b>: final z = z × scale + offset.</p>"
+            "<p><b>Maximum segment length</b>: boundary edges longer than this are split "
+            "before triangulation; the new points become vertices and get their z from the "
+            "elevation source. 0 = off.</p>"
+            "<p><b>Apex rule</b>: <i>first</i> takes the first correct apex in the paper's "
+            "order; <i>elevation</i> takes, among all correct apexes, the one whose z is "
+            "closest to the mean z of the base edge (paper §4.1; suits roads and streams "
+            "over terrain).</p>"
+            "<p><b>Planar tolerance</b>: near-planar polygons (roofs) are snapped onto one "
+            "plane when no vertex moves by more than this (paper §4.2). 0 = off.</p>"
+            "<p><b>Invalid polygons</b>: <i>repair</i> them with make valid, then triangulate "
+            "(default; repaired feature ids are reported); <i>fail</i> the feature; or "
+            "<i>triangulate the rings as given</i>.</p>"
+            "<h3>Outputs</h3>"
+            "<p><b>Mesh</b>: one .2dm (default) or .ply file for the whole layer, vertices "
+            "shared where identical, z per vertex, face values feature_id and depth; loaded "
+            "as a mesh layer in the input's CRS.</p>"
+            "<p><b>Triangles</b>: one PolygonZ feature per triangle with the source feature id "
+            "and attributes (clashing names prefixed with src_), part, order (index in the "
+            "BSP tree's pre-order), parent, depth, side (0 root, 1 left, 2 right), area_2d, "
+            "area_3d, min_angle, slope and aspect (degrees).</p>"
+            "<p><b>BSP tree</b> (optional): a line from each triangle's centroid to each "
+            "child's centroid.</p>"
+            "<p>A feature that cannot be triangulated is reported with its id and reason and "
+            "counted in FAILED_COUNT; null and empty geometries in EMPTY_COUNT. "
+            "FEATURE_COUNT = triangulated + FAILED_COUNT + EMPTY_COUNT.</p>"
+        )
+
+    def initAlgorithm(self, config: dict[str, Any] | None = None) -> None:  # noqa: N802
+        self.addParameter(
+            QgsProcessingParameterFeatureSource(
+                self.INPUT, self.tr("Input polygon layer"), [QgsProcessing.TypeVectorPolygon]
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterEnum(
+                self.ELEVATION_SOURCE,
+                self.tr("Elevation source"),
+                [
+                    self.tr("None (z = 0)"),
+                    self.tr("Geometry Z"),
+                    self.tr("Expression"),
+                    self.tr("DEM"),
+                ],
+                defaultValue=elevation.ELEVATION_GEOMETRY,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterExpression(
+                self.Z_EXPRESSION,
+                self.tr("Z expression"),
+                parentLayerParameterName=self.INPUT,
+                optional=True,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterRasterLayer(self.DEM, self.tr("DEM"), optional=True)
+        )
+        self.addParameter(
+            QgsProcessingParameterBand(
+                self.DEM_BAND,
+                self.tr("DEM band"),
+                defaultValue=1,
+                parentLayerParameterName=self.DEM,
+                optional=True,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterEnum(
+                self.DEM_INTERPOLATION,
+                self.tr("DEM interpolation"),
+                [self.tr("Bilinear"), self.tr("Nearest cell")],
+                defaultValue=0,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterEnum(
+                self.DEM_NODATA,
+                self.tr("Vertices on DEM nodata"),
+                [
+                    self.tr("Fill from the nearest valid vertices along the ring"),
+                    self.tr("Fail the feature"),
+                ],
+                defaultValue=elevation.NODATA_FILL,
+            )
+        )
+        advanced = [
+            QgsProcessingParameterNumber(
+                self.Z_OFFSET,
+                self.tr("Z offset"),
+                QgsProcessingParameterNumber.Double,
+                defaultValue=0.0,
+            ),
+            QgsProcessingParameterNumber(
+                self.Z_SCALE,
+                self.tr("Z scale"),
+                QgsProcessingParameterNumber.Double,
+                defaultValue=1.0,
+            ),
+        ]
+        self.addParameter(
+            QgsProcessingParameterDistance(
+                self.MAX_SEGMENT_LENGTH,
+                self.tr("Maximum segment length (0 = off)"),
+                defaultValue=0.0,
+                parentParameterName=self.INPUT,
+                minValue=0.0,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterEnum(
+                self.APEX_RULE,
+                self.tr("Apex rule"),
+                [self.tr("First correct apex (planar)"), self.tr("Closest elevation")],
+                defaultValue=0,
+            )
+        )
+        advanced += [
+            QgsProcessingParameterNumber(
+                self.PLANAR_TOLERANCE,
+                self.tr("Planar tolerance (0 = off)"),
+                QgsProcessingParameterNumber.Double,
+                defaultValue=0.0,
+                minValue=0.0,
+            ),
+        ]
+        for parameter in advanced:
+            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+            self.addParameter(parameter)
+        self.addParameter(
+            QgsProcessingParameterEnum(
+                self.INVALID_POLYGONS,
+                self.tr("Invalid polygons"),
+                [
+                    self.tr("Repair (make valid), then triangulate"),
+                    self.tr("Fail the feature"),
+                    self.tr("Triangulate the rings as given"),
+                ],
+                defaultValue=0,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterFileDestination(
+                self.OUTPUT_MESH,
+                self.tr("Mesh"),
+                self.tr("2DM mesh (*.2dm);;PLY mesh (*.ply)"),
+                optional=True,
+                createByDefault=True,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterFeatureSink(
+                self.OUTPUT_TRIANGLES, self.tr("Triangles"), QgsProcessing.TypeVectorPolygon
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterFeatureSink(
+                self.OUTPUT_TREE,
+                self.tr("BSP tree"),
+                QgsProcessing.TypeVectorLine,
+                optional=True,
+                createByDefault=False,
+            )
+        )
+        for name, label in (
+            (self.FEATURE_COUNT, self.tr("Features read")),
+            (self.TRIANGLE_COUNT, self.tr("Triangles")),
+            (self.FAILED_COUNT, self.tr("Failed features")),
+            (self.EMPTY_COUNT, self.tr("Empty features")),
+        ):
+            self.addOutput(QgsProcessingOutputNumber(name, label))
+
+    def checkParameterValues(  # noqa: N802 - QGIS API name
+        self, parameters: dict[str, Any], context: QgsProcessingContext
+    ) -> tuple[bool, str]:
+        ok, message = super().checkParameterValues(parameters, context)
+        if not ok:
+            return ok, message
+        source = self.parameterAsEnum(parameters, self.ELEVATION_SOURCE, context)
+        if source == elevation.ELEVATION_EXPRESSION:
+            text = self.parameterAsExpression(parameters, self.Z_EXPRESSION, context)
+            if not text.strip():
+                return False, self.tr("The elevation source is an expression: set Z expression.")
+            expression = QgsExpression(text)
+            if expression.hasParserError():
+                return False, self.tr("Z expression: {}").format(expression.parserErrorString())
+        if source == elevation.ELEVATION_DEM:
+            layer = self.parameterAsRasterLayer(parameters, self.DEM, context)
+            if layer is None:
+                return False, self.tr("The elevation source is a DEM: choose a DEM raster.")
+            band = self._dem_band(parameters, context)
+            if not 1 <= band <= layer.bandCount():
+                return False, self.tr("DEM band {} does not exist: the DEM has {} band(s).").format(
+                    band, layer.bandCount()
+                )
+        path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
+        if path and Path(path).suffix.lower().lstrip(".") not in MESH_EXTENSIONS:
+            return False, self.tr("The mesh file must end with .2dm or .ply: {}").format(path)
+        return True, ""
+
+    def _dem_band(self, parameters: dict[str, Any], context: QgsProcessingContext) -> int:
+        if parameters.get(self.DEM_BAND) is None:
+            return 1
+        return self.parameterAsInt(parameters, self.DEM_BAND, context)
+
+    def prepareAlgorithm(  # noqa: N802 - QGIS API name
+        self,
+        parameters: dict[str, Any],
+        context: QgsProcessingContext,
+        feedback: QgsProcessingFeedback,
+    ) -> bool:
+        # The raster provider is cloned here, on the thread that owns the layer.
+        self._dem_provider = None
+        self._dem_crs = None
+        if self.parameterAsEnum(parameters, self.ELEVATION_SOURCE, context) == (
+            elevation.ELEVATION_DEM
+        ):
+            layer: QgsRasterLayer | None = self.parameterAsRasterLayer(
+                parameters, self.DEM, context
+            )
+            if layer is None or not layer.isValid():
+                raise QgsProcessingException(self.invalidRasterError(parameters, self.DEM))
+            band = self._dem_band(parameters, context)
+            if not 1 <= band <= layer.bandCount():
+                raise QgsProcessingException(
+                    self.tr("DEM band {} does not exist: the DEM has {} band(s).").format(
+                        band, layer.bandCount()
+                    )
+                )
+            self._dem_provider = layer.dataProvider().clone()
+            self._dem_crs = layer.crs()
+        return True
+
+    def _elevation_source(
+        self,
+        parameters: dict[str, Any],
+        context: QgsProcessingContext,
+        source: QgsProcessingFeatureSource,
+    ) -> elevation.ElevationSource:
+        kind = self.parameterAsEnum(parameters, self.ELEVATION_SOURCE, context)
+        if kind == elevation.ELEVATION_GEOMETRY:
+            return elevation.GeometryElevation()
+        if kind == elevation.ELEVATION_EXPRESSION:
+            text = self.parameterAsExpression(parameters, self.Z_EXPRESSION, context)
+            expression = QgsExpression(text)
+            if not text.strip() or expression.hasParserError():
+                raise QgsProcessingException(
+                    self.tr("Z expression: {}").format(
+                        expression.parserErrorString() or self.tr("empty")
+                    )
+                )
+            expression_context = self.createExpressionContext(parameters, context, source)
+            return elevation.ExpressionElevation(expression, expression_context)
+        if kind == elevation.ELEVATION_DEM:
+            if self._dem_provider is None:
+                raise QgsProcessingException(self.invalidRasterError(parameters, self.DEM))
+            transform = None
+            crs = source.sourceCrs()
+            if crs.isValid() and self._dem_crs.isValid() and crs != self._dem_crs:
+                transform = QgsCoordinateTransform(crs, self._dem_crs, context.transformContext())
+            method = elevation.INTERPOLATION_METHODS[
+                self.parameterAsEnum(parameters, self.DEM_INTERPOLATION, context)
+            ]
+            try:
+                sampler = elevation.DemSampler(
+                    self._dem_provider, self._dem_band(parameters, context), method, transform
+                )
+            except ValueError as error:
+                raise QgsProcessingException(self.tr("DEM: {}").format(error)) from error
+            nodata = self.parameterAsEnum(parameters, self.DEM_NODATA, context)
+            return elevation.DemElevation(sampler, nodata)
+        return elevation.FlatElevation()
+
+    def processAlgorithm(  # noqa: N802 - QGIS API name
+        self,
+        parameters: dict[str, Any],
+        context: QgsProcessingContext,
+        feedback: QgsProcessingFeedback,
+    ) -> dict[str, Any]:
+        source = self.parameterAsSource(parameters, self.INPUT, context)
+        if source is None:
+            raise QgsProcessingException(self.invalidSourceError(parameters, self.INPUT))
+        crs = source.sourceCrs()
+        fields = triangle_fields(source.fields())
+        sink, triangles_id = self.parameterAsSink(
+            parameters, self.OUTPUT_TRIANGLES, context, fields, QgsWkbTypes.PolygonZ, crs
+        )
+        if sink is None:
+            raise QgsProcessingException(self.invalidSinkError(parameters, self.OUTPUT_TRIANGLES))
+        lines = tree_fields()
+        tree_sink, tree_id = self.parameterAsSink(
+            parameters, self.OUTPUT_TREE, context, lines, QgsWkbTypes.LineStringZ, crs
+        )
+        mesh_path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
+        if context.willLoadLayerOnCompletion(triangles_id):
+            context.layerToLoadOnCompletionDetails(triangles_id).setPostProcessor(
+                TriangleStylePostProcessor.create()
+            )
+
+        source_of_z = self._elevation_source(parameters, context, source)
+        rule = APEX_RULES[self.parameterAsEnum(parameters, self.APEX_RULE, context)]
+        tolerance = self.parameterAsDouble(parameters, self.PLANAR_TOLERANCE, context)
+        max_length = self.parameterAsDouble(parameters, self.MAX_SEGMENT_LENGTH, context)
+        z_scale = self.parameterAsDouble(parameters, self.Z_SCALE, context)
+        z_offset = self.parameterAsDouble(parameters, self.Z_OFFSET, context)
+        invalid_policy = self.parameterAsEnum(parameters, self.INVALID_POLYGONS, context)
+
+        total = source.featureCount()
+        step = 100.0 / total if total > 0 else 0.0
+        features = source.getFeatures(
+            QgsFeatureRequest(), QgsProcessingFeatureSource.FlagSkipGeometryValidityChecks
+        )
+        mesh = MeshAccumulator() if mesh_path else None
+        read = triangulated = triangles = failed = empty = 0
+        repaired: list[int] = []
+        reported_warnings: set[str] = set()
+        for batch in feature_batches(
+            features, invalid_policy, self.BATCH_FEATURES, self.BATCH_VERTICES, feedback
+        ):
+            if feedback.isCanceled():
+                break
+            read += len(batch)
+            repaired.extend(item.fid for item in batch if item.repaired)
+            if max_length > 0:
+                _densify(batch, max_length)
+            source_of_z.apply(batch)
+            for warning in set(source_of_z.warnings) - reported_warnings:
+                feedback.pushInfo(self.tr("Elevation: {}").format(warning))
+                reported_warnings.add(warning)
+            elevation.scale_z(batch, z_scale, z_offset)
+            results = self._triangulate(batch, rule, tolerance, feedback)
+            for item in batch:
+                if item.error is not None:
+                    failed += 1
+                    feedback.reportError(
+                        self.tr("Feature {}: {}").format(item.fid, item.error), False
+                    )
+            batch_mesh = BatchMesh.build(results)
+            with_triangles = {int(row) for row in set(batch_mesh.item.tolist())}
+            triangulated += len(with_triangles)
+            empty += sum(1 for item in batch if item.error is None) - len(with_triangles)
+            triangles += len(batch_mesh)
+            if feedback.isCanceled():
+                break
+            add_features(sink, triangle_features(batch_mesh, fields))
+            add_features(tree_sink, tree_features(batch_mesh, lines))
+            if mesh is not None:
+                mesh.add(batch_mesh)
+            feedback.setProgress(min(read * step, 99.0))
+
+        if repaired:
+            listed = ", ".join(str(fid) for fid in repaired[:MAX_LISTED_IDS])
+            more = len(repaired) - MAX_LISTED_IDS
+            if more > 0:
+                listed += self.tr(" and {} more").format(more)
+            feedback.pushWarning(
+                self.tr("Repaired invalid geometries of {} feature(s): {}").format(
+                    len(repaired), listed
+                )
+            )
+        results: dict[str, Any] = {
+            self.OUTPUT_TRIANGLES: triangles_id,
+            self.FEATURE_COUNT: read,
+            self.TRIANGLE_COUNT: triangles,
+            self.FAILED_COUNT: failed,
+            self.EMPTY_COUNT: empty,
+        }
+        if tree_sink is not None:
+            results[self.OUTPUT_TREE] = tree_id
+        if mesh is not None:
+            vertex_count, face_count, dataset_files = mesh.write(mesh_path, crs)
+            feedback.pushInfo(
+                self.tr("Mesh {}: {} vertices, {} faces").format(
+                    mesh_path, vertex_count, face_count
+                )
+            )
+            results[self.OUTPUT_MESH] = mesh_path
+            loaded = face_count and load_mesh_on_completion(
+                mesh_path, crs, context, self.OUTPUT_MESH, dataset_files
+            )
+            if face_count and not loaded:
+                feedback.pushWarning(self.tr("The mesh file could not be opened as a mesh layer."))
+        feedback.pushInfo(
+            self.tr("{} feature(s): {} triangulated, {} failed, {} empty; {} triangles").format(
+                read, triangulated, failed, empty, triangles
+            )
+        )
+        feedback.setProgress(100)
+        return results
+
+    def _triangulate(
+        self,
+        batch: list[FeatureRings],
+        rule: str,
+        tolerance: float,
+        feedback: QgsProcessingFeedback,
+    ) -> list[tuple[FeatureRings, list]]:
+        """Triangulate all parts of the batch in one engine call; failures go to the feature."""
+        usable = [item for item in batch if item.ok]
+        polygons = [part for item in usable for part in item.parts]
+        try:
+            outcome = triangulate_many(
+                polygons, rule=rule, planar_tolerance=tolerance, on_error="return"
+            )
+        except Exception as error:  # isolate the feature that breaks the batch
+            if len(usable) == 1:
+                usable[0].error = self.tr("cannot be triangulated: {}").format(error)
+                return []
+            return [
+                result
+                for item in usable
+                if not feedback.isCanceled()
+                for result in self._triangulate([item], rule, tolerance, feedback)
+            ]
+        results = []
+        position = 0
+        for item in usable:
+            parts = outcome[position : position + len(item.parts)]
+            position += len(item.parts)
+            errors = [
+                (index, error)
+                for index, error in enumerate(parts)
+                if isinstance(error, (TriangulationError, Exception))
+            ]
+            if errors:
+                index, error = errors[0]
+                where = self.tr(" (part {})").format(index) if len(item.parts) > 1 else ""
+                item.error = self.tr("cannot be triangulated{}: {}").format(where, error)
+                continue
+            results.append((item, parts))
+        return results
+
+
+def _densify(batch: list[FeatureRings], max_length: float) -> None:
+    """Split boundary edges longer than ``max_length`` (XY), in place on the batch."""
+    for item in batch:
+        if item.ok:
+            item.parts = [[densify_ring(ring, max_length) for ring in part] for part in item.parts]
