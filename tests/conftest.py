@@ -117,3 +117,37 @@ def profile_plugins_dir(profile: Path) -> Path:
 def qgis_process(tmp_path_factory: pytest.TempPathFactory) -> QgisProcess:
     """qgis_process with this work tree enabled as plugin ``bsptriangulate``."""
     return make_qgis_process(tmp_path_factory.mktemp("qgis-process"), ROOT)
+
+
+def read_mesh(path: Path) -> tuple[list[tuple[float, float, float]], list[list[int]]]:
+    """Vertices (x, y, z) and faces (vertex indices) of a mesh file, as QGIS's MDAL reads it."""
+    from qgis.core import QgsMesh, QgsMeshLayer
+
+    layer = QgsMeshLayer(str(path), path.name, "mdal")
+    assert layer.isValid(), f"QGIS cannot open {path} as a mesh layer"
+    mesh = QgsMesh()
+    layer.dataProvider().populateMesh(mesh)
+    vertices = [
+        (mesh.vertex(i).x(), mesh.vertex(i).y(), mesh.vertex(i).z())
+        for i in range(mesh.vertexCount())
+    ]
+    return vertices, [list(mesh.face(i)) for i in range(mesh.faceCount())]
+
+
+def write_geojson(path: Path, polygons: list[list[list[tuple[float, ...]]]], epsg: int) -> Path:
+    """A GeoJSON file with one Polygon feature per entry (rings of (x, y[, z]) points)."""
+    features = [
+        {
+            "type": "Feature",
+            "properties": {"fid": i + 1},
+            "geometry": {
+                "type": "Polygon",
+                "coordinates": [[list(point) for point in ring] for ring in rings],
+            },
+        }
+        for i, rings in enumerate(polygons)
+    ]
+    crs = {"type": "name", "properties": {"name": f"urn:ogc:def:crs:EPSG::{epsg}"}}
+    document = {"type": "FeatureCollection", "crs": crs, "features": features}
+    path.write_text(json.dumps(document), encoding="utf-8")
+    return path
