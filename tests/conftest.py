@@ -61,6 +61,8 @@ class QgisProcess:
 
     def env(self) -> dict[str, str]:
         env = dict(os.environ)
+        # pytest-qgis 3+ points this at its own settings folder; keep the profile apart.
+        env.pop("QGIS_OPTIONS_PATH", None)
         env.update(
             QT_QPA_PLATFORM="offscreen",
             QGIS_CUSTOM_CONFIG_PATH=str(self.profile),
