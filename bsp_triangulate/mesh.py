@@ -1,0 +1,228 @@
+"""Merging triangulations into one mesh and writing it as 2DM or PLY (both read by MDAL).
+
+Writers format whole blocks of rows with one C-level ``%`` operation instead of a Python
+loop per row, so a million faces take about a second.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+_CHUNK_ROWS = 100_000
+
+# numpy scalar kinds to PLY scalar type names.
+_PLY_TYPES = {
+    np.dtype("int8"): "char",
+    np.dtype("uint8"): "uchar",
+    np.dtype("int16"): "short",
+    np.dtype("uint16"): "ushort",
+    np.dtype("int32"): "int",
+    np.dtype("uint32"): "uint",
+    np.dtype("float32"): "float",
+    np.dtype("float64"): "double",
+}
+
+
+def merge_meshes(
+    parts: Iterable[tuple[np.ndarray, np.ndarray]],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Concatenate (vertices (N, 3), triangles (M, 3)) parts into one mesh.
+
+    Vertices with identical x, y and z (also across parts) become one vertex, kept in order of
+    first appearance. Returns ``(vertices, faces, part_index)`` where ``part_index[i]`` is the
+    position in ``parts`` of the part that face ``i`` came from.
+    """
+    vertex_blocks, face_blocks, part_blocks = [], [], []
+    offset = 0
+    for index, (vertices, triangles) in enumerate(parts):
+        vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+        triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        if len(triangles) and (triangles.min() < 0 or triangles.max() >= len(vertices)):
+            raise ValueError(f"part {index} has a triangle index outside its vertices")
+        vertex_blocks.append(vertices)
+        face_blocks.append(triangles + offset)
+        part_blocks.append(np.full(len(triangles), index, dtype=np.int64))
+        offset += len(vertices)
+    if not vertex_blocks:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+    all_vertices = np.concatenate(vertex_blocks)
+    faces = np.concatenate(face_blocks)
+    part_index = np.concatenate(part_blocks)
+    if len(all_vertices) == 0:
+        return all_vertices, faces, part_index
+    # +0.0 turns -0.0 into 0.0 so that both compare as the same coordinate bytes.
+    keys = np.ascontiguousarray(all_vertices + 0.0).view(np.dtype((np.void, 24))).ravel()
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    vertices = all_vertices[first[order]]
+    return vertices, rank[inverse.ravel()][faces], part_index
+
+
+def _write_rows(handle, row_format: str, rows: np.ndarray) -> None:
+    """Write ``row_format % row`` for every row, a block of rows per ``%`` operation."""
+    for start in range(0, len(rows), _CHUNK_ROWS):
+        block = rows[start : start + _CHUNK_ROWS]
+        handle.write((row_format * len(block)) % tuple(block.ravel().tolist()))
+
+
+def _check_mesh(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
+        raise ValueError("a face refers to a vertex index outside the vertex array")
+    return vertices, faces
+
+
+def _check_face_values(name: str, values: np.ndarray, face_count: int) -> np.ndarray:
+    values = np.asarray(values).ravel()
+    if len(values) != face_count:
+        raise ValueError(f"face dataset {name!r} has {len(values)} values for {face_count} faces")
+    return values
+
+
+def write_2dm(
+    path: str | os.PathLike,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    face_datasets: Mapping[str, np.ndarray] | None = None,
+) -> list[Path]:
+    """Write a 2DM mesh (``MESH2D``, ``ND id x y z``, ``E3T id n1 n2 n3 1``, 1-based ids).
+
+    Coordinates are written with the shortest repr that reads back as the same double.
+    2DM itself carries no named face values, so ``face_datasets`` go to a companion
+    ``<name>_els.dat`` (ASCII DAT, one scalar group per dataset, on faces), which MDAL reads
+    when it is added to the mesh layer as an extra dataset. Returns the written paths.
+    """
+    vertices, faces = _check_mesh(vertices, faces)
+    for name, values in (face_datasets or {}).items():
+        _check_face_values(name, values, len(faces))
+    path = Path(path)
+    with open(path, "w", encoding="ascii", newline="\n") as handle:
+        handle.write("MESH2D\n")
+        nodes = np.column_stack([np.arange(1, len(vertices) + 1, dtype=np.float64), vertices])
+        _write_rows(handle, "ND %d %r %r %r\n", nodes)
+        elements = np.column_stack([np.arange(1, len(faces) + 1), faces + 1])
+        _write_rows(handle, "E3T %d %d %d %d 1\n", elements)
+    written = [path]
+    if face_datasets:
+        written.append(
+            write_face_dat(
+                path.with_name(path.stem + "_els.dat"), len(vertices), len(faces), face_datasets
+            )
+        )
+    return written
+
+
+def write_face_dat(
+    path: str | os.PathLike,
+    vertex_count: int,
+    face_count: int,
+    face_datasets: Mapping[str, np.ndarray],
+) -> Path:
+    """Write face-centred scalar datasets as an ASCII DAT file for a 2DM mesh.
+
+    MDAL treats a DAT file as face-centred only when its file name contains ``_els``.
+    """
+    path = Path(path)
+    if "_els" not in path.name:
+        raise ValueError("MDAL reads a DAT file as face values only if its name contains _els")
+    if not face_datasets:
+        raise ValueError("no face dataset to write")
+    with open(path, "w", encoding="utf-8", newline="\n") as handle:
+        handle.write("DATASET\nOBJTYPE mesh2d\n")
+        for name, values in face_datasets.items():
+            values = _check_face_values(name, values, face_count).astype(np.float64)
+            if '"' in name:
+                raise ValueError(f"dataset name {name!r} may not contain a double quote")
+            handle.write(f'BEGSCL\nND {vertex_count}\nNC {face_count}\nNAME "{name}"\n')
+            handle.write("TS 0 0\n")
+            _write_rows(handle, "%r\n", values.reshape(-1, 1))
+            handle.write("ENDDS\n")
+    return path
+
+
+def _ply_scalar(name: str, values: np.ndarray) -> np.ndarray:
+    values = np.asarray(values).ravel()
+    if values.dtype == np.bool_:
+        values = values.astype(np.uint8)
+    elif values.dtype.kind in "iu" and values.dtype.itemsize == 8:
+        info = np.iinfo(np.int32)
+        if len(values) and (values.min() < info.min or values.max() > info.max):
+            values = values.astype(np.float64)
+        else:
+            values = values.astype(np.int32)
+    elif values.dtype.kind == "f" and values.dtype not in _PLY_TYPES:
+        values = values.astype(np.float64)
+    if values.dtype.newbyteorder("=") not in _PLY_TYPES:
+        raise ValueError(f"property {name!r} of dtype {values.dtype} has no PLY scalar type")
+    return values.astype(values.dtype.newbyteorder("<"))
+
+
+def write_ply(
+    path: str | os.PathLike,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    face_properties: Mapping[str, np.ndarray] | None = None,
+    binary: bool = True,
+    crs_wkt: str | None = None,
+) -> Path:
+    """Write a triangle mesh as PLY: vertex x y z (double), face vertex_indices, then scalars.
+
+    Face properties (e.g. feature id, depth) follow ``vertex_indices`` and MDAL shows them as
+    face datasets (QGIS 3.22 reads both the binary little-endian default and ``binary=False``
+    ASCII). ``crs_wkt`` goes into a ``comment crs`` header line, which newer MDAL versions use
+    as the mesh CRS; QGIS 3.22 ignores it, so set the layer's CRS as well.
+    """
+    vertices, faces = _check_mesh(vertices, faces)
+    properties = {
+        name: _ply_scalar(name, _check_face_values(name, values, len(faces)))
+        for name, values in (face_properties or {}).items()
+    }
+    for name in properties:
+        if not name.isidentifier():
+            raise ValueError(f"PLY property name {name!r} must be a plain identifier")
+    header = ["ply", f"format {'binary_little_endian' if binary else 'ascii'} 1.0"]
+    if crs_wkt:
+        header.append("comment crs " + " ".join(crs_wkt.split()))
+    header += [
+        f"element vertex {len(vertices)}",
+        "property double x",
+        "property double y",
+        "property double z",
+        f"element face {len(faces)}",
+        "property list uchar int vertex_indices",
+    ]
+    header += [
+        f"property {_PLY_TYPES[v.dtype.newbyteorder('=')]} {n}" for n, v in properties.items()
+    ]
+    header.append("end_header")
+    path = Path(path)
+    with open(path, "wb") as handle:
+        handle.write(("\n".join(header) + "\n").encode("ascii"))
+        if binary:
+            vertices.astype("<f8").tofile(handle)
+            fields = [("count", "u1"), ("indices", "<i4", (3,))]
+            fields += [(f"p{i}", v.dtype) for i, v in enumerate(properties.values())]
+            records = np.empty(len(faces), dtype=np.dtype(fields))
+            records["count"] = 3
+            records["indices"] = faces
+            for i, values in enumerate(properties.values()):
+                records[f"p{i}"] = values
+            records.tofile(handle)
+            return path
+    with open(path, "a", encoding="ascii", newline="\n") as handle:
+        _write_rows(handle, "%r %r %r\n", vertices)
+        # One float64 table: %d prints the integral columns, exact below 2**53.
+        columns = [np.full(len(faces), 3.0), *faces.T]
+        row_format = "%d %d %d %d"
+        for values in properties.values():
+            columns.append(values.astype(np.float64))
+            row_format += " %r" if values.dtype.kind == "f" else " %d"
+        _write_rows(handle, row_format + "\n", np.column_stack(columns))
+    return path

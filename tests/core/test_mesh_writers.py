@@ -1,0 +1,129 @@
+"""Mesh merging and the 2DM / PLY writers, read back with plain numpy."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bsp_triangulate.mesh import merge_meshes, write_2dm, write_face_dat, write_ply
+
+SQUARE = (
+    np.array([[0, 0, 1.5], [10, 0, 2.25], [10, 10, 3.125], [0, 10, 0.1]]),
+    np.array([[0, 1, 2], [0, 2, 3]]),
+)
+# Shares the edge (10, 0, 2.25)-(10, 10, 3.125) with SQUARE; one vertex differs only in z.
+NEIGHBOUR = (
+    np.array([[10, 0, 2.25], [20, 5, 7.0], [10, 10, 3.125], [0, 10, 99.0]]),
+    np.array([[0, 1, 2], [2, 3, 0]]),
+)
+
+
+def _read_ply(path):
+    data = path.read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode("ascii").splitlines()
+    return header, data[end:]
+
+
+def test_merge_shares_vertices_equal_in_xyz_and_keeps_first_appearance_order():
+    vertices, faces, part = merge_meshes([SQUARE, NEIGHBOUR])
+    assert len(vertices) == 6  # 4 + 4 minus the two shared corners
+    np.testing.assert_array_equal(vertices[:4], SQUARE[0])
+    np.testing.assert_array_equal(vertices[4:], [[20, 5, 7.0], [0, 10, 99.0]])
+    np.testing.assert_array_equal(part, [0, 0, 1, 1])
+    for index, (v, t) in enumerate([SQUARE, NEIGHBOUR]):
+        np.testing.assert_array_equal(vertices[faces[part == index]], v[t])
+
+
+def test_merge_treats_negative_zero_as_zero_and_handles_empty_input():
+    a = (np.array([[0.0, 0.0, 0.0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
+    b = (np.array([[-0.0, 0.0, -0.0], [1, 0, 0], [0, -1, 0]]), np.array([[0, 2, 1]]))
+    vertices, faces, _ = merge_meshes([a, b])
+    assert len(vertices) == 4
+    assert faces[1, 0] == faces[0, 0]
+    vertices, faces, part = merge_meshes([])
+    assert vertices.shape == (0, 3) and faces.shape == (0, 3) and part.shape == (0,)
+    with pytest.raises(ValueError, match="part 0"):
+        merge_meshes([(SQUARE[0], SQUARE[1] + 2)])
+
+
+def test_2dm_lines_are_one_based_and_coordinates_round_trip_exactly(tmp_path):
+    rng = np.random.default_rng(5)
+    vertices = rng.uniform(-1e6, 1e6, size=(200, 3))
+    faces = rng.integers(0, 200, size=(300, 3))
+    path = tmp_path / "mesh.2dm"
+    assert write_2dm(path, vertices, faces) == [path]
+    lines = path.read_text().splitlines()
+    assert lines[0] == "MESH2D"
+    nodes = [line.split() for line in lines if line.startswith("ND ")]
+    elements = [line.split() for line in lines if line.startswith("E3T ")]
+    assert [int(n[1]) for n in nodes] == list(range(1, 201))
+    np.testing.assert_array_equal(np.array([n[2:] for n in nodes], dtype=float), vertices)
+    np.testing.assert_array_equal(np.array([e[2:5] for e in elements], dtype=int), faces + 1)
+    assert {e[5] for e in elements} == {"1"} and len(elements) == 300
+
+
+def test_2dm_face_datasets_go_to_an_els_dat_companion(tmp_path):
+    path = tmp_path / "roofs.2dm"
+    written = write_2dm(path, *SQUARE, {"feature_id": np.array([4, 4]), "slope": [0.5, 12.25]})
+    assert written == [path, tmp_path / "roofs_els.dat"]
+    text = written[1].read_text()
+    assert text.startswith("DATASET\nOBJTYPE mesh2d\n")
+    assert text.count("BEGSCL") == 2 and text.count("ENDDS") == 2
+    assert 'NAME "slope"\nTS 0 0\n0.5\n12.25\nENDDS' in text
+    with pytest.raises(ValueError, match="_els"):
+        write_face_dat(tmp_path / "plain.dat", 4, 2, {"a": [1, 2]})
+    with pytest.raises(ValueError, match="3 values for 2 faces"):
+        write_2dm(path, *SQUARE, {"a": [1, 2, 3]})
+
+
+def test_binary_ply_header_and_records(tmp_path):
+    path = write_ply(
+        tmp_path / "m.ply",
+        *SQUARE,
+        {"feature_id": np.array([7, 9], dtype=np.int64), "slope": np.array([1.5, 2.5])},
+        crs_wkt='PROJCS["a",\n  GEOGCS["b"]]',
+    )
+    header, body = _read_ply(path)
+    assert header[:3] == [
+        "ply",
+        "format binary_little_endian 1.0",
+        'comment crs PROJCS["a", GEOGCS["b"]]',
+    ]
+    assert header[3:] == [
+        "element vertex 4",
+        "property double x",
+        "property double y",
+        "property double z",
+        "element face 2",
+        "property list uchar int vertex_indices",
+        "property int feature_id",
+        "property double slope",
+        "end_header",
+    ]
+    np.testing.assert_array_equal(np.frombuffer(body[: 4 * 24], "<f8").reshape(4, 3), SQUARE[0])
+    face_dtype = np.dtype([("n", "u1"), ("v", "<i4", 3), ("fid", "<i4"), ("slope", "<f8")])
+    records = np.frombuffer(body[4 * 24 :], face_dtype)
+    assert len(body) == 4 * 24 + 2 * face_dtype.itemsize
+    np.testing.assert_array_equal(records["n"], 3)
+    np.testing.assert_array_equal(records["v"], SQUARE[1])
+    np.testing.assert_array_equal(records["fid"], [7, 9])
+    np.testing.assert_array_equal(records["slope"], [1.5, 2.5])
+
+
+def test_ascii_ply_reads_back_with_loadtxt(tmp_path):
+    path = write_ply(tmp_path / "a.ply", *SQUARE, {"depth": np.array([0, 1])}, binary=False)
+    header, body = _read_ply(path)
+    assert header[1] == "format ascii 1.0"
+    rows = body.decode().splitlines()
+    np.testing.assert_array_equal(np.loadtxt(rows[:4]), SQUARE[0])
+    np.testing.assert_array_equal(
+        np.loadtxt(rows[4:], dtype=int), [[3, 0, 1, 2, 0], [3, 0, 2, 3, 1]]
+    )
+
+
+def test_ply_rejects_bad_names_and_out_of_range_faces(tmp_path):
+    with pytest.raises(ValueError, match="identifier"):
+        write_ply(tmp_path / "x.ply", *SQUARE, {"feature id": [1, 2]})
+    with pytest.raises(ValueError, match="outside"):
+        write_ply(tmp_path / "x.ply", SQUARE[0], SQUARE[1] + 3)
