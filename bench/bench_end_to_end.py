@@ -1,0 +1,143 @@
+"""End to end through qgis_process: wall time and peak memory of whole algorithm runs.
+
+Each run is one ``qgis_process.bin run`` under ``/usr/bin/time -v`` on the benchmark's star
+polygons (GeoPackage) and DEM: QGIS's ``3d:tessellate``, ``bsptriangulate:triangulate`` with
+DEM elevation and a mesh (per-triangle output to memory, then to a GeoPackage), and
+``native:setzfromraster`` for reference. Times include qgis_process's start-up (first row).
+
+Usage: python bench/bench_end_to_end.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from common import (
+    Row,
+    enable_plugin,
+    plugin_dir,
+    qgis_environment,
+    qgis_process_binary,
+    rows_table,
+)
+from generate import DEFAULT_COUNT, ensure_stars
+
+QUICK_COUNT = 5_000
+TIME_BINARY = "/usr/bin/time"
+
+
+@dataclass
+class ProcessRun:
+    """Wall time, peak resident memory and JSON results of one qgis_process run."""
+
+    seconds: float
+    peak_mib: float
+    results: dict
+
+
+def parse_peak_mib(report: str) -> float:
+    """'Maximum resident set size (kbytes): N' of GNU time -v, in MiB."""
+    match = re.search(r"Maximum resident set size \(kbytes\): (\d+)", report)
+    return int(match[1]) / 1024 if match else float("nan")
+
+
+def run_measured(arguments: list[str], environment: dict[str, str]) -> ProcessRun:
+    """Run qgis_process with the arguments under GNU time; fail loudly on a non-zero exit."""
+    with tempfile.NamedTemporaryFile("r", suffix=".time") as report:
+        command = [TIME_BINARY, "-v", "-o", report.name, qgis_process_binary(), *arguments]
+        start = time.perf_counter()
+        process = subprocess.run(command, env=environment, capture_output=True, text=True)
+        seconds = time.perf_counter() - start
+        peak = parse_peak_mib(Path(report.name).read_text())
+    if process.returncode != 0:
+        raise RuntimeError(
+            f"{' '.join(arguments[:3])} failed ({process.returncode}):\n"
+            f"{process.stdout[-2000:]}\n{process.stderr[-2000:]}"
+        )
+    results = {}
+    if "--json" in arguments:
+        results = json.loads(process.stdout[process.stdout.index("{") :]).get("results", {})
+    return ProcessRun(seconds, peak, results)
+
+
+def algorithm(name: str, **parameters: object) -> list[str]:
+    return ["--json", "run", name, *(f"--{key}={value}" for key, value in parameters.items())]
+
+
+def run(quick: bool = False) -> list[Row]:
+    """Rows of wall time and peak RSS per algorithm run."""
+    count = QUICK_COUNT if quick else DEFAULT_COUNT
+    polygons, dem = ensure_stars(count)
+    output = Path(tempfile.mkdtemp(prefix="bsptri-bench-e2e-"))
+    environment = qgis_environment(plugin_dir())
+    enable_plugin(environment)
+    triangulate = {
+        "INPUT": polygons,
+        "ELEVATION_SOURCE": 3,
+        "DEM": dem,
+        "DEM_BAND": 1,
+        "APEX_RULE": 0,
+        "OUTPUT_MESH": output / "mesh.2dm",
+    }
+    cases = {
+        "qgis_process start-up (--version)": ["--version"],
+        "native:setzfromraster (drape, reference)": algorithm(
+            "native:setzfromraster",
+            INPUT=polygons,
+            RASTER=dem,
+            BAND=1,
+            OUTPUT=output / "draped.gpkg",
+        ),
+        "3d:tessellate -> gpkg": algorithm(
+            "3d:tessellate", INPUT=polygons, OUTPUT=output / "tessellated.gpkg"
+        ),
+        "bsptriangulate:triangulate DEM -> .2dm (+ triangles in memory)": algorithm(
+            "bsptriangulate:triangulate", **triangulate, OUTPUT_TRIANGLES="TEMPORARY_OUTPUT"
+        ),
+        "bsptriangulate:triangulate DEM -> .2dm + triangles gpkg": algorithm(
+            "bsptriangulate:triangulate",
+            **triangulate,
+            OUTPUT_TRIANGLES=output / "triangles.gpkg",
+        ),
+    }
+    case = f"qgis_process, {count:,} stars with 1 island"
+    rows: list[Row] = []
+    timings: dict[str, float] = {}
+    for name, arguments in cases.items():
+        measured = run_measured(arguments, environment)
+        timings[name] = measured.seconds
+        counts = ", ".join(
+            f"{key.lower()} {value:,}"
+            for key, value in measured.results.items()
+            if key.endswith("_COUNT") and isinstance(value, (int, float))
+        )
+        rows.append(Row(case, f"{name}: wall time", measured.seconds, "s", counts))
+        rows.append(Row(case, f"{name}: peak RSS", measured.peak_mib, "MiB"))
+    ours = timings["bsptriangulate:triangulate DEM -> .2dm + triangles gpkg"]
+    rows.append(
+        Row(
+            case,
+            "ours (DEM, mesh + gpkg) / 3d:tessellate wall time",
+            ours / timings["3d:tessellate -> gpkg"],
+            "x",
+        )
+    )
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="5,000 instead of 50,000 polygons")
+    arguments = parser.parse_args()
+    print(rows_table(run(arguments.quick)))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,145 @@
+"""Helpers shared by the benchmarks: result rows, Markdown tables, timing, machine info."""
+
+from __future__ import annotations
+
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+SHARED_DATA = ROOT.parent / "shared" / "data"
+BUILD = ROOT / "build" / "bench"
+
+if str(ROOT) not in sys.path:  # run as a script: make the core package importable
+    sys.path.insert(0, str(ROOT))
+
+
+@dataclass
+class Row:
+    """One figure of a benchmark: what was measured, its value and unit, and a remark."""
+
+    case: str
+    measure: str
+    value: float | str
+    unit: str = ""
+    note: str = ""
+
+
+def format_value(value: float | str) -> str:
+    if isinstance(value, str):
+        return value
+    if value != value:  # NaN
+        return "n/a"
+    magnitude = abs(value)
+    if magnitude >= 1000:
+        return f"{value:,.0f}"
+    if magnitude >= 100:
+        return f"{value:.0f}"
+    if magnitude >= 10:
+        return f"{value:.1f}"
+    if magnitude >= 0.1:
+        return f"{value:.2f}"
+    return f"{value:.3g}"
+
+
+def markdown_table(headers: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
+    """A GitHub Markdown table; floats are rounded to a readable precision."""
+    lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
+    for row in rows:
+        lines.append("| " + " | ".join(format_value(cell) for cell in row) + " |")
+    return "\n".join(lines)
+
+
+def rows_table(rows: Iterable[Row]) -> str:
+    return markdown_table(
+        ["case", "measure", "value", "unit", "note"],
+        [(r.case, r.measure, r.value, r.unit, r.note) for r in rows],
+    )
+
+
+def timed(function: Callable[[], Any], repeat: int = 1) -> tuple[float, Any]:
+    """Best wall time (seconds) of ``repeat`` calls, and the last call's result."""
+    best = float("inf")
+    result = None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = function()
+        best = min(best, time.perf_counter() - start)
+    return best, result
+
+
+def qgis_process_binary() -> str:
+    """``/usr/bin/qgis_process.bin`` where it exists (the wrapper script is broken here)."""
+    if Path("/usr/bin/qgis_process.bin").exists():
+        return "/usr/bin/qgis_process.bin"
+    found = shutil.which("qgis_process")
+    if found is None:
+        raise RuntimeError("qgis_process not found")
+    return found
+
+
+def qgis_environment(plugin_dir: Path | None = None) -> dict[str, str]:
+    """Headless environment with a throwaway profile; the plugin on QGIS_PLUGINPATH if given."""
+    environment = dict(os.environ)
+    environment["QT_QPA_PLATFORM"] = "offscreen"
+    environment["QGIS_CUSTOM_CONFIG_PATH"] = tempfile.mkdtemp(prefix="bsptri-bench-profile-")
+    if plugin_dir is not None:
+        environment["QGIS_PLUGINPATH"] = str(plugin_dir)
+    return environment
+
+
+def plugin_dir() -> Path:
+    """A temporary directory holding ``bsptriangulate`` -> the repository root."""
+    directory = Path(tempfile.mkdtemp(prefix="bsptri-plugins-"))
+    (directory / "bsptriangulate").symlink_to(ROOT, target_is_directory=True)
+    return directory
+
+
+def enable_plugin(environment: dict[str, str]) -> None:
+    """``qgis_process plugins enable bsptriangulate`` in the given environment."""
+    subprocess.run(
+        [qgis_process_binary(), "plugins", "enable", "bsptriangulate"],
+        env=environment,
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+
+
+def qgis_version() -> str:
+    try:
+        from qgis.core import Qgis
+
+        return Qgis.QGIS_VERSION
+    except ImportError:
+        return "not importable"
+
+
+def machine_info() -> dict[str, str]:
+    """CPU model, cores, Python, numpy and QGIS versions of this machine."""
+    import numpy
+
+    cpu = platform.processor() or "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {
+        "CPU": cpu,
+        "cores": str(os.cpu_count()),
+        "Python": platform.python_version(),
+        "numpy": numpy.__version__,
+        "QGIS": qgis_version(),
+        "OS": platform.platform(),
+    }
