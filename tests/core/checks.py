@@ -1,0 +1,351 @@
+"""Exact checks of a triangulation against the polygon it came from.
+
+Used by every core test. Sign decisions are exact: orientations are computed in float64 in
+bulk and recomputed with ``fractions.Fraction`` wherever the float result is within its error
+bound (Shewchuk's orient2d bound), areas are summed as exact rationals.
+
+No-overlap is proven through the boundary chain: when every triangle is counter-clockwise and
+the sum of the triangles' directed edges equals the polygon's directed boundary (outer ring
+counter-clockwise, islands clockwise), every point off the edges is covered by exactly as many
+triangles as the boundary winds around it, i.e. once inside and never outside. Where the chain
+does not cancel symbolically (collinear vertices splitting a side), the unmatched segments are
+split at the vertices lying on them and matched again; only if that fails too are triangle
+pairs searched for an actual overlap, to name it in the message.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+Ring = Sequence[Sequence[float]]
+XY = tuple[float, float]
+
+_ORIENT_ERR = 3.3306690738754716e-16  # (3 + 16 eps) eps, Shewchuk's ccwerrboundA
+
+
+# --- rings ---------------------------------------------------------------------------------------
+
+
+def clean_ring(ring: Ring) -> list[tuple[float, ...]]:
+    """Consecutive XY duplicates merged (first kept) and the closing point dropped."""
+    out: list[tuple[float, ...]] = []
+    for point in ring:
+        p = tuple(float(c) for c in point)
+        if out and out[-1][:2] == p[:2]:
+            continue
+        out.append(p)
+    while len(out) > 1 and out[-1][:2] == out[0][:2]:
+        out.pop()
+    return out
+
+
+def exact_area2(ring: Sequence[Sequence[float]]) -> Fraction:
+    """Twice the signed area of a ring, exact."""
+    n = len(ring)
+    if n < 3:
+        return Fraction(0)
+    xs = [Fraction(p[0]) for p in ring]
+    ys = [Fraction(p[1]) for p in ring]
+    return sum((xs[i] * ys[(i + 1) % n] - xs[(i + 1) % n] * ys[i] for i in range(n)), Fraction(0))
+
+
+def used_rings(rings: Sequence[Ring]) -> list[list[tuple[float, ...]]]:
+    """The rings the triangulation must honour: a non-degenerate outer ring and islands.
+
+    Empty when the outer ring has fewer than 3 distinct points or zero area; islands with fewer
+    than 3 distinct points or zero area are left out.
+    """
+    cleaned = [clean_ring(r) for r in rings]
+    if not cleaned or len(cleaned[0]) < 3 or exact_area2(cleaned[0]) == 0:
+        return []
+    return [cleaned[0]] + [r for r in cleaned[1:] if len(r) >= 3 and exact_area2(r) != 0]
+
+
+# --- exact orientation in bulk -------------------------------------------------------------------
+
+
+def orient_signs(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Exact sign of orient(a, b, c) for rows of (k, 2) arrays: +1 when c is left of a -> b."""
+    acx, acy = a[:, 0] - c[:, 0], a[:, 1] - c[:, 1]
+    bcx, bcy = b[:, 0] - c[:, 0], b[:, 1] - c[:, 1]
+    left, right = acx * bcy, acy * bcx
+    det = left - right
+    signs = np.sign(det).astype(np.int8)
+    unsure = np.abs(det) <= _ORIENT_ERR * (np.abs(left) + np.abs(right))
+    unsure &= (left != 0) | (right != 0)
+    for i in np.flatnonzero(unsure):
+        ax, ay, bx, by, cx, cy = (
+            Fraction(float(v)) for v in (a[i, 0], a[i, 1], b[i, 0], b[i, 1], c[i, 0], c[i, 1])
+        )
+        exact = (ax - cx) * (by - cy) - (ay - cy) * (bx - cx)
+        signs[i] = (exact > 0) - (exact < 0)
+    return signs
+
+
+def _points_strictly_inside(p: XY, q: XY, points: np.ndarray) -> list[XY]:
+    """Points (rows of ``points``) in the relative interior of segment pq, ordered from p."""
+    lo, hi = np.minimum(p, q), np.maximum(p, q)
+    box = np.all((points >= lo) & (points <= hi), axis=1)
+    cand = points[box]
+    cand = cand[~(np.all(cand == p, axis=1) | np.all(cand == q, axis=1))]
+    if len(cand) == 0:
+        return []
+    pa = np.broadcast_to(np.asarray(p, dtype=float), cand.shape)
+    qa = np.broadcast_to(np.asarray(q, dtype=float), cand.shape)
+    on = cand[orient_signs(pa, qa, cand) == 0]
+    axis = 0 if p[0] != q[0] else 1
+    ordered = sorted(on.tolist(), key=lambda r: r[axis], reverse=p[axis] > q[axis])
+    return [(r[0], r[1]) for r in ordered]
+
+
+# --- counts --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PolygonCounts:
+    """V distinct vertices, B boundary segments after splitting, h islands, expected triangles."""
+
+    vertices: int
+    segments: int
+    islands: int
+
+    @property
+    def triangles(self) -> int:
+        return 2 * self.vertices - self.segments - 2 + 2 * self.islands
+
+
+def polygon_counts(rings: Sequence[Ring]) -> PolygonCounts:
+    """V, B and h of docs/algorithm.md section 2 for the rings the engine keeps."""
+    kept = used_rings(rings)
+    if not kept:
+        return PolygonCounts(0, 0, 0)
+    points = np.unique(np.array([p[:2] for r in kept for p in r], dtype=float), axis=0)
+    order = np.argsort(points[:, 0], kind="stable")
+    by_x = points[order]
+    segments = 0
+    for ring in kept:
+        n = len(ring)
+        for i in range(n):
+            p, q = ring[i][:2], ring[(i + 1) % n][:2]
+            lo = np.searchsorted(by_x[:, 0], min(p[0], q[0]), side="left")
+            hi = np.searchsorted(by_x[:, 0], max(p[0], q[0]), side="right")
+            segments += 1 + len(_points_strictly_inside(p, q, by_x[lo:hi]))
+    return PolygonCounts(len(points), segments, len(kept) - 1)
+
+
+# --- deviation -----------------------------------------------------------------------------------
+
+
+def deviation(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndarray) -> float:
+    """earcut's deviation, computed exactly: |triangle area - polygon area| / polygon area.
+
+    The polygon area is |outer| minus the |islands| of the rings as given (earcut's definition).
+    """
+    polygon = abs(exact_area2(rings[0])) if rings else Fraction(0)
+    for ring in rings[1:]:
+        polygon -= abs(exact_area2(ring))
+    total = Fraction(0)
+    for tri in np.asarray(triangles):
+        total += abs(exact_area2([vertices[i] for i in tri]))
+    if polygon == 0 and total == 0:
+        return 0.0
+    if polygon == 0:
+        return float("inf")
+    return float(abs((total - polygon) / polygon))
+
+
+# --- individual checks ---------------------------------------------------------------------------
+
+
+def check_vertices(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndarray) -> None:
+    """Every triangle corner is an input vertex (x, y, and z, 0 where the input has none)."""
+    allowed = set()
+    for ring in rings:
+        for point in ring:
+            p = tuple(float(c) for c in point)
+            allowed.add((p[0], p[1], p[2] if len(p) > 2 else 0.0))
+    assert vertices.ndim == 2 and vertices.shape[1] == 3, f"vertices shape {vertices.shape}"
+    if len(triangles) == 0:
+        return
+    assert triangles.min() >= 0 and triangles.max() < len(vertices), "index out of range"
+    used = np.unique(triangles.ravel())
+    bad = [tuple(vertices[i]) for i in used if tuple(float(c) for c in vertices[i]) not in allowed]
+    assert not bad, f"{len(bad)} triangle corners are not input vertices, e.g. {bad[:3]}"
+
+
+def check_ccw(vertices: np.ndarray, triangles: np.ndarray) -> None:
+    """Every triangle has non-zero area and is counter-clockwise in XY (exact)."""
+    if len(triangles) == 0:
+        return
+    xy = vertices[:, :2]
+    signs = orient_signs(xy[triangles[:, 0]], xy[triangles[:, 1]], xy[triangles[:, 2]])
+    bad = np.flatnonzero(signs <= 0)
+    assert len(bad) == 0, (
+        f"{len(bad)} triangles degenerate or clockwise, e.g. #{bad[:5].tolist()}: "
+        f"{[vertices[triangles[i]][:, :2].tolist() for i in bad[:2]]}"
+    )
+
+
+def _chain_residual(edges: Counter) -> Counter:
+    return Counter({k: v for k, v in edges.items() if v != 0})
+
+
+def _add_edge(chain: Counter, p: XY, q: XY, weight: int) -> None:
+    if p == q:
+        return
+    if p < q:
+        chain[(p, q)] += weight
+    else:
+        chain[(q, p)] -= weight
+
+
+def boundary_mismatch(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndarray) -> list:
+    """Directed segments where the triangles' edges and the polygon boundary disagree.
+
+    Empty means the triangles tile the polygon exactly (given they are all counter-clockwise).
+    """
+    kept = used_rings(rings)
+    chain: Counter = Counter()
+    xy = [(float(x), float(y)) for x, y in vertices[:, :2]]
+    for a, b, c in np.asarray(triangles).tolist():
+        _add_edge(chain, xy[a], xy[b], 1)
+        _add_edge(chain, xy[b], xy[c], 1)
+        _add_edge(chain, xy[c], xy[a], 1)
+    for number, ring in enumerate(kept):
+        positive = exact_area2(ring) > 0
+        ccw_wanted = number == 0
+        pts = [(p[0], p[1]) for p in ring]
+        if positive != ccw_wanted:
+            pts = pts[::-1]
+        for i in range(len(pts)):
+            _add_edge(chain, pts[i], pts[(i + 1) % len(pts)], -1)
+    residual = _chain_residual(chain)
+    if not residual:
+        return []
+    all_points = np.unique(
+        np.array([p[:2] for r in kept for p in r] + xy, dtype=float).reshape(-1, 2), axis=0
+    )
+    split: Counter = Counter()
+    for (p, q), weight in residual.items():
+        path = [p, *_points_strictly_inside(p, q, all_points), q]
+        for s, t in zip(path, path[1:]):
+            _add_edge(split, s, t, weight)
+    return sorted(_chain_residual(split).items())
+
+
+def overlapping_pairs(vertices: np.ndarray, triangles: np.ndarray, limit: int = 10) -> list:
+    """Pairs of triangles whose interiors intersect (exact separating-axis test), up to limit."""
+    xy = vertices[:, :2]
+    corners = xy[triangles]  # (M, 3, 2)
+    lo, hi = corners.min(axis=1), corners.max(axis=1)
+    order = np.argsort(lo[:, 0], kind="stable")
+    found: list = []
+    for rank, i in enumerate(order):
+        stop = np.searchsorted(lo[order, 0], hi[i, 0], side="right")
+        others = order[rank + 1 : stop]
+        others = others[(lo[others, 1] <= hi[i, 1]) & (hi[others, 1] >= lo[i, 1])]
+        for j in others:
+            if _interiors_intersect(corners[i], corners[j]):
+                found.append((int(min(i, j)), int(max(i, j))))
+                if len(found) >= limit:
+                    return found
+    return found
+
+
+def _interiors_intersect(t1: np.ndarray, t2: np.ndarray) -> bool:
+    """Separating axis test for two CCW triangles: some side has the other triangle outside."""
+    for tri, other in ((t1, t2), (t2, t1)):
+        for k in range(3):
+            a = np.broadcast_to(tri[k], (3, 2))
+            b = np.broadcast_to(tri[(k + 1) % 3], (3, 2))
+            if np.all(orient_signs(a, b, other) <= 0):
+                return False
+    return True
+
+
+def check_tiling(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndarray) -> None:
+    """The triangles cover the polygon exactly once: no overlap, no gap (needs CCW triangles)."""
+    residual = boundary_mismatch(rings, vertices, triangles)
+    if not residual:
+        return
+    pairs = overlapping_pairs(vertices, triangles)
+    assert not pairs, f"overlapping triangles {pairs}: {[triangles[i].tolist() for i in pairs[0]]}"
+    raise AssertionError(f"triangles do not tile the polygon; unmatched segments {residual[:6]}")
+
+
+def check_tree(
+    triangles: np.ndarray, parent: np.ndarray, depth: np.ndarray, side: np.ndarray
+) -> None:
+    """The BSP tree is consistent and listed in pre-order.
+
+    Tracking each node's base (V1, V2) from the root's (vertex 0, vertex 1): a left child has
+    base (V1, apex) and a right child (V2, apex) of its parent, each at most once per parent,
+    the left subtree before the right one, depth = parent's depth + 1.
+    """
+    m = len(triangles)
+    for name, arr in (("parent", parent), ("depth", depth), ("side", side)):
+        assert len(arr) == m, f"{name} has {len(arr)} entries for {m} triangles"
+    if m == 0:
+        return
+    tris = np.asarray(triangles).tolist()
+    assert parent[0] == -1 and depth[0] == 0 and side[0] == 0, "first triangle is not the root"
+    assert set(tris[0][:2]) == {0, 1}, f"root base {tris[0][:2]} is not the outer ring's s0 s1"
+    bases: list[tuple[int, int]] = [(0, 1)]
+    children: dict[int, dict[int, int]] = {0: {}}
+    path = [0]  # the root-to-current chain; in pre-order a parent is on it
+    for i in range(1, m):
+        p, s = int(parent[i]), int(side[i])
+        assert 0 <= p < i, f"triangle {i}: parent {p} not earlier"
+        assert s in (1, 2), f"triangle {i}: side {s}"
+        assert depth[i] == depth[p] + 1, f"triangle {i}: depth {depth[i]} vs parent {depth[p]}"
+        while path and path[-1] != p:
+            path.pop()
+        assert path, f"triangle {i}: parent {p} is not an ancestor chain node (not pre-order)"
+        assert s not in children[p], f"triangle {i}: parent {p} has two children on side {s}"
+        assert not (s == 1 and 2 in children[p]), f"triangle {i}: left child after right sibling"
+        children[p][s] = i
+        children[i] = {}
+        path.append(i)
+        v1, v2 = bases[p]
+        apex = tris[p][2]
+        base = (v1, apex) if s == 1 else (v2, apex)
+        assert set(tris[i][:2]) == set(base), (
+            f"triangle {i} {tris[i]}: base is not {base} from parent {p} {tris[p]}, side {s}"
+        )
+        bases.append(base)
+
+
+# --- everything at once --------------------------------------------------------------------------
+
+
+def check_triangulation(
+    rings: Sequence[Ring], result, *, valid: bool = True, expect_count: bool = True
+) -> PolygonCounts | None:
+    """All checks on ``result`` (a Triangulation) for ``rings``; returns the counts it used.
+
+    ``valid``: the input is a valid polygon, so the triangles must tile it exactly, have zero
+    deviation and (with ``expect_count``) number 2V - B - 2 + 2h.
+    """
+    vertices = np.asarray(result.vertices, dtype=float)
+    triangles = np.asarray(result.triangles, dtype=np.int64).reshape(-1, 3)
+    check_vertices(rings, vertices, triangles)
+    check_ccw(vertices, triangles)
+    check_tree(
+        triangles, np.asarray(result.parent), np.asarray(result.depth), np.asarray(result.side)
+    )
+    if not valid:
+        return None
+    check_tiling(rings, vertices, triangles)
+    dev = deviation([clean_ring(r) for r in rings], vertices, triangles)
+    assert dev == 0, f"deviation {dev}"
+    counts = polygon_counts(rings)
+    if expect_count:
+        assert len(triangles) == counts.triangles, (
+            f"{len(triangles)} triangles, expected 2V-B-2+2h = {counts.triangles} ({counts})"
+        )
+    return counts
