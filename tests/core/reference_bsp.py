@@ -201,6 +201,13 @@ def _ring_edges(ring: list[int]) -> list[tuple[int, int]]:
     return [(ring[i], ring[(i + 1) % len(ring)]) for i in range(len(ring))]
 
 
+def _splice(seq: list[int], k: int, loop: list[int]) -> list[int]:
+    """Insert the island ``loop`` (h ... h) after occurrence k; at the end when k == 0."""
+    if k == 0:  # keeps S starting with the outer ring's first two vertices
+        return [*seq, seq[0], *loop]
+    return [*seq[: k + 1], *loop, seq[k], *seq[k + 1 :]]
+
+
 def bridge(outer: list[int], islands: list[list[int]], pts: list[Point]) -> list[int]:
     """The bridged vertex sequence S (vertex indices) of the outer ring and the islands."""
     seq = list(outer)
@@ -228,11 +235,7 @@ def bridge(outer: list[int], islands: list[list[int]], pts: list[Point]) -> list
         if best is None:
             raise NoCorrectTriangle(f"island {number} has no valid bridge")
         k = best[1]
-        loop = island[start:] + island[:start] + [h]
-        if k == 0:
-            seq = seq + [seq[0], *loop]
-        else:
-            seq = seq[: k + 1] + loop + [seq[k]] + seq[k + 1 :]
+        seq = _splice(seq, k, [*island[start:], *island[:start], h])
         joined.add(number)
     return seq
 
