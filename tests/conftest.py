@@ -19,6 +19,24 @@ ROOT = Path(__file__).resolve().parent.parent
 SHARED_DATA = ROOT.parent / "shared" / "data"
 PLUGIN_PACKAGE = "bsptriangulate"
 QGIS_PROCESS_TIMEOUT_S = 600
+# The triangulate algorithm's interface, as the README and the models use it.
+TRIANGULATE_ID = "bsptriangulate:triangulate"
+TRIANGULATE_PARAMETERS = frozenset(
+    {
+        "INPUT",
+        "ELEVATION_SOURCE",
+        "Z_EXPRESSION",
+        "DEM",
+        "DEM_BAND",
+        "APEX_RULE",
+        "PLANAR_TOLERANCE",
+        "INVALID_POLYGONS",
+        "OUTPUT_MESH",
+        "OUTPUT_TRIANGLES",
+        "OUTPUT_TREE",
+    }
+)
+TRIANGULATE_OUTPUTS = frozenset({"FEATURE_COUNT", "TRIANGLE_COUNT", "FAILED_COUNT", "EMPTY_COUNT"})
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 os.environ.setdefault("QGIS_CUSTOM_CONFIG_PATH", tempfile.mkdtemp(prefix="bsptri-qgis-profile-"))
@@ -136,12 +154,15 @@ def read_mesh(path: Path) -> tuple[list[tuple[float, float, float]], list[list[i
     return vertices, [list(mesh.face(i)) for i in range(mesh.faceCount())]
 
 
-def write_geojson(path: Path, polygons: list[list[list[tuple[float, ...]]]], epsg: int) -> Path:
-    """A GeoJSON file with one Polygon feature per entry (rings of (x, y[, z]) points)."""
+def write_geojson(
+    path: Path, polygons: list[list[list[tuple[float, ...]]]], epsg: int, id_field: str = "id"
+) -> Path:
+    """A GeoJSON file with one Polygon feature per entry (rings of (x, y[, z]) points) and an
+    integer attribute ``id_field`` numbering them from 1."""
     features = [
         {
             "type": "Feature",
-            "properties": {"fid": i + 1},
+            "properties": {id_field: i + 1},
             "geometry": {
                 "type": "Polygon",
                 "coordinates": [[list(point) for point in ring] for ring in rings],
