@@ -76,7 +76,17 @@ def test_metrics_on_a_random_mesh_agree_with_shapely_and_angle_sum():
     np.testing.assert_allclose(area_2d(vertices, triangles), shapely.area(polygons), rtol=1e-9)
     metrics = triangle_metrics(vertices, triangles)
     assert (metrics["area_3d"] >= metrics["area_2d"] * (1 - 1e-12)).all()
-    assert (metrics["min_angle"] <= 60.0 + 1e-9).all()
+    # Smallest angle from the law of cosines, corner by corner.
+    a, b, c = (vertices[triangles[:, i]] for i in range(3))
+    sides = [np.linalg.norm(q - p, axis=1) for p, q in ((b, c), (c, a), (a, b))]
+    cosines = [
+        (sides[(i + 1) % 3] ** 2 + sides[(i + 2) % 3] ** 2 - sides[i] ** 2)
+        / (2 * sides[(i + 1) % 3] * sides[(i + 2) % 3])
+        for i in range(3)
+    ]
+    expected = np.degrees(np.arccos(np.clip(np.max(cosines, axis=0), -1, 1)))
+    np.testing.assert_allclose(metrics["min_angle"], expected, atol=1e-6)
+    np.testing.assert_allclose(metrics["centroid"], (a + b + c) / 3)
     # Slope from areas: cos(slope) = projected area / true area.
     np.testing.assert_allclose(
         np.cos(np.radians(metrics["slope"])), metrics["area_2d"] / metrics["area_3d"], atol=1e-9
