@@ -105,7 +105,7 @@ def with_terrain_z(polygon: Polygon, z_offset: float = 0.0) -> Polygon:
         z = terrain(coords[:, 0], coords[:, 1]) + z_offset
         return np.column_stack([coords[:, :2], z])
 
-    return shapely.transform(polygon, lift, include_z=True)
+    return shapely.transform(shapely.force_3d(polygon), lift, include_z=True)
 
 
 def river() -> Polygon:
@@ -174,7 +174,7 @@ def roof(rng: np.random.Generator, outline: Polygon, noise: float) -> Polygon:
         z = z + rng.uniform(-noise, noise, len(coords))
         return np.column_stack([coords[:, :2], z])
 
-    return shapely.transform(outline, lift, include_z=True)
+    return shapely.transform(shapely.force_3d(outline), lift, include_z=True)
 
 
 def buildings(rng: np.random.Generator, avoid: Polygon, count: int = 9) -> list[Polygon]:
@@ -210,6 +210,8 @@ def sample_features() -> list[SampleFeature]:
         feature.polygon = to_world(feature.polygon)
         if not feature.polygon.is_valid:
             raise RuntimeError(f"generated an invalid polygon: {feature.name}")
+        if not np.isfinite(shapely.get_coordinates(feature.polygon, include_z=True)).all():
+            raise RuntimeError(f"generated a polygon without z: {feature.name}")
     return features
 
 
