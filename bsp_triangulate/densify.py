@@ -24,6 +24,7 @@ def densify_ring(
     starts = ring if closed else ring[:-1]
     deltas = ends - starts
     lengths = np.hypot(deltas[:, 0], deltas[:, 1])
+    lengths[~np.isfinite(lengths)] = 0.0  # an edge with a NaN/inf end is left as it is
     pieces = np.maximum(np.ceil(lengths / max_segment_length), 1).astype(np.int64)
     edge = np.repeat(np.arange(len(starts)), pieces)
     first_row = np.cumsum(pieces) - pieces

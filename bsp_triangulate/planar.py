@@ -113,13 +113,13 @@ def snap_to_plane(rings: list[np.ndarray], tolerance: float) -> list[np.ndarray]
     """Put nearly planar vertices of one polygon onto planes; see the module docstring.
 
     ``rings`` are (n, 3) arrays, outer ring first. Returns new arrays of the same shapes with
-    only z changed and no vertex moved by more than ``tolerance``. A tolerance of 0/None
-    (or rings without z) gives unchanged copies.
+    only z changed and no vertex moved by more than ``tolerance``. A tolerance of 0/None,
+    rings without z or with a non-finite coordinate give unchanged copies.
     """
     rings = [np.array(ring, dtype=np.float64) for ring in rings]
     if not tolerance or tolerance <= 0 or not rings or any(r.ndim != 2 for r in rings):
         return rings
-    if any(r.shape[1] < 3 for r in rings):
+    if any(r.shape[1] < 3 for r in rings) or not all(np.isfinite(r).all() for r in rings):
         return rings
     opened = [_split_closing(ring) for ring in rings]
     cores = [core for core, _ in opened]

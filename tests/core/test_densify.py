@@ -65,3 +65,11 @@ def test_originals_kept_in_order_and_no_piece_longer_than_max(ring, max_length):
     assert len(out) == pieces.sum()
     # The originals sit, unchanged and in order, where each edge's pieces begin.
     np.testing.assert_array_equal(out[np.cumsum(pieces) - pieces], ring)
+
+
+def test_edges_touching_a_nan_vertex_are_not_split():
+    ring = SQUARE.copy()
+    ring[2] = np.nan
+    out = densify_ring(ring, 3.0)
+    assert len(out) == 4 + 2 * 3  # only the edges 3-0 and 0-1 get their 3 extra points each
+    np.testing.assert_array_equal(out[4], [10, 0, 10])

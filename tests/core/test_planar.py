@@ -110,6 +110,13 @@ def test_vertical_wall_is_unchanged_even_when_lower_than_the_tolerance():
     np.testing.assert_array_equal(out, wall)
 
 
+def test_ring_with_a_nan_elevation_is_left_unchanged():
+    roof = _roof(8)
+    roof[3, 2] = np.nan
+    (out,) = snap_to_plane([roof], 0.1)
+    np.testing.assert_array_equal(out, roof)
+
+
 def test_closing_point_stays_equal_to_the_first_point():
     roof = _roof(10, seed=5)
     closed = np.vstack([roof, roof[:1]])
