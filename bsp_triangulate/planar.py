@@ -6,13 +6,9 @@ polygon (outer ring and islands) with tolerance ``t`` > 0; only z ever changes:
 1. Polygon plane: fit z = a x + b y + c by least squares (vertical residuals) to all vertices
    of all rings. If every vertex is within ``t`` of it (vertically), every z is replaced by the
    plane's value and the polygon is exactly planar (up to float rounding).
-2. Otherwise, runs along each ring: going round the ring, a run is a maximal sequence of at
-   least 4 adjacent vertices whose own least-squares plane is within ``t`` of each of them;
-   its vertices are put on that plane. Runs are grown one vertex at a time, greedily: the run
-   holding the ring's first vertex is grown forwards and then backwards, the others follow it
-   in ring order; a vertex that starts no such run is left alone. Runs do not overlap. If a
-   run's vertices are collinear in XY, its "plane" is the least-squares line z(s) along it.
-   Three points are always coplanar, so shorter runs change nothing.
+2. Otherwise, ring planes: each ring (outer ring or island, e.g. a raised skylight) whose
+   vertices are all within ``t`` of the ring's own least-squares plane is put on that plane.
+3. Any other ring is left exactly as it is: its elevation differences are real, not noise.
 
 Guarantee: no vertex moves by more than ``t``; every candidate change is checked against the
 tolerance with the exact values that would be written, and a change that would break it is not
@@ -28,21 +24,14 @@ import numpy as np
 _COLLINEAR = 1e-9
 
 
-def _fitted_z(points: np.ndarray, allow_collinear: bool) -> np.ndarray | None:
-    """z of the least-squares plane at each point; None when XY is degenerate (not allowed)."""
+def _fitted_z(points: np.ndarray) -> np.ndarray | None:
+    """z of the least-squares plane at each point; None when the points are collinear in XY."""
     xy = points[:, :2] - points[:, :2].mean(axis=0)
     z = points[:, 2]
     singular = np.linalg.svd(xy, compute_uv=False)
-    if singular[0] == 0:
-        return np.full(len(z), z.mean()) if allow_collinear else None
-    if singular[-1] <= _COLLINEAR * singular[0]:
-        if not allow_collinear:
-            return None
-        _, _, axes = np.linalg.svd(xy, full_matrices=False)
-        along = xy @ axes[0]
-        design = np.column_stack([along, np.ones(len(z))])
-    else:
-        design = np.column_stack([xy, np.ones(len(z))])
+    if singular[0] == 0 or singular[-1] <= _COLLINEAR * singular[0]:
+        return None
+    design = np.column_stack([xy, np.ones(len(z))])
     coefficients, *_ = np.linalg.lstsq(design, z, rcond=None)
     return design @ coefficients
 
@@ -51,56 +40,12 @@ def _within(points: np.ndarray, fitted: np.ndarray | None, tolerance: float) -> 
     return fitted is not None and bool(np.all(np.abs(fitted - points[:, 2]) <= tolerance))
 
 
-def _run_fit(ring: np.ndarray, start: int, length: int, tolerance: float) -> np.ndarray | None:
-    """Fitted z of the run of ``length`` vertices from ``start`` (cyclic), if within tolerance."""
-    points = ring[(start + np.arange(length)) % len(ring)]
-    fitted = _fitted_z(points, allow_collinear=True)
-    return fitted if _within(points, fitted, tolerance) else None
-
-
-def _grow(
-    ring: np.ndarray,
-    run: tuple[int, int, np.ndarray | None],
-    step: int,
-    limit: int,
-    tolerance: float,
-) -> tuple[int, int, np.ndarray | None]:
-    """Grow a run (start, length, fitted z) one vertex at a time forwards (+1) or backwards."""
-    start, length, fitted = run
-    while length < limit:
-        new_start = start if step > 0 else start - 1
-        candidate = _run_fit(ring, new_start, length + 1, tolerance)
-        if candidate is None:
-            break
-        start, length, fitted = new_start, length + 1, candidate
-    return start, length, fitted
-
-
-def _snap_ring_runs(ring: np.ndarray, tolerance: float) -> np.ndarray:
-    n = len(ring)
+def _snap_ring(ring: np.ndarray, tolerance: float) -> np.ndarray:
+    """The ring on its own least-squares plane if every vertex is within the tolerance of it."""
     out = ring.copy()
-    if n < 4:
-        return out
-    whole = _run_fit(ring, 0, n, tolerance)
-    if whole is not None:
-        out[:, 2] = whole
-        return out
-    # Seeds are 3 vertices (always coplanar, left as they are until a 4th joins).
-    first = _grow(ring, (0, 3, None), +1, n, tolerance)
-    first = _grow(ring, first, -1, n, tolerance)
-    if first[2] is None:
-        runs, position, end = [], 1, n
-    else:
-        runs, position, end = [first], first[0] + first[1], first[0] + n
-    while end - position >= 4:
-        run = _grow(ring, (position, 3, None), +1, end - position, tolerance)
-        if run[2] is None:
-            position += 1
-        else:
-            runs.append(run)
-            position += run[1]
-    for start, length, fitted in runs:
-        out[(start + np.arange(length)) % n, 2] = fitted
+    fitted = _fitted_z(ring) if len(ring) >= 3 else None
+    if _within(ring, fitted, tolerance):
+        out[:, 2] = fitted
     return out
 
 
@@ -126,7 +71,7 @@ def snap_to_plane(rings: list[np.ndarray], tolerance: float) -> list[np.ndarray]
     every = np.concatenate(cores)
     if len(every) < 3:
         return rings
-    fitted = _fitted_z(every, allow_collinear=False)
+    fitted = _fitted_z(every)
     if fitted is None:
         return rings  # vertical polygon: no plane z = a x + b y + c
     if _within(every, fitted, tolerance):
@@ -137,7 +82,7 @@ def snap_to_plane(rings: list[np.ndarray], tolerance: float) -> list[np.ndarray]
             offset += len(core)
             snapped.append(core)
     else:
-        snapped = [_snap_ring_runs(core, tolerance) for core in cores]
+        snapped = [_snap_ring(core, tolerance) for core in cores]
     return [
         np.vstack([core, core[:1]]) if closed else core
         for core, (_, closed) in zip(snapped, opened)
