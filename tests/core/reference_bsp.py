@@ -137,7 +137,7 @@ def _area2(points: Sequence[Point]) -> int:
     )
 
 
-def _xy_dominates(ring: Sequence[tuple[float, float, float]]) -> bool:
+def xy_is_working_plane(ring: Sequence[tuple[float, float, float]]) -> bool:
     """True when the ring's Newell normal is not dominated by its x or y component."""
     nx = ny = nz = Fraction(0)
     n = len(ring)
@@ -243,10 +243,41 @@ def bridge(outer: list[int], islands: list[list[int]], pts: list[Point]) -> list
 # --- the BSP tree --------------------------------------------------------------------------------
 
 
+def within_closed_angle(prev: Point, at: Point, nxt: Point, target: Point) -> bool:
+    """True when the direction at -> target lies in the closed interior angle at ``at``.
+
+    A spike (prev and nxt in the same direction) counts as a full turn.
+    """
+    u = (nxt[0] - at[0], nxt[1] - at[1])
+    w = (prev[0] - at[0], prev[1] - at[1])
+    d = (target[0] - at[0], target[1] - at[1])
+
+    def cross(x: tuple[int, int], y: tuple[int, int]) -> int:
+        return x[0] * y[1] - x[1] * y[0]
+
+    turn = cross((at[0] - prev[0], at[1] - prev[1]), u)
+    if turn > 0:
+        return cross(u, d) >= 0 and cross(d, w) >= 0
+    if turn < 0:
+        return not (cross(w, d) > 0 and cross(d, u) > 0)
+    if u[0] * w[0] + u[1] * w[1] < 0:  # straight
+        return cross(u, d) >= 0
+    return True
+
+
 def is_correct_triangle(seq_pts: list[Point], lo: int, hi: int, j: int) -> bool:
-    """Section 4 of docs/algorithm.md for candidate s_j of the sub-polygon s_lo ... s_hi."""
+    """Section 4 of docs/algorithm.md for candidate s_j of the sub-polygon s_lo ... s_hi.
+
+    Conditions 1-3 as documented, plus: both new sides leave s_j inside the closed interior
+    angle of the sequence at position j. For a simple sub-polygon this follows from 1-3; it
+    tells duplicate occurrences of one point apart (bridge ends), where 1-3 alone accept an
+    occurrence whose chord cuts the island's loop off to the wrong side.
+    """
     v_hi, v_lo, c = seq_pts[hi], seq_pts[lo], seq_pts[j]
     if orient(v_hi, v_lo, c) <= 0:
+        return False
+    prev, nxt = seq_pts[j - 1], seq_pts[j + 1]
+    if not (within_closed_angle(prev, c, nxt, v_hi) and within_closed_angle(prev, c, nxt, v_lo)):
         return False
     tri = (v_hi, v_lo, c)
     for i in range(lo, hi):
@@ -292,7 +323,7 @@ def reference_triangulate(
     if not normalised or len(normalised[0]) < 3:
         return ReferenceResult()
     for ring in normalised:
-        if len(ring) >= 3 and not _xy_dominates(ring):
+        if len(ring) >= 3 and not xy_is_working_plane(ring):
             raise NotImplementedError("walls (non-XY working plane) are out of the oracle's scope")
     scale = _integer_scale([c for ring in normalised for p in ring for c in p[:2]])
 
