@@ -1,0 +1,71 @@
+"""Run every benchmark and print one Markdown report (also written to build/bench/results.md).
+
+Usage: python bench/run_all.py [--quick] [--only core,end_to_end,fidelity]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import traceback
+from collections.abc import Callable
+
+import bench_core
+import bench_end_to_end
+import bench_fidelity
+from common import BUILD, Row, machine_info, markdown_table, rows_table
+
+BENCHMARKS: dict[str, tuple[str, Callable[[bool], list[Row]]]] = {
+    "core": ("Core triangulation speed (in one process)", bench_core.run),
+    "end_to_end": ("End to end through qgis_process", bench_end_to_end.run),
+    "fidelity": ("Terrain fidelity (|surface - DEM| at DEM cell centres)", bench_fidelity.run),
+}
+
+
+def report(quick: bool, only: list[str]) -> str:
+    """Run the chosen benchmarks; a failing one is reported in its section, not fatal."""
+    info = machine_info()
+    sections = [
+        "# BSP Triangulate benchmarks",
+        "",
+        markdown_table(["machine", ""], info.items()),
+        "",
+        f"Set: {'quick (5,000 polygons)' if quick else 'full (50,000 polygons)'}.",
+    ]
+    for key in only:
+        title, run = BENCHMARKS[key]
+        print(f"running {key} ...", flush=True)
+        start = time.perf_counter()
+        try:
+            body = rows_table(run(quick))
+        except Exception:  # one broken benchmark must not hide the others' figures
+            body = "Failed:\n\n```\n" + traceback.format_exc(limit=4) + "```"
+        elapsed = time.perf_counter() - start
+        sections += ["", f"## {title}", "", body, "", f"({elapsed:.0f} s to run)"]
+        print(f"{key} done in {elapsed:.0f} s", flush=True)
+    return "\n".join(sections) + "\n"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="5,000 polygons instead of 50,000")
+    parser.add_argument(
+        "--only",
+        default=",".join(BENCHMARKS),
+        help=f"comma-separated subset of {', '.join(BENCHMARKS)}",
+    )
+    arguments = parser.parse_args()
+    only = [name.strip() for name in arguments.only.split(",") if name.strip()]
+    unknown = [name for name in only if name not in BENCHMARKS]
+    if unknown:
+        parser.error(f"unknown benchmark(s): {', '.join(unknown)}")
+    text = report(arguments.quick, only)
+    BUILD.mkdir(parents=True, exist_ok=True)
+    results = BUILD / "results.md"
+    results.write_text(text, encoding="utf-8")
+    print(text)
+    print(f"written to {results}")
+
+
+if __name__ == "__main__":
+    main()
