@@ -129,18 +129,18 @@ def _field(name: str, kind: QVariant.Type) -> QgsField:
 
 
 def triangle_fields(source_fields: QgsFields) -> QgsFields:
-    """feature_id, the source's attributes (clashing names prefixed), then the tree and metrics."""
-    own = {"feature_id"} | {name for name, _kind in TRIANGLE_FIELDS}
+    """feature_id, the source's attributes (clashing names and fid prefixed), tree, metrics."""
+    # "fid" is the primary key of GeoPackage outputs: copied per triangle it would repeat.
+    taken = {"feature_id", "fid"} | {name for name, _kind in TRIANGLE_FIELDS}
     fields = QgsFields()
     fields.append(_field("feature_id", QVariant.LongLong))
-    taken = set(own)
     for source_field in source_fields:
         field = QgsField(source_field)
         name = field.name()
-        while name.lower() in {taken_name.lower() for taken_name in taken}:
+        while name.lower() in taken:
             name = SOURCE_PREFIX + name
         field.setName(name)
-        taken.add(name)
+        taken.add(name.lower())
         fields.append(field)
     for name, kind in TRIANGLE_FIELDS:
         fields.append(_field(name, kind))
