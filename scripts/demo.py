@@ -93,25 +93,44 @@ def triangulate(
     return results, mesh, triangles
 
 
-def render_views(terrain: Path, triangles: Path, output: Path) -> Path:
-    """The whole area and a close-up of the lake and the village, side by side."""
-    import render  # starts nothing until called; QGIS is imported here, after the runs
+def square_around(extent, margin: float):
+    """A square rectangle centred on the extent, covering it plus the margin."""
+    from render import QgsRectangle
+
+    half = max(extent.width(), extent.height()) / 2 + margin
+    centre = extent.center()
+    return QgsRectangle(centre.x() - half, centre.y() - half, centre.x() + half, centre.y() + half)
+
+
+def feature_extent(polygons: Path, kind: str):
+    """The extent of the sample features of one kind (lake, roof, river)."""
+    import render
+
+    layer = render.vector_layer(str(polygons))
+    layer.setSubsetString(f"\"kind\" = '{kind}'")
+    return layer.extent()
+
+
+def render_views(terrain: Path, polygons: Path, triangles: Path, output: Path) -> Path:
+    """The whole area, the lake and the village, side by side, with the default style."""
+    import render  # imports QGIS: only after the qgis_process runs
 
     render.start_qgis()
     style = STYLE if STYLE.exists() else None
     if style is None:
         print(f"warning: {STYLE.relative_to(ROOT)} not found, default symbols used")
     layers = [render.vector_layer(str(triangles), style), *reversed(render.terrain_layers(terrain))]
-    whole = render.parse_extent(None, layers)
-    lake_x = sample.ORIGIN_X + sample.LAKE_CENTRE[0]
-    lake_y = sample.ORIGIN_Y + sample.LAKE_CENTRE[1]
-    close_up = render.QgsRectangle(lake_x - 520, lake_y - 720, lake_x + 400, lake_y + 280)
+    views = [
+        ("Whole area, 4 x 3 km", render.parse_extent(None, layers), (720, 540)),
+        ("Lake with an island", square_around(feature_extent(polygons, "lake"), 30), (540, 540)),
+        ("Village roofs", square_around(feature_extent(polygons, "roof"), 15), (540, 540)),
+    ]
     work = Path(tempfile.mkdtemp(prefix="bsptri-demo-render-"))
     panels = [
-        render.render(layers, work / "whole.png", whole, (800, 600), "Whole area, 4 x 3 km"),
-        render.render(layers, work / "close.png", close_up, (600, 652), "Lake and village"),
+        render.render(layers, work / f"view{number}.png", extent, size, title)
+        for number, (title, extent, size) in enumerate(views)
     ]
-    return render.side_by_side(panels, output)
+    return render.side_by_side(panels, output, palette=True)
 
 
 def main() -> None:
@@ -127,7 +146,7 @@ def main() -> None:
     work = Path(tempfile.mkdtemp(prefix="bsptri-demo-"))
     results, mesh, triangles = triangulate(polygons, terrain, output_dir, qgis_environment(work))
     triangulated = time.perf_counter()
-    picture = render_views(terrain, triangles, output_dir / "triangles.png")
+    picture = render_views(terrain, polygons, triangles, output_dir / "triangles.png")
     elapsed = time.perf_counter() - start
 
     print("BSP Triangulate demo")

@@ -178,16 +178,20 @@ def roof(rng: np.random.Generator, outline: Polygon, noise: float) -> Polygon:
 
 
 def buildings(rng: np.random.Generator, avoid: Polygon, count: int = 9) -> list[Polygon]:
-    """Roofs of a small village on the slope south of the lake, clear of the river and lake."""
+    """Roofs of a small village west of the lake, clear of the river and the lake."""
     roofs: list[Polygon] = []
     taken = avoid.buffer(20.0)
-    while len(roofs) < count:
-        cx, cy = rng.uniform(2500, 3400), rng.uniform(1750, 2150)
+    for _attempt in range(10_000):
+        if len(roofs) == count:
+            break
+        cx, cy = rng.uniform(2400, 2600), rng.uniform(2400, 2570)
         outline = roof_outline(rng, cx, cy)
         if outline.intersects(taken):
             continue
         taken = taken.union(outline.buffer(8.0))
         roofs.append(roof(rng, outline, noise=0.04))
+    if len(roofs) < count:
+        raise RuntimeError(f"only {len(roofs)} of {count} roofs fit in the village")
     return roofs
 
 

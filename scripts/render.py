@@ -16,12 +16,12 @@ os.environ.setdefault("QGIS_CUSTOM_CONFIG_PATH", tempfile.mkdtemp(prefix="bsptri
 
 from qgis.core import (
     QgsApplication,
+    QgsBilinearRasterResampler,
     QgsColorRampShader,
     QgsContrastEnhancement,
     QgsMapLayer,
     QgsMapRendererParallelJob,
     QgsMapSettings,
-    QgsRasterDataProvider,
     QgsRasterLayer,
     QgsRasterShader,
     QgsRectangle,
@@ -64,12 +64,9 @@ def terrain_layers(path: Path) -> list[QgsRasterLayer]:
     hillshade = QgsRasterLayer(str(hillshade_raster(path)), "terrain hillshade")
     if not colours.isValid() or not hillshade.isValid():
         raise RuntimeError(f"cannot open raster {path}")
-    for layer in (colours, hillshade):
-        # smooth cell edges when zoomed in
-        layer.dataProvider().enableProviderResampling(True)
-        layer.dataProvider().setZoomedInResamplingMethod(
-            QgsRasterDataProvider.ResamplingMethod.Bilinear
-        )
+    for layer in (colours, hillshade):  # no visible cell edges when zoomed in
+        layer.resampleFilter().setZoomedInResampler(QgsBilinearRasterResampler())
+        layer.resampleFilter().setZoomedOutResampler(QgsBilinearRasterResampler())
     statistics = colours.dataProvider().bandStatistics(1)
     low, high = statistics.minimumValue, statistics.maximumValue
     ramp = QgsColorRampShader(low, high)
@@ -151,8 +148,8 @@ def draw_title(image: QImage, title: str) -> None:
     painter.end()
 
 
-def side_by_side(images: Sequence[Path], output: Path, gap: int = 6) -> Path:
-    """Join PNG images horizontally (top-aligned) into one PNG."""
+def side_by_side(images: Sequence[Path], output: Path, gap: int = 6, palette: bool = False) -> Path:
+    """Join PNG images horizontally (top-aligned) into one PNG; ``palette``: 256 colours."""
     loaded = [QImage(str(path)) for path in images]
     width = sum(image.width() for image in loaded) + gap * (len(loaded) - 1)
     height = max(image.height() for image in loaded)
@@ -166,7 +163,25 @@ def side_by_side(images: Sequence[Path], output: Path, gap: int = 6) -> Path:
     painter.end()
     if not joined.save(str(output), "PNG"):
         raise RuntimeError(f"cannot write {output}")
+    if palette:
+        to_palette(output)
     return output
+
+
+def to_palette(path: Path) -> bool:
+    """Rewrite a PNG with 256 colours (a third of the size) when Pillow is available.
+
+    Qt's own 8-bit conversion uses a fixed palette that bands the terrain, so Pillow's median cut
+    is used instead; without Pillow the picture stays in full colour.
+    """
+    try:
+        from PIL import Image
+    except ImportError:
+        return False
+    with Image.open(path) as image:
+        quantized = image.convert("RGB").quantize(256, method=Image.Quantize.MEDIANCUT)
+    quantized.save(path, optimize=True)
+    return True
 
 
 def parse_extent(values: Sequence[float] | None, layers: Sequence[QgsMapLayer]) -> QgsRectangle:
