@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from qgis.core import (
+    Qgis,
     QgsCoordinateReferenceSystem,
     QgsFeature,
     QgsFeatureSink,
@@ -23,7 +24,7 @@ from qgis.core import (
     QgsProcessingUtils,
     QgsVectorLayer,
 )
-from qgis.PyQt.QtCore import QVariant
+from qgis.PyQt.QtCore import QMetaType, QVariant
 
 from ..bsp_triangulate import metrics
 from ..bsp_triangulate.mesh import merge_meshes, write_2dm, write_ply
@@ -36,23 +37,23 @@ MESH_EXTENSIONS = ("2dm", "ply")
 SOURCE_PREFIX = "src_"
 
 TRIANGLE_FIELDS = (
-    ("part", QVariant.Int),
-    ("order", QVariant.Int),
-    ("parent", QVariant.Int),
-    ("depth", QVariant.Int),
-    ("side", QVariant.Int),
-    ("area_2d", QVariant.Double),
-    ("area_3d", QVariant.Double),
-    ("min_angle", QVariant.Double),
-    ("slope", QVariant.Double),
-    ("aspect", QVariant.Double),
+    ("part", "Int"),
+    ("order", "Int"),
+    ("parent", "Int"),
+    ("depth", "Int"),
+    ("side", "Int"),
+    ("area_2d", "Double"),
+    ("area_3d", "Double"),
+    ("min_angle", "Double"),
+    ("slope", "Double"),
+    ("aspect", "Double"),
 )
 TREE_FIELDS = (
-    ("feature_id", QVariant.LongLong),
-    ("part", QVariant.Int),
-    ("parent", QVariant.Int),
-    ("child", QVariant.Int),
-    ("side", QVariant.Int),
+    ("feature_id", "LongLong"),
+    ("part", "Int"),
+    ("parent", "Int"),
+    ("child", "Int"),
+    ("side", "Int"),
 )
 
 # One little-endian ISO LineStringZ (type 1002) with two points: 57 bytes, no padding.
@@ -124,8 +125,11 @@ class BatchMesh:
         return np.where(self.parent >= 0, rows - self.order + self.parent, -1)
 
 
-def _field(name: str, kind: QVariant.Type) -> QgsField:
-    return QgsField(name, kind)
+def _field(name: str, kind: str) -> QgsField:
+    """A field of type ``kind`` (Int, LongLong, Double): QMetaType from QGIS 3.38, else QVariant."""
+    if Qgis.QGIS_VERSION_INT >= 33800:
+        return QgsField(name, getattr(QMetaType, kind))
+    return QgsField(name, getattr(QVariant, kind))
 
 
 def triangle_fields(source_fields: QgsFields) -> QgsFields:
@@ -133,7 +137,7 @@ def triangle_fields(source_fields: QgsFields) -> QgsFields:
     # "fid" is the primary key of GeoPackage outputs: copied per triangle it would repeat.
     taken = {"feature_id", "fid"} | {name for name, _kind in TRIANGLE_FIELDS}
     fields = QgsFields()
-    fields.append(_field("feature_id", QVariant.LongLong))
+    fields.append(_field("feature_id", "LongLong"))
     for source_field in source_fields:
         field = QgsField(source_field)
         name = field.name()

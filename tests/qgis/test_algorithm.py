@@ -14,6 +14,7 @@ from qgis.core import (
     QgsCoordinateReferenceSystem,
     QgsCoordinateTransform,
     QgsFeature,
+    QgsFeatureRequest,
     QgsGeometry,
     QgsGraduatedSymbolRenderer,
     QgsMeshLayer,
@@ -84,12 +85,17 @@ def polygon_layer(
     return layer
 
 
-def run(parameters: dict, feedback: QgsProcessingFeedback | None = None) -> dict:
+def run(
+    parameters: dict,
+    feedback: QgsProcessingFeedback | None = None,
+    invalid_check: QgsFeatureRequest.InvalidGeometryCheck = QgsFeatureRequest.GeometryNoCheck,
+) -> dict:
     import processing
 
     defaults = {"OUTPUT_TRIANGLES": "memory:", "OUTPUT_MESH": "TEMPORARY_OUTPUT"}
     context = QgsProcessingContext()
     context.setProject(QgsProject.instance())
+    context.setInvalidGeometryCheck(invalid_check)
     return processing.run(
         ALG, {**defaults, **parameters}, feedback=feedback or RecordingFeedback(), context=context
     )
@@ -206,6 +212,14 @@ def test_bow_tie_repaired_by_default_is_split_at_its_crossing_and_reported():
     assert any((x, y) == (5.0, 5.0) for row in rows for x, y, _z in corners(row))
     fid = next(layer.getFeatures()).id()
     assert any("Repaired" in w and str(fid) in w for w in feedback.warnings)
+
+
+@pytest.mark.parametrize(
+    "check", [QgsFeatureRequest.GeometrySkipInvalid, QgsFeatureRequest.GeometryAbortOnInvalid]
+)
+def test_bow_tie_reaches_the_repair_policy_whatever_the_context_invalid_geometry_check(check):
+    result = run({"INPUT": polygon_layer([BOW_TIE])}, invalid_check=check)
+    assert (result["FEATURE_COUNT"], result["FAILED_COUNT"], result["TRIANGLE_COUNT"]) == (1, 0, 2)
 
 
 def test_bow_tie_with_fail_policy_fails_only_that_feature_with_its_id():
