@@ -3,11 +3,17 @@
 Pure Python (numpy); no QGIS import anywhere in this package.
 """
 
+from .engine import triangulate, triangulate_many
+from .rules import RULES, ApexRule, get_rule, register_rule
 from .triangulation import Triangulation, TriangulationError
 
-__all__ = ["Triangulation", "TriangulationError", "triangulate", "triangulate_many"]
-
-try:  # the engine lands in its own module
-    from .engine import triangulate, triangulate_many
-except ImportError:  # pragma: no cover - during bootstrap only
-    pass
+__all__ = [
+    "RULES",
+    "ApexRule",
+    "Triangulation",
+    "TriangulationError",
+    "get_rule",
+    "register_rule",
+    "triangulate",
+    "triangulate_many",
+]

@@ -1,0 +1,265 @@
+"""Islands: split touching edges and join every island to the outer ring by a bridge.
+
+See docs/algorithm.md section 2 for the exact rules implemented here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .predicates import exact_sq_distance, orient, orient_many, strictly_between
+from .rings import ring_label
+from .spatial_index import SegmentGrid
+from .triangulation import TriangulationError
+
+# relative margin within which float squared distances are re-compared exactly
+_DISTANCE_MARGIN = 1e-9
+
+
+def _ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    starts = np.concatenate(rings)
+    ends = np.concatenate([np.roll(r, -1) for r in rings])
+    return starts, ends
+
+
+def split_touching(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> list[np.ndarray]:
+    """Split every ring edge at the vertices (of any ring) lying in its relative interior."""
+    starts, ends = _ring_edges(rings)
+    grid = SegmentGrid(x[starts], y[starts], x[ends], y[ends])
+    vertex_ids = np.unique(starts)
+    cells = grid._row(y[vertex_ids]) * grid.nx + grid._col(x[vertex_ids])
+    counts = grid.starts[cells + 1] - grid.starts[cells]
+    total = int(counts.sum())
+    offsets = np.arange(total, dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
+    edge = grid.items[np.repeat(grid.starts[cells], counts) + offsets]
+    vertex = np.repeat(vertex_ids, counts)
+    a, b = starts[edge], ends[edge]
+    px, py = x[vertex], y[vertex]
+    # cheap exact pre-filter: the vertex must be in the edge's bounding box
+    near = strictly_between(px, py, x[a], y[a], x[b], y[b])
+    edge, vertex, a, b = edge[near], vertex[near], a[near], b[near]
+    on_line = orient_many(x[a], y[a], x[b], y[b], x[vertex], y[vertex]) == 0
+    edge, vertex = edge[on_line], vertex[on_line]
+    if len(edge) == 0:
+        return rings
+    hits: dict[int, list[int]] = {}
+    for e, v in zip(edge.tolist(), vertex.tolist()):
+        hits.setdefault(e, []).append(v)
+    ring_offsets = np.cumsum([0] + [len(r) for r in rings])
+    result = []
+    for number, ring in enumerate(rings):
+        base = int(ring_offsets[number])
+        if not any(base + t in hits for t in range(len(ring))):
+            result.append(ring)
+            continue
+        out: list[int] = []
+        for t, vid in enumerate(ring.tolist()):
+            out.append(vid)
+            inside = hits.get(base + t)
+            if inside:
+                out.extend(_order_along(x, y, vid, int(ring[(t + 1) % len(ring)]), inside))
+        result.append(np.asarray(out, dtype=np.int64))
+    return result
+
+
+def _order_along(x: np.ndarray, y: np.ndarray, a: int, b: int, inside: list[int]) -> list[int]:
+    """Collinear points strictly inside segment a-b, ordered from a to b, one per position."""
+    sx = 1.0 if x[b] >= x[a] else -1.0
+    sy = 1.0 if y[b] >= y[a] else -1.0
+    ordered = sorted(set(inside), key=lambda v: (sx * x[v], sy * y[v], v))
+    kept: list[int] = []
+    for v in ordered:
+        if kept and x[kept[-1]] == x[v] and y[kept[-1]] == y[v]:
+            continue
+        kept.append(v)
+    return kept
+
+
+class _Bridger:
+    """Joins islands one by one into the sequence ``seq`` (outer ring first)."""
+
+    def __init__(self, x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> None:
+        self.x, self.y = x, y
+        self.seq = rings[0].copy()
+        starts, ends = _ring_edges(rings)
+        self.edge_a, self.edge_b = starts, ends
+        self.edges = SegmentGrid(x[starts], y[starts], x[ends], y[ends])
+        # point grid (zero-length segments) over every vertex of the sequence-to-be
+        self.point_ids = np.unique(starts)
+        px, py = x[self.point_ids], y[self.point_ids]
+        self.points = SegmentGrid(px, py, px, py)
+        self.in_seq = np.zeros(len(x), dtype=bool)
+        self.bridges: list[tuple[int, int]] = []
+        self._seq_changed()
+
+    def _seq_changed(self) -> None:
+        self.in_seq[self.seq] = True
+        self.position = np.full(len(self.x), -1, dtype=np.int64)
+        self.position[self.seq] = np.arange(len(self.seq))
+        counts = np.bincount(self.seq, minlength=len(self.x))
+        self.repeated = counts > 1
+
+    def occurrences(self, vid: int) -> list[int]:
+        if self.repeated[vid]:
+            return np.flatnonzero(self.seq == vid).tolist()
+        return [int(self.position[vid])]
+
+    # -- validity -------------------------------------------------------------------------
+    def _inside_angle(self, k: int, tx: float, ty: float) -> bool:
+        """The direction from occurrence k towards (tx, ty) leaves into S's interior angle."""
+        seq, x, y = self.seq, self.x, self.y
+        v, p, n = int(seq[k]), int(seq[k - 1]), int(seq[(k + 1) % len(seq)])
+        vx, vy = x[v], y[v]
+        turn = orient(x[p], y[p], vx, vy, x[n], y[n])
+        left_next = orient(vx, vy, x[n], y[n], tx, ty) > 0
+        left_prev = orient(x[p], y[p], vx, vy, tx, ty) > 0
+        if turn > 0:
+            return left_next and left_prev
+        if turn < 0:
+            return left_next or left_prev
+        if (x[n] - vx) * (x[p] - vx) + (y[n] - vy) * (y[p] - vy) < 0:
+            return left_next  # straight angle
+        # spike: everything but the spike's own ray
+        on_ray = orient(vx, vy, x[n], y[n], tx, ty) == 0 and (
+            (tx - vx) * (x[n] - vx) + (ty - vy) * (y[n] - vy) > 0
+        )
+        return not on_ray
+
+    def _segment_clear(self, u: int, w: int) -> bool:
+        """No ring edge or earlier bridge meets the open segment u-w, no vertex lies on it."""
+        x, y = self.x, self.y
+        ux, uy, wx, wy = x[u], y[u], x[w], y[w]
+        found = self.edges.query_triangle(np.array([ux, wx]), np.array([uy, wy]))
+        a = self.edge_a[found]
+        b = self.edge_b[found]
+        if self.bridges:
+            extra = np.asarray(self.bridges, dtype=np.int64)
+            a = np.concatenate([a, extra[:, 0]])
+            b = np.concatenate([b, extra[:, 1]])
+        if len(a) == 0:
+            return True
+        o1 = orient_many(ux, uy, wx, wy, x[a], y[a])
+        o2 = orient_many(ux, uy, wx, wy, x[b], y[b])
+        if (
+            (o1 == 0) & strictly_between(x[a], y[a], ux, uy, wx, wy)
+            | (o2 == 0) & strictly_between(x[b], y[b], ux, uy, wx, wy)
+        ).any():
+            return False
+        straddle = (o1.astype(np.int16) * o2) < 0
+        if not straddle.any():
+            return True
+        a, b = a[straddle], b[straddle]
+        o3 = orient_many(x[a], y[a], x[b], y[b], ux, uy)
+        o4 = orient_many(x[a], y[a], x[b], y[b], wx, wy)
+        return not ((o3.astype(np.int16) * o4) < 0).any()
+
+    def _valid_occurrences(self, vid: int, island: np.ndarray, h_index: int) -> list[int]:
+        """Positions k of ``vid`` in the sequence from which a bridge to the island may leave."""
+        x, y = self.x, self.y
+        h = int(island[h_index])
+        if x[vid] == x[h] and y[vid] == y[h]:
+            nxt = int(island[(h_index + 1) % len(island)])
+            prv = int(island[h_index - 1])
+            return [
+                k
+                for k in self.occurrences(vid)
+                if self._inside_angle(k, x[nxt], y[nxt]) or self._inside_angle(k, x[prv], y[prv])
+            ]
+        ks = [k for k in self.occurrences(vid) if self._inside_angle(k, x[h], y[h])]
+        if ks and self._segment_clear(vid, h):
+            return ks
+        return []
+
+    # -- search ---------------------------------------------------------------------------
+    def find_bridge(self, island: np.ndarray, h_index: int) -> tuple[int, int] | None:
+        """(k, vertex id) of the bridge target for the island, or None."""
+        x, y = self.x, self.y
+        h = int(island[h_index])
+        hx, hy = float(x[h]), float(y[h])
+        grid = self.points
+        radius = max(grid.size_x, grid.size_y)
+        full = max(grid.size_x * grid.nx, grid.size_y * grid.ny) * 2.0 + radius
+        tested: dict[int, list[int]] = {}
+        while True:
+            found = self.point_ids[
+                np.unique(grid.query_box(hx - radius, hy - radius, hx + radius, hy + radius))
+            ]
+            found = found[self.in_seq[found]]
+            d2 = (x[found] - hx) ** 2 + (y[found] - hy) ** 2
+            order = np.argsort(d2, kind="stable")
+            limit = radius * radius
+            best = None
+            for idx in order.tolist():
+                vid = int(found[idx])
+                dist = float(d2[idx])
+                if best is not None and dist > best * (1 + _DISTANCE_MARGIN):
+                    break
+                if dist > limit and radius < full:
+                    break
+                if vid not in tested:
+                    tested[vid] = self._valid_occurrences(vid, island, h_index)
+                if tested[vid] and best is None:
+                    best = dist
+            if best is not None and (best * (1 + _DISTANCE_MARGIN) <= limit or radius >= full):
+                return self._nearest_exact(tested, h, best)
+            if radius >= full:
+                return None
+            radius *= 2.0
+
+    def _nearest_exact(self, tested: dict[int, list[int]], h: int, best: float) -> tuple[int, int]:
+        x, y = self.x, self.y
+        options = []
+        for vid, ks in tested.items():
+            if not ks:
+                continue
+            dist = float((x[vid] - x[h]) ** 2 + (y[vid] - y[h]) ** 2)
+            if dist <= best * (1 + _DISTANCE_MARGIN):
+                exact = exact_sq_distance(x[vid], y[vid], x[h], y[h])
+                options.extend((exact, k, vid) for k in ks)
+        _, k, vid = min(options)
+        return k, vid
+
+    def splice(self, k: int, island: np.ndarray, h_index: int) -> None:
+        x, y, seq = self.x, self.y, self.seq
+        loop = np.roll(island, -h_index)
+        h = int(loop[0])
+        sk = int(seq[k])
+        if x[sk] == x[h] and y[sk] == y[h]:
+            if k == 0:
+                parts = [seq, loop]
+            else:
+                parts = [seq[: k + 1], loop[1:], loop[:1], seq[k + 1 :]]
+        else:
+            self.bridges.append((sk, h))
+            if k == 0:
+                parts = [seq, seq[:1], loop, loop[:1]]
+            else:
+                parts = [seq[: k + 1], loop, loop[:1], seq[k : k + 1], seq[k + 1 :]]
+        self.seq = np.concatenate(parts)
+        self._seq_changed()
+
+
+def bridge_islands(
+    x: np.ndarray, y: np.ndarray, rings: list[np.ndarray], ring_numbers: list[int]
+) -> np.ndarray:
+    """The single vertex sequence of the outer ring with every island joined by a bridge."""
+    if len(rings) == 1:
+        return rings[0]
+    bridger = _Bridger(x, y, rings)
+    order = []
+    for slot in range(1, len(rings)):
+        ring = rings[slot]
+        # leftmost vertex: smallest x, then y, then the first in input order
+        h_index = int(np.lexsort((ring, y[ring], x[ring]))[0])
+        h = int(ring[h_index])
+        order.append((float(x[h]), float(y[h]), slot, h_index))
+    order.sort(key=lambda item: (item[0], item[1], item[2]))
+    for _, _, slot, h_index in order:
+        target = bridger.find_bridge(rings[slot], h_index)
+        if target is None:
+            raise TriangulationError(
+                f"{ring_label(ring_numbers[slot])}: no bridge to the outer ring found "
+                "(the island may lie outside the outer ring or cross it)"
+            )
+        bridger.splice(target[0], rings[slot], h_index)
+    return bridger.seq

@@ -1,0 +1,256 @@
+"""The BSP-tree triangulation (docs/algorithm.md, sections 3 and 4).
+
+Pipeline per polygon: normalise the rings (``rings``), join the islands (``bridges``), then
+build the BSP tree over the bridged vertex sequence with an explicit work list.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .bridges import bridge_islands, split_touching
+from .predicates import orient_many, strictly_between
+from .rings import PreparedRings, normalise_rings, prepare, ring_label
+from .rules import ApexRule, get_rule
+from .spatial_index import SegmentGrid
+from .triangulation import Triangulation, TriangulationError
+
+# Sub-polygons up to this many vertices test their candidates against all their edges at once;
+# larger sequences use a grid over the edges.
+SMALL_SEQUENCE = 64
+# Candidates tested together per step in small sub-polygons with rule "first".
+_FIRST_CHUNK = 4
+
+
+def correct_candidates(
+    sx: np.ndarray,
+    sy: np.ndarray,
+    lo: int,
+    hi: int,
+    candidates: np.ndarray,
+    edges: np.ndarray | None = None,
+) -> np.ndarray:
+    """Mask of ``candidates`` (positions) forming a correct triangle on the base (hi, lo).
+
+    ``sx``, ``sy`` are the sequence coordinates (position m repeats position 0). ``edges`` are
+    the positions i of the edges (i, i+1) to test; None means every edge of the sub-polygon.
+    Implements the three conditions of docs/algorithm.md section 4 exactly.
+    """
+    ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
+    cx, cy = sx[candidates], sy[candidates]
+    ok = orient_many(ax, ay, bx, by, cx, cy) > 0
+    if ok.any():
+        ok &= _inside_apex_angle(sx, sy, candidates, ax, ay) & _inside_apex_angle(
+            sx, sy, candidates, bx, by
+        )
+    if edges is None:
+        edges = np.arange(lo, hi)
+    if not ok.any() or len(edges) == 0:
+        return ok
+    ends = np.concatenate([edges, edges + 1])
+    count = len(edges)
+    px, py = sx[ends], sy[ends]
+    ccx, ccy = cx[:, None], cy[:, None]
+    f_ab = orient_many(ax, ay, bx, by, px, py)
+    f_bc = orient_many(bx, by, ccx, ccy, px, py)
+    f_ca = orient_many(ccx, ccy, ax, ay, px, py)
+    # condition 3: a vertex in the relative interior of a new side
+    on_side = ((f_bc == 0) & strictly_between(px, py, bx, by, ccx, ccy)) | (
+        (f_ca == 0) & strictly_between(px, py, ccx, ccy, ax, ay)
+    )
+    bad = on_side.any(axis=1)
+    # condition 2: an edge meets the open triangle (separating-axis test, all exact signs)
+    inward = (
+        (np.maximum(f_ab[:count], f_ab[count:]) > 0)[None, :]
+        & (np.maximum(f_bc[:, :count], f_bc[:, count:]) > 0)
+        & (np.maximum(f_ca[:, :count], f_ca[:, count:]) > 0)
+    )
+    if inward.any():
+        rows, cols = np.nonzero(inward)
+        e = edges[cols]
+        ex0, ey0, ex1, ey1 = sx[e], sy[e], sx[e + 1], sy[e + 1]
+        g_a = orient_many(ex0, ey0, ex1, ey1, ax, ay)
+        g_b = orient_many(ex0, ey0, ex1, ey1, bx, by)
+        g_c = orient_many(ex0, ey0, ex1, ey1, cx[rows], cy[rows])
+        lowest = np.minimum(np.minimum(g_a, g_b), g_c)
+        highest = np.maximum(np.maximum(g_a, g_b), g_c)
+        degenerate = (ex0 == ex1) & (ey0 == ey1)
+        crossing = ((lowest < 0) & (highest > 0)) | degenerate
+        if crossing.any():
+            bad[rows[crossing]] = True
+    return ok & ~bad
+
+
+def _inside_apex_angle(
+    sx: np.ndarray, sy: np.ndarray, candidates: np.ndarray, tx: float, ty: float
+) -> np.ndarray:
+    """The direction from each candidate s_j towards t lies in the closed interior angle of
+    the sequence at position j (between s_{j-1} s_j and s_j s_{j+1}, interior on the left).
+
+    This tells apart duplicate occurrences of one point (bridge ends, touching rings).
+    """
+    px, py = sx[candidates - 1], sy[candidates - 1]
+    vx, vy = sx[candidates], sy[candidates]
+    nx, ny = sx[candidates + 1], sy[candidates + 1]
+    turn = orient_many(px, py, vx, vy, nx, ny)
+    after_next = orient_many(vx, vy, nx, ny, tx, ty) >= 0
+    after_prev = orient_many(px, py, vx, vy, tx, ty) >= 0
+    spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
+    return np.where(
+        turn > 0,
+        after_next & after_prev,
+        np.where(turn < 0, after_next | after_prev, after_next | spike),
+    )
+
+
+class _Tree:
+    """BSP construction over one bridged sequence."""
+
+    def __init__(
+        self, prepared: PreparedRings, sequence: np.ndarray, z: np.ndarray, rule: ApexRule
+    ) -> None:
+        self.prepared = prepared
+        self.ids = np.concatenate([sequence, sequence[:1]])
+        self.sx = prepared.x[self.ids]
+        self.sy = prepared.y[self.ids]
+        self.sz = z[self.ids]
+        self.rule = rule
+        self.m = len(sequence)
+        self.grid = None
+        if self.m > SMALL_SEQUENCE:
+            starts = np.arange(self.m)
+            self.grid = SegmentGrid(
+                self.sx[starts], self.sy[starts], self.sx[starts + 1], self.sy[starts + 1]
+            )
+
+    def _apex(self, lo: int, hi: int, v1: int, v2: int) -> int:
+        candidates = np.arange(hi - 1, lo, -1)
+        rule = self.rule
+        if self.grid is None or hi - lo <= SMALL_SEQUENCE:
+            if rule.exhaustive:
+                chunks = [candidates]
+            else:
+                chunks = [candidates[:_FIRST_CHUNK], candidates[_FIRST_CHUNK:]]
+            for chunk in chunks:
+                if len(chunk) == 0:
+                    continue
+                mask = correct_candidates(self.sx, self.sy, lo, hi, chunk)
+                if mask.any():
+                    return rule.choose(chunk[mask], v1, v2, self.sz)
+            return -1
+        correct = []
+        for c in candidates.tolist():
+            if self._grid_correct(lo, hi, c):
+                correct.append(c)
+                if not rule.exhaustive:
+                    break
+        if not correct:
+            return -1
+        return rule.choose(np.asarray(correct, dtype=np.int64), v1, v2, self.sz)
+
+    def _grid_correct(self, lo: int, hi: int, c: int) -> bool:
+        corners = np.array([hi, lo, c])
+        found = self.grid.query_triangle(self.sx[corners], self.sy[corners])
+        edges = found[(found >= lo) & (found < hi)]
+        return bool(correct_candidates(self.sx, self.sy, lo, hi, np.array([c]), edges)[0])
+
+    def build(self) -> Triangulation:
+        m = self.m
+        ids = self.ids
+        triangles = np.empty((max(m - 2, 0), 3), dtype=np.int64)
+        parent = np.empty(max(m - 2, 0), dtype=np.int64)
+        depth = np.empty(max(m - 2, 0), dtype=np.int64)
+        side = np.empty(max(m - 2, 0), dtype=np.int8)
+        # work item: (lo, hi, v1_at_hi, parent, depth, side); popped in pre-order
+        work = [(1, m, True, -1, 0, 0)]
+        count = 0
+        mirrored = self.prepared.mirrored
+        while work:
+            lo, hi, v1_at_hi, par, dep, sd = work.pop()
+            if count >= len(triangles):
+                raise TriangulationError(self._label(lo) + ": the BSP tree does not close")
+            v1, v2 = (hi, lo) if v1_at_hi else (lo, hi)
+            apex = self._apex(lo, hi, v1, v2)
+            if apex < 0:
+                raise TriangulationError(
+                    f"{self._label(v1)}: no correct triangle on the edge between vertices "
+                    f"{ids[v1]} and {ids[v2]} (invalid polygon: self-intersection or "
+                    "crossing rings?)"
+                )
+            node = count
+            # counter-clockwise in the working plane before mirroring
+            if mirrored:
+                triangles[node] = (ids[lo], ids[hi], ids[apex])
+            else:
+                triangles[node] = (ids[hi], ids[lo], ids[apex])
+            parent[node] = par
+            depth[node] = dep
+            side[node] = sd
+            count += 1
+            upper = (apex, hi, True)  # sub-range on the hi side, V1 there at hi
+            lower = (lo, apex, False)
+            left, right = (upper, lower) if v1_at_hi else (lower, upper)
+            for (clo, chi, flag), child_side in ((right, 2), (left, 1)):
+                if chi - clo > 1:
+                    work.append((clo, chi, flag, node, dep + 1, child_side))
+        return Triangulation(
+            vertices=self.prepared.vertices,
+            triangles=triangles[:count],
+            parent=parent[:count],
+            depth=depth[:count],
+            side=side[:count],
+        )
+
+    def _label(self, position: int) -> str:
+        vid = int(self.ids[position])
+        return ring_label(int(self.prepared.ring_of[vid]))
+
+
+def _snap(clean: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
+    from .planar import snap_to_plane
+
+    return [np.asarray(r, dtype=np.float64) for r in snap_to_plane(clean, tolerance)]
+
+
+def triangulate(
+    rings: Sequence[object], *, rule: str = "first", planar_tolerance: float = 0.0
+) -> Triangulation:
+    """Triangulate one polygon given as ``[outer ring, island, ...]`` (points (x, y[, z]))."""
+    apex_rule = get_rule(rule)
+    clean, axes = normalise_rings(rings)
+    if planar_tolerance > 0 and clean:
+        clean = _snap(clean, planar_tolerance)
+    prepared = prepare(clean, axes)
+    if prepared.is_degenerate:
+        return Triangulation(vertices=prepared.vertices)
+    ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
+    sequence = bridge_islands(prepared.x, prepared.y, ring_ids, prepared.ring_numbers)
+    tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule)
+    return tree.build()
+
+
+def triangulate_many(
+    polygons: Sequence[Sequence[object]],
+    *,
+    rule: str = "first",
+    planar_tolerance: float = 0.0,
+    on_error: str = "raise",
+) -> list:
+    """Triangulate many polygons; results in input order.
+
+    With ``on_error="return"`` a polygon that fails gets its ``TriangulationError`` in its slot.
+    """
+    if on_error not in ("raise", "return"):
+        raise ValueError(f"on_error must be 'raise' or 'return', not {on_error!r}")
+    get_rule(rule)
+    results: list = []
+    for rings in polygons:
+        try:
+            results.append(triangulate(rings, rule=rule, planar_tolerance=planar_tolerance))
+        except TriangulationError as exc:
+            if on_error == "raise":
+                raise
+            results.append(exc)
+    return results

@@ -1,0 +1,144 @@
+"""Input normalisation: rings to clean vertex arrays, the working plane and the orientation."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .predicates import ring_area_sign
+from .triangulation import TriangulationError
+
+
+def ring_label(ring_number: int) -> str:
+    """Human name of input ring ``ring_number`` (0-based): 'ring 1 (outer)', 'ring 3 (island 2)'."""
+    if ring_number == 0:
+        return "ring 1 (outer)"
+    return f"ring {ring_number + 1} (island {ring_number})"
+
+
+@dataclass
+class PreparedRings:
+    """Normalised rings in the working plane, ready for bridging.
+
+    - ``vertices``: (N, 3) output coordinates, the concatenation of all normalised rings.
+    - ``x``, ``y``: (N,) working-plane coordinates (mirrored so that the outer ring is CCW).
+    - ``rings``: vertex ids of each usable ring, the outer ring counter-clockwise first, then
+      the islands clockwise (traversal order), in input order.
+    - ``ring_numbers``: the input ring index of each entry of ``rings``.
+    - ``ring_of``: (N,) input ring index of every vertex.
+    - ``mirrored``: the first working coordinate was negated (the outer ring was clockwise).
+    """
+
+    vertices: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    rings: list[np.ndarray]
+    ring_numbers: list[int]
+    ring_of: np.ndarray
+    mirrored: bool = False
+
+    @property
+    def is_degenerate(self) -> bool:
+        return not self.rings
+
+
+def _as_points(ring: object, ring_number: int) -> np.ndarray:
+    """One input ring as an (n, 3) float64 array (z = 0 where absent)."""
+    try:
+        points = np.asarray(ring, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TriangulationError(
+            f"{ring_label(ring_number)}: not a sequence of numeric points ({exc})"
+        ) from None
+    if points.size == 0:
+        return np.zeros((0, 3))
+    if points.ndim != 2 or points.shape[1] not in (2, 3, 4):
+        raise TriangulationError(
+            f"{ring_label(ring_number)}: expected points of 2 or 3 coordinates, "
+            f"got an array of shape {points.shape}"
+        )
+    if not np.isfinite(points[:, :3]).all():
+        raise TriangulationError(f"{ring_label(ring_number)}: coordinates are not finite")
+    if points.shape[1] == 2:
+        return np.column_stack([points, np.zeros(len(points))])
+    return np.ascontiguousarray(points[:, :3])
+
+
+def working_axes(outer: np.ndarray) -> tuple[int, int]:
+    """The two coordinates the engine works on: XY unless the outer ring is a steep face."""
+    if len(outer) < 3:
+        return 0, 1
+    nxt = np.roll(outer, -1, axis=0)
+    normal = np.array(
+        [
+            np.sum((outer[:, 1] - nxt[:, 1]) * (outer[:, 2] + nxt[:, 2])),
+            np.sum((outer[:, 2] - nxt[:, 2]) * (outer[:, 0] + nxt[:, 0])),
+            np.sum((outer[:, 0] - nxt[:, 0]) * (outer[:, 1] + nxt[:, 1])),
+        ]
+    )
+    magnitude = np.abs(normal)
+    if magnitude[2] >= magnitude[0] and magnitude[2] >= magnitude[1]:
+        return 0, 1
+    if magnitude[0] >= magnitude[1]:
+        return 1, 2
+    return 0, 2
+
+
+def _clean(points: np.ndarray, axes: tuple[int, int]) -> np.ndarray:
+    """Drop consecutive duplicates (equal in the working plane, first kept) and the closing point."""
+    if len(points) == 0:
+        return points
+    plane = points[:, axes]
+    keep = np.ones(len(points), dtype=bool)
+    keep[1:] = np.any(plane[1:] != plane[:-1], axis=1)
+    points = points[keep]
+    plane = plane[keep]
+    while len(points) > 1 and np.array_equal(plane[-1], plane[0]):
+        points = points[:-1]
+        plane = plane[:-1]
+    return points
+
+
+def normalise_rings(rings: Sequence[object]) -> tuple[list[np.ndarray], tuple[int, int]]:
+    """Parse, validate and clean the input rings; returns the rings and the working axes."""
+    if isinstance(rings, np.ndarray) and rings.ndim == 2:
+        rings = [rings]
+    raw = [_as_points(ring, number) for number, ring in enumerate(rings)]
+    if not raw:
+        return [], (0, 1)
+    axes = working_axes(raw[0])
+    return [_clean(points, axes) for points in raw], axes
+
+
+def prepare(clean_rings: list[np.ndarray], axes: tuple[int, int]) -> PreparedRings:
+    """Working-plane coordinates, orientation and the usable rings of normalised input."""
+    sizes = [len(r) for r in clean_rings]
+    vertices = np.concatenate(clean_rings) if clean_rings else np.zeros((0, 3))
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64).reshape(-1, 3)
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    ring_of = np.repeat(np.arange(len(sizes), dtype=np.int64), sizes)
+    x = vertices[:, axes[0]].copy()
+    y = vertices[:, axes[1]].copy()
+    empty = PreparedRings(vertices, x, y, [], [], ring_of)
+    if not clean_rings or sizes[0] < 3:
+        return empty
+    outer_ids = np.arange(starts[0], starts[1])
+    outer_sign = ring_area_sign(x[outer_ids], y[outer_ids])
+    if outer_sign == 0:
+        return empty
+    if outer_sign < 0:
+        x = -x  # mirror: exact, keeps the vertex order
+    rings = [outer_ids]
+    numbers = [0]
+    for number in range(1, len(clean_rings)):
+        if sizes[number] < 3:
+            continue
+        ids = np.arange(starts[number], starts[number + 1])
+        sign = ring_area_sign(x[ids], y[ids])
+        if sign == 0:
+            continue
+        rings.append(ids[::-1].copy() if sign > 0 else ids)
+        numbers.append(number)
+    return PreparedRings(vertices, x, y, rings, numbers, ring_of, outer_sign < 0)
