@@ -16,12 +16,13 @@ from dataclasses import dataclass
 import mapbox_earcut
 import numpy as np
 import shapely
-from common import SHARED_DATA, Row, rows_table, timed
+from common import SHARED_DATA, BudgetExceededError, Row, rows_table, timed, within
 from generate import DEFAULT_COUNT, ensure_islands, ensure_stars, read_rings
 
 from bsp_triangulate import triangulate_many
 
 QUICK_COUNT = 5_000
+DEFAULT_BUDGET = 1_800.0  # seconds per measurement before it is abandoned
 WATER_HUGE3 = SHARED_DATA / "earcut" / "fixtures" / "water-huge3.json"
 
 Rings = list[np.ndarray]
@@ -75,34 +76,48 @@ def vertex_count(polygons: list[Rings]) -> int:
     return sum(len(ring) for rings in polygons for ring in rings)
 
 
-def compare(case: str, polygons: list[Rings], repeat: int = 1) -> tuple[list[Row], Timing]:
+LIBRARIES: dict[str, Callable[[list[Rings], int], Timing]] = {
+    "bsp_triangulate (first)": time_ours,
+    "mapbox_earcut": time_earcut,
+    "GEOS constrained Delaunay": time_geos,
+}
+
+
+def measure(
+    run: Callable[[list[Rings], int], Timing],
+    polygons: list[Rings],
+    repeat: int,
+    budget: float | None,
+) -> Timing | str:
+    """The timing, or why there is none (over budget, failed)."""
+    try:
+        return within(lambda: run(polygons, repeat), budget)
+    except BudgetExceededError:
+        return f"> {budget:.0f} s (stopped)"
+    except RuntimeError as error:
+        return f"failed: {error}"
+
+
+def compare(
+    case: str, polygons: list[Rings], repeat: int = 1, budget: float | None = DEFAULT_BUDGET
+) -> list[Row]:
     """Rows with vertices/s of the three libraries and our time ratios to the other two."""
     vertices = vertex_count(polygons)
-    timings: dict[str, Timing] = {}
-    runners: dict[str, Callable[[], Timing]] = {
-        "bsp_triangulate (first)": lambda: time_ours(polygons, repeat),
-        "mapbox_earcut": lambda: time_earcut(polygons, repeat),
-        "GEOS constrained Delaunay": lambda: time_geos(polygons, repeat),
-    }
+    seconds: dict[str, float] = {}
     rows: list[Row] = []
-    for name, run in runners.items():
-        timing = run()
-        timings[name] = timing
-        rows.append(
-            Row(
-                case,
-                f"{name}: time",
-                timing.seconds,
-                "s",
-                f"{vertices / timing.seconds:,.0f} vertices/s, {timing.triangles:,} triangles",
-            )
-        )
-    ours = timings["bsp_triangulate (first)"].seconds
-    rows.append(Row(case, "ours / earcut time", ours / timings["mapbox_earcut"].seconds, "x"))
-    rows.append(
-        Row(case, "ours / GEOS time", ours / timings["GEOS constrained Delaunay"].seconds, "x")
-    )
-    return rows, timings["bsp_triangulate (first)"]
+    for name, run in LIBRARIES.items():
+        timing = measure(run, polygons, repeat, budget)
+        if isinstance(timing, str):
+            rows.append(Row(case, f"{name}: time", timing))
+            seconds[name] = float("nan")
+            continue
+        seconds[name] = timing.seconds
+        note = f"{vertices / timing.seconds:,.0f} vertices/s, {timing.triangles:,} triangles"
+        rows.append(Row(case, f"{name}: time", timing.seconds, "s", note))
+    ours = seconds["bsp_triangulate (first)"]
+    rows.append(Row(case, "ours / earcut time", ours / seconds["mapbox_earcut"], "x"))
+    rows.append(Row(case, "ours / GEOS time", ours / seconds["GEOS constrained Delaunay"], "x"))
+    return rows
 
 
 def earcut_fixture(path) -> Rings:
@@ -111,54 +126,55 @@ def earcut_fixture(path) -> Rings:
     return [np.asarray(ring, dtype=np.float64).reshape(-1, 2) for ring in data if len(ring)]
 
 
-def scaling_rows() -> list[Row]:
+def scaling_rows(budget: float | None = DEFAULT_BUDGET) -> list[Row]:
     """Time of each library on the 100,000-vertex polygon over its time on the 10,000 one."""
     small = read_rings(ensure_islands(10_000))
     large = read_rings(ensure_islands(100_000))
+    case = "1 polygon, 10k -> 100k vertices (100 -> 1,000 islands)"
     rows: list[Row] = []
-    for name, run in (
-        ("bsp_triangulate (first)", time_ours),
-        ("mapbox_earcut", time_earcut),
-        ("GEOS constrained Delaunay", time_geos),
-    ):
-        small_time = run(small, 3).seconds
-        large_time = run(large, 1).seconds
+    for name, run in LIBRARIES.items():
+        small_timing = measure(run, small, 3, budget)
+        if isinstance(small_timing, str):
+            rows.append(Row(case, f"{name}: scaling", "n/a", "", f"10k: {small_timing}"))
+            continue
+        large_timing = measure(run, large, 1, budget)
+        if isinstance(large_timing, str):
+            note = f"{small_timing.seconds:.3f} s -> {large_timing}"
+            rows.append(Row(case, f"{name}: scaling", "n/a", "", note))
+            continue
+        note = f"{small_timing.seconds:.3f} s -> {large_timing.seconds:.3f} s"
+        if name.startswith("bsp"):
+            note += " (target: <= 15x)"
         rows.append(
-            Row(
-                "1 polygon, 10k -> 100k vertices (100 -> 1,000 islands)",
-                f"{name}: scaling",
-                large_time / small_time,
-                "x",
-                f"{small_time:.3f} s -> {large_time:.3f} s (target for ours: <= 15x)"
-                if name.startswith("bsp")
-                else f"{small_time:.3f} s -> {large_time:.3f} s",
-            )
+            Row(case, f"{name}: scaling", large_timing.seconds / small_timing.seconds, "x", note)
         )
     return rows
 
 
-def run(quick: bool = False) -> list[Row]:
+def run(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> list[Row]:
     """All core benchmarks; ``quick`` uses 5,000 instead of 50,000 star polygons."""
     count = QUICK_COUNT if quick else DEFAULT_COUNT
     stars_path, _ = ensure_stars(count)
     stars = read_rings(stars_path)
     case = f"{len(stars):,} stars with 1 island ({vertex_count(stars):,} vertices)"
-    rows, _ = compare(case, stars, repeat=2 if quick else 1)
+    rows = compare(case, stars, 2 if quick else 1, budget)
     if WATER_HUGE3.exists():
         water = [earcut_fixture(WATER_HUGE3)]
-        water_case = (
-            f"earcut water-huge3 ({vertex_count(water):,} vertices, {len(water[0]) - 1} holes)"
-        )
-        rows += compare(water_case, water, repeat=3)[0]
-    rows += scaling_rows()
+        holes = len(water[0]) - 1
+        water_case = f"earcut water-huge3 ({vertex_count(water):,} vertices, {holes} holes)"
+        rows += compare(water_case, water, 3, budget)
+    rows += scaling_rows(budget)
     return rows
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="5,000 instead of 50,000 polygons")
+    parser.add_argument(
+        "--budget", type=float, default=DEFAULT_BUDGET, help="seconds per measurement at most"
+    )
     arguments = parser.parse_args()
-    print(rows_table(run(arguments.quick)))
+    print(rows_table(run(arguments.quick, arguments.budget)))
 
 
 if __name__ == "__main__":

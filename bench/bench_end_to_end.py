@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
+import signal
 import subprocess
 import tempfile
 import time
@@ -20,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from common import (
+    BudgetExceededError,
     Row,
     enable_plugin,
     plugin_dir,
@@ -30,6 +33,7 @@ from common import (
 from generate import DEFAULT_COUNT, ensure_stars
 
 QUICK_COUNT = 5_000
+DEFAULT_BUDGET = 1_800.0  # seconds per run before it is stopped
 TIME_BINARY = "/usr/bin/time"
 
 
@@ -48,22 +52,38 @@ def parse_peak_mib(report: str) -> float:
     return int(match[1]) / 1024 if match else float("nan")
 
 
-def run_measured(arguments: list[str], environment: dict[str, str]) -> ProcessRun:
-    """Run qgis_process with the arguments under GNU time; fail loudly on a non-zero exit."""
+def run_measured(
+    arguments: list[str], environment: dict[str, str], budget: float | None = None
+) -> ProcessRun:
+    """Run qgis_process under GNU time; raise on failure or when over ``budget`` seconds."""
     with tempfile.NamedTemporaryFile("r", suffix=".time") as report:
         command = [TIME_BINARY, "-v", "-o", report.name, qgis_process_binary(), *arguments]
         start = time.perf_counter()
-        process = subprocess.run(command, env=environment, capture_output=True, text=True)
+        # own process group: on timeout, qgis_process goes too, not only GNU time
+        process = subprocess.Popen(
+            command,
+            env=environment,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        )
+        try:
+            stdout, stderr = process.communicate(timeout=budget)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.communicate()
+            raise BudgetExceededError(f"> {budget:.0f} s (stopped)") from None
         seconds = time.perf_counter() - start
         peak = parse_peak_mib(Path(report.name).read_text())
     if process.returncode != 0:
         raise RuntimeError(
             f"{' '.join(arguments[:3])} failed ({process.returncode}):\n"
-            f"{process.stdout[-2000:]}\n{process.stderr[-2000:]}"
+            f"{stdout[-2000:]}\n{stderr[-2000:]}"
         )
     results = {}
     if "--json" in arguments:
-        results = json.loads(process.stdout[process.stdout.index("{") :]).get("results", {})
+        results = json.loads(stdout[stdout.index("{") :]).get("results", {})
     return ProcessRun(seconds, peak, results)
 
 
@@ -71,7 +91,7 @@ def algorithm(name: str, **parameters: object) -> list[str]:
     return ["--json", "run", name, *(f"--{key}={value}" for key, value in parameters.items())]
 
 
-def run(quick: bool = False) -> list[Row]:
+def run(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> list[Row]:
     """Rows of wall time and peak RSS per algorithm run."""
     count = QUICK_COUNT if quick else DEFAULT_COUNT
     polygons, dem = ensure_stars(count)
@@ -111,7 +131,12 @@ def run(quick: bool = False) -> list[Row]:
     rows: list[Row] = []
     timings: dict[str, float] = {}
     for name, arguments in cases.items():
-        measured = run_measured(arguments, environment)
+        try:
+            measured = run_measured(arguments, environment, budget)
+        except (BudgetExceededError, RuntimeError) as error:
+            rows.append(Row(case, f"{name}: wall time", str(error).splitlines()[0]))
+            timings[name] = float("nan")
+            continue
         timings[name] = measured.seconds
         counts = ", ".join(
             f"{key.lower()} {value:,}"
@@ -135,8 +160,11 @@ def run(quick: bool = False) -> list[Row]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="5,000 instead of 50,000 polygons")
+    parser.add_argument(
+        "--budget", type=float, default=DEFAULT_BUDGET, help="seconds per run at most"
+    )
     arguments = parser.parse_args()
-    print(rows_table(run(arguments.quick)))
+    print(rows_table(run(arguments.quick, arguments.budget)))
 
 
 if __name__ == "__main__":

@@ -20,7 +20,7 @@ from pathlib import Path
 import mapbox_earcut
 import numpy as np
 import shapely
-from common import SHARED_DATA, Row, markdown_table
+from common import SHARED_DATA, BudgetExceededError, Row, markdown_table, within
 from osgeo import gdal, ogr, osr
 
 from bsp_triangulate import triangulate_many
@@ -34,6 +34,7 @@ RIVERS = SWELLENDAM / "rivers.shp"
 RIVER_BUFFER = 50.0
 DENSIFY = 100.0
 QUICK_FARMS = 300
+DEFAULT_BUDGET = 1_800.0  # seconds per triangulation run before it is abandoned
 CHUNK = 2_000_000  # candidate (triangle, cell) pairs per numpy batch
 
 gdal.UseExceptions()
@@ -295,8 +296,8 @@ METHODS: dict[str, Callable[[list[Rings]], list[Mesh]]] = {
 
 
 def layer_results(
-    name: str, shapes: list[shapely.Polygon], dem: Dem
-) -> list[tuple[str, str, Fidelity]]:
+    name: str, shapes: list[shapely.Polygon], dem: Dem, budget: float | None
+) -> list[tuple[str, str, Fidelity | str]]:
     cells = evaluation_cells(shapes, dem)
     results = []
     for densify in (None, DENSIFY):
@@ -305,11 +306,19 @@ def layer_results(
         label = f"{name}, {len(shapes):,} polygons, {vertices:,} vertices"
         label += f", densified to {DENSIFY:.0f} m" if densify else ""
         for method, build in METHODS.items():
-            results.append((label, method, fidelity(build(polygons), cells, dem)))
+            try:
+                meshes = within(lambda build=build, polygons=polygons: build(polygons), budget)
+            except BudgetExceededError:
+                results.append((label, method, f"> {budget:.0f} s (stopped)"))
+                continue
+            except RuntimeError as error:
+                results.append((label, method, f"failed: {error}"))
+                continue
+            results.append((label, method, fidelity(meshes, cells, dem)))
     return results
 
 
-def run_table(quick: bool = False) -> tuple[str, list[Row]]:
+def run_table(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> tuple[str, list[Row]]:
     """The Markdown table of fidelity figures and the same as rows for run_all."""
     dem = Dem.read(DEM_PATH)
     layers = {
@@ -320,30 +329,38 @@ def run_table(quick: bool = False) -> tuple[str, list[Row]]:
     }
     results = []
     for name, shapes in layers.items():
-        results += layer_results(name, shapes, dem)
+        results += layer_results(name, shapes, dem, budget)
     table = markdown_table(
         ["data", "triangulation", "RMS (m)", "max (m)", "cells", "uncovered", "triangles"],
         [
-            (label, method, f.rms, f.maximum, f.evaluated, f.uncovered, f.triangles)
+            (label, method, f, "", "", "", "")
+            if isinstance(f, str)
+            else (label, method, f.rms, f.maximum, f.evaluated, f.uncovered, f.triangles)
             for label, method, f in results
         ],
     )
     rows = []
     for label, method, f in results:
+        if isinstance(f, str):
+            rows.append(Row(label, f"{method}: RMS |surface - DEM|", f))
+            continue
         note = f"max {f.maximum:.1f} m over {f.evaluated:,} DEM cells"
         rows.append(Row(label, f"{method}: RMS |surface - DEM|", f.rms, "m", note))
     return table, rows
 
 
-def run(quick: bool = False) -> list[Row]:
-    return run_table(quick)[1]
+def run(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> list[Row]:
+    return run_table(quick, budget)[1]
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help=f"first {QUICK_FARMS} farms only")
+    parser.add_argument(
+        "--budget", type=float, default=DEFAULT_BUDGET, help="seconds per triangulation at most"
+    )
     arguments = parser.parse_args()
-    print(run_table(arguments.quick)[0])
+    print(run_table(arguments.quick, arguments.budget)[0])
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import platform
 import shutil
@@ -17,6 +18,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 SHARED_DATA = ROOT.parent / "shared" / "data"
 BUILD = ROOT / "build" / "bench"
+LONG_RUN = 5.0  # seconds
 
 if str(ROOT) not in sys.path:  # run as a script: make the core package importable
     sys.path.insert(0, str(ROOT))
@@ -66,14 +68,60 @@ def rows_table(rows: Iterable[Row]) -> str:
 
 
 def timed(function: Callable[[], Any], repeat: int = 1) -> tuple[float, Any]:
-    """Best wall time (seconds) of ``repeat`` calls, and the last call's result."""
+    """Best wall time (seconds) of up to ``repeat`` calls, and the last call's result.
+
+    A call longer than ``LONG_RUN`` seconds is not repeated: its time is stable enough.
+    """
     best = float("inf")
     result = None
     for _ in range(repeat):
         start = time.perf_counter()
         result = function()
         best = min(best, time.perf_counter() - start)
+        if best > LONG_RUN:
+            break
     return best, result
+
+
+class BudgetExceededError(Exception):
+    """A measurement did not finish within its time budget."""
+
+
+def _child(function: Callable[[], Any], connection: Any) -> None:
+    try:
+        connection.send((True, function()))
+    except BaseException as error:  # report any failure to the parent, then exit
+        connection.send((False, repr(error)))
+    finally:
+        connection.close()
+
+
+def within(function: Callable[[], Any], timeout: float | None) -> Any:
+    """``function()`` run in a forked child that is killed after ``timeout`` seconds.
+
+    The child inherits the parent's data (no copying of the inputs), so this only costs the
+    fork. Raises BudgetExceededError when the budget runs out, RuntimeError when the child fails.
+    """
+    if timeout is None:
+        return function()
+    context = multiprocessing.get_context("fork")
+    receiver, sender = context.Pipe(duplex=False)
+    child = context.Process(target=_child, args=(function, sender), daemon=True)
+    child.start()
+    sender.close()
+    try:
+        if not receiver.poll(timeout):
+            raise BudgetExceededError(f"no result within {timeout:.0f} s")
+        ok, result = receiver.recv()
+    except EOFError:
+        ok, result = False, f"child exited with code {child.exitcode}"
+    finally:
+        if child.is_alive():
+            child.kill()
+        child.join()
+    if not ok:
+        raise RuntimeError(result)
+    return result
 
 
 def qgis_process_binary() -> str:
