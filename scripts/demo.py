@@ -20,8 +20,12 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import make_sample_data as sample
+
+if TYPE_CHECKING:
+    from qgis.core import QgsRectangle
 
 ROOT = Path(__file__).resolve().parent.parent
 STYLE = ROOT / "processing_provider" / "styles" / "triangles.qml"
@@ -93,16 +97,16 @@ def triangulate(
     return results, mesh, triangles
 
 
-def square_around(extent, margin: float):
+def square_around(extent: QgsRectangle, margin: float) -> QgsRectangle:
     """A square rectangle centred on the extent, covering it plus the margin."""
-    from render import QgsRectangle
+    from render import QgsRectangle  # imports QGIS: only after the qgis_process run
 
     half = max(extent.width(), extent.height()) / 2 + margin
     centre = extent.center()
     return QgsRectangle(centre.x() - half, centre.y() - half, centre.x() + half, centre.y() + half)
 
 
-def feature_extent(polygons: Path, kind: str):
+def feature_extent(polygons: Path, kind: str) -> QgsRectangle:
     """The extent of the sample features of one kind (lake, roof, river)."""
     import render
 
@@ -113,7 +117,7 @@ def feature_extent(polygons: Path, kind: str):
 
 def render_views(terrain: Path, polygons: Path, triangles: Path, output: Path) -> Path:
     """The whole area, the lake and the village, side by side, with the default style."""
-    import render  # imports QGIS: only after the qgis_process runs
+    import render
 
     render.start_qgis()
     style = STYLE if STYLE.exists() else None
