@@ -19,7 +19,7 @@ import shapely
 from common import SHARED_DATA, BudgetExceededError, Row, rows_table, timed, within
 from generate import DEFAULT_COUNT, ensure_islands, ensure_stars, read_rings
 
-from bsp_triangulate import triangulate_many
+from bsp_triangulate import Triangulation, triangulate_many
 
 QUICK_COUNT = 5_000
 DEFAULT_BUDGET = 1_800.0  # seconds per measurement before it is abandoned
@@ -47,8 +47,13 @@ def earcut_inputs(polygons: list[Rings]) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def time_ours(polygons: list[Rings], repeat: int = 1, rule: str = "first") -> Timing:
-    seconds, results = timed(lambda: triangulate_many(polygons, rule=rule), repeat)
-    return Timing(seconds, sum(len(result) for result in results))
+    seconds, results = timed(
+        lambda: triangulate_many(polygons, rule=rule, on_error="return"), repeat
+    )
+    failed = sum(not isinstance(result, Triangulation) for result in results)
+    if failed:
+        print(f"bsp_triangulate: {failed} of {len(results)} polygons failed")
+    return Timing(seconds, sum(len(r) for r in results if isinstance(r, Triangulation)))
 
 
 def time_earcut(polygons: list[Rings], repeat: int = 1) -> Timing:

@@ -145,7 +145,8 @@ def polygon_rings(polygon: shapely.Polygon, dem: Dem, densify: float | None) -> 
 
 
 def meshes_ours(polygons: list[Rings], rule: str) -> list[Mesh]:
-    results = triangulate_many(polygons, rule=rule)
+    # a polygon the engine rejects gets an empty mesh: its cells count as uncovered
+    results = triangulate_many(polygons, rule=rule, on_error="return")
     return [
         (result.vertices, result.triangles)
         if hasattr(result, "triangles")
