@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from qgis.core import (
     QgsCoordinateTransform,
@@ -32,7 +32,7 @@ from qgis.core import (
 from qgis.PyQt.QtCore import QCoreApplication
 from qgis.PyQt.QtGui import QIcon
 
-from ..bsp_triangulate import TriangulationError, triangulate_many
+from ..bsp_triangulate import triangulate_many
 from ..bsp_triangulate.densify import densify_ring
 from . import elevation
 from .geometry_io import FeatureRings, feature_batches
@@ -80,6 +80,9 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
 
     BATCH_FEATURES = 2000
     BATCH_VERTICES = 200_000
+    # Engine calls within a batch: progress and cancel between them.
+    CHUNK_FEATURES = 250
+    CHUNK_VERTICES = 20_000
 
     def tr(self, text: str) -> str:
         return QCoreApplication.translate("TriangulateAlgorithm", text)
@@ -450,8 +453,6 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         ):
             if feedback.isCanceled():
                 break
-            read += len(batch)
-            repaired.extend(item.fid for item in batch if item.repaired)
             if max_length > 0:
                 _densify(batch, max_length)
             source_of_z.apply(batch)
@@ -459,7 +460,14 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 feedback.pushInfo(self.tr("Elevation: {}").format(warning))
                 reported_warnings.add(warning)
             elevation.scale_z(batch, z_scale, z_offset)
-            results = self._triangulate(batch, rule, tolerance, feedback)
+
+            def report(fraction: float, start: int = read, size: int = len(batch)) -> None:
+                feedback.setProgress(min((start + fraction * size) * step, 99.0))
+
+            results, done = self._triangulate(batch, rule, tolerance, feedback, report)
+            batch = batch[:done]  # a cancel inside the batch drops the features not reached
+            read += len(batch)
+            repaired.extend(item.fid for item in batch if item.repaired)
             for item in batch:
                 if item.error is not None:
                     failed += 1
@@ -467,17 +475,15 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                         self.tr("Feature {}: {}").format(item.fid, item.error), False
                     )
             batch_mesh = BatchMesh.build(results)
-            with_triangles = {int(row) for row in set(batch_mesh.item.tolist())}
-            triangulated += len(with_triangles)
-            empty += sum(1 for item in batch if item.error is None) - len(with_triangles)
+            with_triangles = len(set(batch_mesh.item.tolist()))
+            triangulated += with_triangles
+            empty += sum(1 for item in batch if item.error is None) - with_triangles
             triangles += len(batch_mesh)
-            if feedback.isCanceled():
-                break
             add_features(sink, triangle_features(batch_mesh, fields))
             add_features(tree_sink, tree_features(batch_mesh, lines))
             if mesh is not None:
                 mesh.add(batch_mesh)
-            feedback.setProgress(min(read * step, 99.0))
+            report(1.0)
 
         if repaired:
             listed = ", ".join(str(fid) for fid in repaired[:MAX_LISTED_IDS])
@@ -525,34 +531,60 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         rule: str,
         tolerance: float,
         feedback: QgsProcessingFeedback,
+        report: Callable[[float], None],
+    ) -> tuple[list[tuple[FeatureRings, list]], int]:
+        """Triangulate the batch in engine calls of bounded size, with progress and cancel.
+
+        Returns the (feature, triangulations) pairs and how many features of the batch were
+        handled (fewer than all only when cancelled).
+        """
+        results: list[tuple[FeatureRings, list]] = []
+        chunk: list[FeatureRings] = []
+        vertices = 0
+        for index, item in enumerate(batch):
+            if item.ok:
+                chunk.append(item)
+                vertices += item.vertex_count()
+            last = index == len(batch) - 1
+            if chunk and (
+                last or len(chunk) >= self.CHUNK_FEATURES or vertices >= self.CHUNK_VERTICES
+            ):
+                results += self._run_engine(chunk, rule, tolerance, feedback)
+                chunk, vertices = [], 0
+                report((index + 1) / len(batch))
+                if feedback.isCanceled():
+                    return results, index + 1
+        return results, len(batch)
+
+    def _run_engine(
+        self,
+        items: list[FeatureRings],
+        rule: str,
+        tolerance: float,
+        feedback: QgsProcessingFeedback,
     ) -> list[tuple[FeatureRings, list]]:
-        """Triangulate all parts of the batch in one engine call; failures go to the feature."""
-        usable = [item for item in batch if item.ok]
-        polygons = [part for item in usable for part in item.parts]
+        """All parts of ``items`` in one engine call; a failure goes to its feature."""
+        polygons = [part for item in items for part in item.parts]
         try:
             outcome = triangulate_many(
                 polygons, rule=rule, planar_tolerance=tolerance, on_error="return"
             )
-        except Exception as error:  # isolate the feature that breaks the batch
-            if len(usable) == 1:
-                usable[0].error = self.tr("cannot be triangulated: {}").format(error)
+        except Exception as error:  # isolate the feature that breaks the call
+            if len(items) == 1:
+                items[0].error = self.tr("cannot be triangulated: {}").format(error)
                 return []
             return [
                 result
-                for item in usable
+                for item in items
                 if not feedback.isCanceled()
-                for result in self._triangulate([item], rule, tolerance, feedback)
+                for result in self._run_engine([item], rule, tolerance, feedback)
             ]
         results = []
         position = 0
-        for item in usable:
+        for item in items:
             parts = outcome[position : position + len(item.parts)]
             position += len(item.parts)
-            errors = [
-                (index, error)
-                for index, error in enumerate(parts)
-                if isinstance(error, (TriangulationError, Exception))
-            ]
+            errors = [(i, error) for i, error in enumerate(parts) if isinstance(error, Exception)]
             if errors:
                 index, error = errors[0]
                 where = self.tr(" (part {})").format(index) if len(item.parts) > 1 else ""

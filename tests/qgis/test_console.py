@@ -124,7 +124,9 @@ def test_a_bare_field_name_is_a_z_expression(tmp_path: Path):
         assert {ring.zAt(i) for i in range(4)} == {row["height"]}
 
 
-def test_cancelling_during_the_run_stops_after_the_current_batch(tmp_path: Path):
+def test_cancelling_at_the_first_progress_report_leaves_partial_but_consistent_outputs(
+    tmp_path: Path,
+):
     import processing
 
     feedback = QgsProcessingFeedback()
@@ -136,3 +138,4 @@ def test_cancelling_during_the_run_stops_after_the_current_batch(tmp_path: Path)
     assert feedback.isCanceled()
     assert 0 < result["FEATURE_COUNT"] < 4500
     assert result["TRIANGLE_COUNT"] == result["OUTPUT_TRIANGLES"].featureCount()
+    assert result["TRIANGLE_COUNT"] == result["FEATURE_COUNT"]  # one triangle per feature
