@@ -46,12 +46,23 @@ def clean_ring(ring: Ring) -> list[tuple[float, ...]]:
 
 def exact_area2(ring: Sequence[Sequence[float]]) -> Fraction:
     """Twice the signed area of a ring, exact."""
-    n = len(ring)
-    if n < 3:
+    if len(ring) < 3:
         return Fraction(0)
-    xs = [Fraction(p[0]) for p in ring]
-    ys = [Fraction(p[1]) for p in ring]
-    return sum((xs[i] * ys[(i + 1) % n] - xs[(i + 1) % n] * ys[i] for i in range(n)), Fraction(0))
+    ix, scale_x = _exact_integers([p[0] for p in ring])
+    iy, scale_y = _exact_integers([p[1] for p in ring])
+    return Fraction(_area2_int(ix, iy), scale_x * scale_y)
+
+
+def _exact_integers(values: Sequence[float]) -> tuple[list[int], int]:
+    """The values times one common power of two, as exact integers, and that power."""
+    ratios = [float(v).as_integer_ratio() for v in values]
+    scale = max((d for _, d in ratios), default=1)
+    return [n * (scale // d) for n, d in ratios], scale
+
+
+def _area2_int(xs: Sequence[int], ys: Sequence[int]) -> int:
+    n = len(xs)
+    return sum(xs[i] * ys[(i + 1) % n] - xs[(i + 1) % n] * ys[i] for i in range(n))
 
 
 def used_rings(rings: Sequence[Ring]) -> list[list[tuple[float, ...]]]:
@@ -125,17 +136,23 @@ def polygon_counts(rings: Sequence[Ring]) -> PolygonCounts:
     if not kept:
         return PolygonCounts(0, 0, 0)
     points = np.unique(np.array([p[:2] for r in kept for p in r], dtype=float), axis=0)
-    order = np.argsort(points[:, 0], kind="stable")
-    by_x = points[order]
-    segments = 0
-    for ring in kept:
-        n = len(ring)
-        for i in range(n):
-            p, q = ring[i][:2], ring[(i + 1) % n][:2]
-            lo = np.searchsorted(by_x[:, 0], min(p[0], q[0]), side="left")
-            hi = np.searchsorted(by_x[:, 0], max(p[0], q[0]), side="right")
-            segments += 1 + len(_points_strictly_inside(p, q, by_x[lo:hi]))
-    return PolygonCounts(len(points), segments, len(kept) - 1)
+    by_x = points[np.argsort(points[:, 0], kind="stable")]
+    starts = np.array([p[:2] for r in kept for p in r], dtype=float)
+    ends = np.array([p[:2] for r in kept for p in r[1:] + r[:1]], dtype=float)
+    # candidate (edge, point) pairs: the point's x within the edge's x range
+    lo = np.searchsorted(by_x[:, 0], np.minimum(starts[:, 0], ends[:, 0]), side="left")
+    hi = np.searchsorted(by_x[:, 0], np.maximum(starts[:, 0], ends[:, 0]), side="right")
+    counts = hi - lo
+    edge = np.repeat(np.arange(len(starts)), counts)
+    point = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    point = by_x[np.repeat(lo, counts) + point]
+    a, b = starts[edge], ends[edge]
+    inside = (point[:, 1] >= np.minimum(a[:, 1], b[:, 1])) & (
+        point[:, 1] <= np.maximum(a[:, 1], b[:, 1])
+    )
+    inside &= ~(np.all(point == a, axis=1) | np.all(point == b, axis=1))
+    on_edge = orient_signs(a[inside], b[inside], point[inside]) == 0
+    return PolygonCounts(len(points), len(starts) + int(on_edge.sum()), len(kept) - 1)
 
 
 # --- deviation -----------------------------------------------------------------------------------
@@ -145,18 +162,26 @@ def deviation(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndarray
     """earcut's deviation, computed exactly: |triangle area - polygon area| / polygon area.
 
     The polygon area is |outer| minus the |islands| of the rings as given (earcut's definition).
+    All coordinates are scaled by one power of two into integers, which keeps the ratio exact.
     """
-    polygon = abs(exact_area2(rings[0])) if rings else Fraction(0)
-    for ring in rings[1:]:
-        polygon -= abs(exact_area2(ring))
-    total = Fraction(0)
-    for tri in np.asarray(triangles):
-        total += abs(exact_area2([vertices[i] for i in tri]))
+    sizes = [len(r) for r in rings]
+    xs, _ = _exact_integers([p[0] for r in rings for p in r] + vertices[:, 0].tolist())
+    ys, _ = _exact_integers([p[1] for r in rings for p in r] + vertices[:, 1].tolist())
+    polygon = 0
+    offset = 0
+    for number, size in enumerate(sizes):
+        area = abs(_area2_int(xs[offset : offset + size], ys[offset : offset + size]))
+        polygon += area if number == 0 else -area
+        offset += size
+    vx, vy = xs[offset:], ys[offset:]
+    total = 0
+    for a, b, c in np.asarray(triangles).tolist():
+        total += abs((vx[b] - vx[a]) * (vy[c] - vy[a]) - (vy[b] - vy[a]) * (vx[c] - vx[a]))
     if polygon == 0 and total == 0:
         return 0.0
     if polygon == 0:
         return float("inf")
-    return float(abs((total - polygon) / polygon))
+    return float(abs(Fraction(total - polygon, polygon)))
 
 
 # --- individual checks ---------------------------------------------------------------------------

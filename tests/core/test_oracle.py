@@ -16,7 +16,13 @@ import pytest
 
 from bsp_triangulate import triangulate
 
-from .checks import check_triangulation
+from .checks import (
+    check_tiling,
+    check_triangulation,
+    deviation,
+    overlapping_pairs,
+    polygon_counts,
+)
 from .random_polygons import random_polygon, with_z
 from .reference_bsp import reference_triangulate, xy_is_working_plane
 
@@ -88,3 +94,33 @@ def test_reference_reproduces_a_hand_checked_square_with_an_island() -> None:
     # whose first candidate s8 = (6, 4) is correct.
     assert result.triangles[1] == (4, 1, 5)
     assert (result.parent[1], result.depth[1], result.side[1]) == (0, 1, 2)
+
+
+# --- the checks used above can fail ---------------------------------------------------------------
+
+
+def test_checks_reject_overlapping_triangles_of_a_square() -> None:
+    square = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]
+    vertices = np.array([(*p, 0.0) for p in square])
+    overlapping = np.array([[0, 1, 2], [0, 1, 3]])
+    assert overlapping_pairs(vertices, overlapping) == [(0, 1)]
+    with pytest.raises(AssertionError, match="overlapping"):
+        check_tiling([square], vertices, overlapping)
+    with pytest.raises(AssertionError, match="do not tile"):
+        check_tiling([square], vertices, overlapping[:1])
+    check_tiling([square], vertices, np.array([[0, 1, 2], [0, 2, 3]]))
+
+
+def test_checks_count_touching_rings_and_split_edges() -> None:
+    outer = [(0, 0), (4, 0), (4, 4), (0, 4)]
+    touching_vertex = [(0, 0), (1, 2), (2, 1)]  # shares the outer corner (0, 0)
+    on_edge = [(4, 2), (3, 3), (3, 1)]  # (4, 2) splits the outer edge (4, 0)-(4, 4)
+    counts = polygon_counts([outer, touching_vertex, on_edge])
+    assert (counts.vertices, counts.segments, counts.islands) == (9, 11, 2)
+    assert counts.triangles == 9
+
+
+def test_deviation_is_exact_for_a_tiny_gap() -> None:
+    square = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
+    vertices = np.array([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (1.0, 1.0, 0.0), (0.0, 1.0 - 2**-52, 0)])
+    assert deviation([square], vertices, np.array([[0, 1, 2], [0, 2, 3]])) == 2.0**-53
