@@ -464,7 +464,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             def report(fraction: float, start: int = read, size: int = len(batch)) -> None:
                 feedback.setProgress(min((start + fraction * size) * step, 99.0))
 
-            results, done = self._triangulate(batch, rule, tolerance, feedback, report)
+            pairs, done = self._triangulate(batch, rule, tolerance, feedback, report)
             batch = batch[:done]  # a cancel inside the batch drops the features not reached
             read += len(batch)
             repaired.extend(item.fid for item in batch if item.repaired)
@@ -474,7 +474,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                     feedback.reportError(
                         self.tr("Feature {}: {}").format(item.fid, item.error), False
                     )
-            batch_mesh = BatchMesh.build(results)
+            batch_mesh = BatchMesh.build(pairs)
             with_triangles = len(set(batch_mesh.item.tolist()))
             triangulated += with_triangles
             empty += sum(1 for item in batch if item.error is None) - with_triangles
@@ -486,15 +486,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             report(1.0)
 
         if repaired:
-            listed = ", ".join(str(fid) for fid in repaired[:MAX_LISTED_IDS])
-            more = len(repaired) - MAX_LISTED_IDS
-            if more > 0:
-                listed += self.tr(" and {} more").format(more)
-            feedback.pushWarning(
-                self.tr("Repaired invalid geometries of {} feature(s): {}").format(
-                    len(repaired), listed
-                )
-            )
+            self._report_repaired(repaired, feedback)
         results: dict[str, Any] = {
             self.OUTPUT_TRIANGLES: triangles_id,
             self.FEATURE_COUNT: read,
@@ -524,6 +516,17 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         )
         feedback.setProgress(100)
         return results
+
+    def _report_repaired(self, repaired: list[int], feedback: QgsProcessingFeedback) -> None:
+        listed = ", ".join(str(fid) for fid in repaired[:MAX_LISTED_IDS])
+        more = len(repaired) - MAX_LISTED_IDS
+        if more > 0:
+            listed += self.tr(" and {} more").format(more)
+        feedback.pushWarning(
+            self.tr("Repaired invalid geometries of {} feature(s): {}").format(
+                len(repaired), listed
+            )
+        )
 
     def _triangulate(
         self,
