@@ -485,3 +485,34 @@ def test_swellendam_farms_on_srtm_account_for_every_feature_with_z_in_the_dem_ra
             geometry = farm.geometry()
             area = (geometry if geometry.isGeosValid() else geometry.makeValid()).area()
             assert covered[farm.id()] == pytest.approx(area, rel=1e-9), farm.id()
+
+
+@pytest.mark.parametrize(("rule", "apex"), [(0, (0.0, 10.0, 1.0)), (1, (8.0, 12.0, 0.01))])
+def test_apex_rule_picks_the_root_apex_of_a_pentagon_by_order_or_by_elevation(rule, apex):
+    # A convex, nearly flat pentagon. Root base (0 0)-(10 0); its candidates in the paper's
+    # order are (0 10 z=1), (8 12 z=0.01), (12 6 z=0.5): "first" takes the first, "elevation"
+    # the one whose z is closest to the base's mean z of 0.
+    wkt = "POLYGON Z((0 0 0, 10 0 0, 12 6 0.5, 8 12 0.01, 0 10 1, 0 0 0))"
+    layer = polygon_layer([wkt], "PolygonZ")
+    result = run({"INPUT": layer, "ELEVATION_SOURCE": 1, "APEX_RULE": rule})
+    root = next(row for row in triangle_rows(result) if row["order"] == 0)
+    assert tuple(corners(root)[2]) == apex
+    assert {tuple(c) for c in corners(root)[:2]} == {(0.0, 0.0, 0.0), (10.0, 0.0, 0.0)}
+
+
+def test_planar_tolerance_snaps_a_slightly_warped_roof_onto_one_plane_within_the_tolerance():
+    # A hexagonal roof on z = 0.1 x + 0.05 y + 5, two vertices lifted by 0.01.
+    xy = [(0, 0), (8, 0), (12, 5), (8, 10), (0, 10), (-3, 5)]
+    lift = [0.0, 0.01, 0.0, -0.01, 0.0, 0.0]
+    ring = [(x, y, 0.1 * x + 0.05 * y + 5 + d) for (x, y), d in zip(xy, lift)]
+    given = {(x, y): z for x, y, z in ring}
+    wkt = "POLYGON Z((" + ", ".join(f"{x} {y} {z}" for x, y, z in [*ring, ring[0]]) + "))"
+    layer = polygon_layer([wkt], "PolygonZ")
+    result = run({"INPUT": layer, "ELEVATION_SOURCE": 1, "PLANAR_TOLERANCE": 0.05})
+    points = np.unique(np.concatenate([corners(r) for r in triangle_rows(result)]), axis=0)
+    assert len(points) == 6
+    moved = [abs(z - given[(x, y)]) for x, y, z in points]
+    assert max(moved) <= 0.05 and max(moved) > 0
+    design = np.column_stack([points[:, 0], points[:, 1], np.ones(len(points))])
+    _coefficients, residual, _rank, _sv = np.linalg.lstsq(design, points[:, 2], rcond=None)
+    assert float(residual[0]) == pytest.approx(0.0, abs=1e-12)  # warped: about 1e-4
