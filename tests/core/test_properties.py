@@ -160,14 +160,14 @@ def polygons(draw: st.DrawFn, elevation: bool = False) -> list:
 # --- properties ----------------------------------------------------------------------------------
 
 
-@examples(120)
+@examples(80)
 @given(polygons())
 def test_random_polygon_with_islands_is_tiled_exactly(rings: list) -> None:
     result = triangulate(rings)
     check_triangulation(rings, result)
 
 
-@examples(40)
+@examples(30)
 @given(polygons(elevation=True))
 def test_random_polygon_with_z_is_tiled_exactly_with_rule_elevation(rings: list) -> None:
     if not all(xy_is_working_plane(r) for r in rings if len(r) >= 3):
@@ -176,8 +176,8 @@ def test_random_polygon_with_z_is_tiled_exactly_with_rule_elevation(rings: list)
     check_triangulation(rings, result)
 
 
-@examples(25)
-@given(st.lists(polygons(), min_size=1, max_size=4))
+@examples(15)
+@given(st.lists(polygons(), min_size=1, max_size=3))
 def test_triangulate_many_matches_one_by_one_and_returns_errors_in_place(polys: list) -> None:
     outside = [[(0, 0), (10, 0), (10, 10), (0, 10)], [(20, 20), (22, 20), (21, 22)]]
     batch = [*polys, outside]
