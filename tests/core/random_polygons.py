@@ -101,6 +101,19 @@ def add_islands(
     return [outer, *islands]
 
 
+def touching_island(rnd: random.Random, rings: Rings, target: int) -> list | None:
+    """A small triangle island with one corner on a vertex of ring ``target``, or None."""
+    for _ in range(40):
+        p = rnd.choice(rings[target])
+        a = (p[0] + rnd.randint(-4, 4), p[1] + rnd.randint(-4, 4))
+        b = (p[0] + rnd.randint(-4, 4), p[1] + rnd.randint(-4, 4))
+        island = [p, a, b]
+        candidate = [*rings, island]
+        if is_valid(candidate) and not LinearRing(island).disjoint(LinearRing(rings[target])):
+            return island
+    return None
+
+
 def with_random_orientation(rnd: random.Random, rings: Rings) -> Rings:
     """Each ring reversed or not at random, and started at a random vertex."""
     out = []
@@ -116,9 +129,14 @@ def with_z(rnd: random.Random, rings: Rings, low: int = 0, high: int = 9) -> Rin
 
 
 def random_polygon(
-    rnd: random.Random, islands: int = 0, integer: bool = True, grid: bool = False
+    rnd: random.Random,
+    islands: int = 0,
+    integer: bool = True,
+    grid: bool = False,
+    touching: int = 0,
 ) -> Rings:
-    """A valid random polygon; islands are disjoint from everything else."""
+    """A valid random polygon; ``islands`` apart from everything, ``touching`` more islands
+    each touching the outer ring or an earlier island at a vertex."""
     while True:
         if grid:
             outer = grid_ring(rnd, rnd.randint(3, 14))
@@ -131,5 +149,9 @@ def random_polygon(
         if outer is None or not is_valid([outer]):
             continue
         rings = add_islands(rnd, outer, islands, size, integer=integer and not grid)
+        for _ in range(touching if rings is not None else 0):
+            island = touching_island(rnd, rings, rnd.randrange(len(rings)))
+            if island is not None:
+                rings.append(island)
         if rings is not None:
             return with_random_orientation(rnd, rings)

@@ -6,8 +6,10 @@ Python integers by one common power-of-two scale, which changes no sign of any d
 The cost is O(n^3) per polygon, fine for the small polygons the tests feed it.
 
 Scope: rings in the XY working plane (a ring with Z whose Newell normal is dominated by x or y
-raises ``NotImplementedError``), islands that touch neither the outer ring nor each other
-(touching rings also raise ``NotImplementedError``), planar tolerance 0.
+raises ``NotImplementedError``), planar tolerance 0. Touching rings: edges are split at the other
+rings' vertices on them, and islands sharing a point with the sequence are joined there first
+(see ``bridge``); docs/algorithm.md section 2 only has the leftmost-vertex rule, which for an
+island touching at another vertex gives a sequence that crosses itself at the touching point.
 """
 
 from __future__ import annotations
@@ -161,20 +163,30 @@ def _integer_scale(values: Sequence[float]) -> int:
 # --- bridges -------------------------------------------------------------------------------------
 
 
-def _check_no_touching(rings: list[list[int]], pts: list[Point]) -> None:
-    """Raise NotImplementedError when two rings share a point or a vertex lies on another ring."""
-    for i, ring in enumerate(rings):
-        for j, other in enumerate(rings):
-            if i == j:
-                continue
-            other_points = {pts[v] for v in other}
-            for v in ring:
-                if pts[v] in other_points:
-                    raise NotImplementedError("rings share a vertex")
-                for k in range(len(other)):
-                    a, b = pts[other[k]], pts[other[(k + 1) % len(other)]]
-                    if on_open_segment(pts[v], a, b):
-                        raise NotImplementedError("a vertex lies on another ring's edge")
+def split_touching(rings: list[list[int]], pts: list[Point]) -> list[list[int]]:
+    """Split every ring edge at the vertices of the other rings lying in its relative interior.
+
+    One vertex per distinct point is inserted (the lowest index), ordered from the edge's start.
+    """
+    first_index: dict[Point, int] = {}
+    for ring in rings:
+        for v in ring:
+            first_index.setdefault(pts[v], v)
+    owners: dict[Point, set[int]] = {}
+    for number, ring in enumerate(rings):
+        for v in ring:
+            owners.setdefault(pts[v], set()).add(number)
+    out = []
+    for number, ring in enumerate(rings):
+        split: list[int] = []
+        for i, v in enumerate(ring):
+            a, b = pts[v], pts[ring[(i + 1) % len(ring)]]
+            split.append(v)
+            inside = [p for p, rs in owners.items() if rs - {number} and on_open_segment(p, a, b)]
+            inside.sort(key=lambda p: (p[0] - a[0]) ** 2 + (p[1] - a[1]) ** 2)
+            split.extend(first_index[p] for p in inside)
+        out.append(split)
+    return out
 
 
 def _bridge_is_valid(
@@ -186,8 +198,6 @@ def _bridge_is_valid(
     pts: list[Point],
 ) -> bool:
     p, q = pts[seq[k]], pts[h]
-    if p == q:
-        raise NotImplementedError("zero-length bridge")
     for a, b in edges:
         if segment_meets_open_segment(pts[a], pts[b], p, q):
             return False
@@ -208,16 +218,37 @@ def _splice(seq: list[int], k: int, loop: list[int]) -> list[int]:
     return [*seq[: k + 1], *loop, seq[k], *seq[k + 1 :]]
 
 
+def _splice_touching(seq: list[int], k: int, loop: list[int]) -> list[int]:
+    """Splice the island ``loop`` (h ... h-1) at occurrence k of h's point, no duplication."""
+    if k == 0:
+        return [*seq, *loop]
+    return [*seq[: k + 1], *loop[1:], loop[0], *seq[k + 1 :]]
+
+
 def bridge(outer: list[int], islands: list[list[int]], pts: list[Point]) -> list[int]:
-    """The bridged vertex sequence S (vertex indices) of the outer ring and the islands."""
+    """The bridged vertex sequence S (vertex indices) of the outer ring and the islands.
+
+    Order: while some island shares a point with S, the one with the smallest leftmost vertex
+    among them is joined at its smallest shared point; otherwise the next island in leftmost
+    order is joined from its leftmost vertex. The bridge goes to the nearest valid occurrence
+    (a shared point is at distance 0 and valid where the island's edges at h leave into the
+    interior angle of that occurrence), ties to the smallest k.
+    """
     seq = list(outer)
-    order = sorted(range(len(islands)), key=lambda i: (min(pts[v] for v in islands[i]), i))
+    rank = sorted(range(len(islands)), key=lambda i: (min(pts[v] for v in islands[i]), i))
     joined: set[int] = set()
-    for number in order:
+    while len(joined) < len(islands):
+        in_seq = {pts[v] for v in seq}
+        touching = [
+            i for i in rank if i not in joined and any(pts[v] in in_seq for v in islands[i])
+        ]
+        number = touching[0] if touching else next(i for i in rank if i not in joined)
         island = islands[number]
-        leftmost = min(pts[v] for v in island)
-        start = next(i for i, v in enumerate(island) if pts[v] == leftmost)
-        h = island[start]
+        corners = [pts[v] for v in island if pts[v] in in_seq] if touching else []
+        target = min(corners) if corners else min(pts[v] for v in island)
+        start = next(i for i, v in enumerate(island) if pts[v] == target)
+        loop = [*island[start:], *island[:start]]
+        h = loop[0]
         edges = _ring_edges(seq)
         points = list(seq)
         for other in range(len(islands)):
@@ -225,17 +256,25 @@ def bridge(outer: list[int], islands: list[list[int]], pts: list[Point]) -> list
                 edges += _ring_edges(islands[other])
                 points += islands[other]
         best: tuple[int, int] | None = None
+        q = pts[h]
         for k in range(len(seq)):
-            if not _bridge_is_valid(seq, k, h, edges, points, pts):
-                continue
-            p, q = pts[seq[k]], pts[h]
+            p = pts[seq[k]]
+            prev, nxt = pts[seq[k - 1]], pts[seq[(k + 1) % len(seq)]]
+            if p == q:
+                valid = any(
+                    inside_interior_angle(prev, p, nxt, pts[t]) for t in (loop[1], loop[-1])
+                )
+            else:
+                valid = _bridge_is_valid(seq, k, h, edges, points, pts)
             dist = (p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2
-            if best is None or dist < best[0]:
+            if valid and (best is None or dist < best[0]):
                 best = (dist, k)
         if best is None:
             raise NoCorrectTriangle(f"island {number} has no valid bridge")
-        k = best[1]
-        seq = _splice(seq, k, [*island[start:], *island[:start], h])
+        if best[0] == 0:
+            seq = _splice_touching(seq, best[1], loop)
+        else:
+            seq = _splice(seq, best[1], [*loop, h])
         joined.add(number)
     return seq
 
@@ -346,14 +385,13 @@ def reference_triangulate(
     for ring in kept:
         index_rings.append(list(range(offset, offset + len(ring))))
         offset += len(ring)
-    _check_no_touching(index_rings, pts)
-    islands = []
+    oriented = [index_rings[0]]
     for ring in index_rings[1:]:
-        if _area2([pts[v] for v in ring]) > 0:
-            ring = ring[::-1]
-        islands.append(ring)
+        oriented.append(ring[::-1] if _area2([pts[v] for v in ring]) > 0 else ring)
+    oriented = split_touching(oriented, pts)
+    islands = oriented[1:]
 
-    seq = bridge(index_rings[0], islands, pts)
+    seq = bridge(oriented[0], islands, pts)
     seq = [*seq, seq[0]]  # s_m = s_0
     seq_pts = [pts[v] for v in seq]
     seq_z = [vertices[v][2] for v in seq]

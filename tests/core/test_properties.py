@@ -19,12 +19,18 @@ import random
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from shapely.geometry import LinearRing
 
 from bsp_triangulate import TriangulationError, triangulate, triangulate_many
 
 from .checks import check_triangulation
-from .random_polygons import grid_ring, is_valid, rings_are_disjoint, rotate_start, star_ring
+from .random_polygons import (
+    grid_ring,
+    is_valid,
+    rings_are_disjoint,
+    rotate_start,
+    star_ring,
+    touching_island,
+)
 from .reference_bsp import xy_is_working_plane
 
 settings.register_profile(
@@ -80,19 +86,6 @@ def _free_island(rnd: random.Random, rings: list) -> list | None:
     return None
 
 
-def _touching_island(rnd: random.Random, rings: list, target: int) -> list | None:
-    """A small triangle island with one corner on a vertex of ring ``target``."""
-    for _ in range(40):
-        p = rnd.choice(rings[target])
-        a = (p[0] + rnd.randint(-4, 4), p[1] + rnd.randint(-4, 4))
-        b = (p[0] + rnd.randint(-4, 4), p[1] + rnd.randint(-4, 4))
-        island = [p, a, b]
-        candidate = [*rings, island]
-        if is_valid(candidate) and not LinearRing(island).disjoint(LinearRing(rings[target])):
-            return island
-    return None
-
-
 def _with_midpoints(rnd: random.Random, ring: list) -> list:
     """Doubled coordinates with the exact midpoint of some edges inserted (collinear runs)."""
     doubled = [(2 * p[0], 2 * p[1]) for p in ring]
@@ -134,11 +127,11 @@ def polygons(draw: st.DrawFn, elevation: bool = False) -> list:
         if island is not None:
             rings.append(island)
     if touch_outer:
-        island = _touching_island(rnd, rings, 0)
+        island = touching_island(rnd, rings, 0)
         if island is not None:
             rings.append(island)
     if touch_island and len(rings) > 1:
-        island = _touching_island(rnd, rings, rnd.randrange(1, len(rings)))
+        island = touching_island(rnd, rings, rnd.randrange(1, len(rings)))
         if island is not None:
             rings.append(island)
     if midpoints:
