@@ -263,34 +263,50 @@ def boundary_mismatch(rings: Sequence[Ring], vertices: np.ndarray, triangles: np
     return sorted(_chain_residual(split).items())
 
 
-def overlapping_pairs(vertices: np.ndarray, triangles: np.ndarray, limit: int = 10) -> list:
-    """Pairs of triangles whose interiors intersect (exact separating-axis test), up to limit."""
-    xy = vertices[:, :2]
-    corners = xy[triangles]  # (M, 3, 2)
+def overlapping_pairs(
+    vertices: np.ndarray, triangles: np.ndarray, suspects: np.ndarray | None = None, limit: int = 10
+) -> list[tuple[int, int]]:
+    """Pairs of CCW triangles whose interiors intersect (exact separating-axis test).
+
+    Each of ``suspects`` (default: all triangles) is tested against every triangle whose
+    bounding box meets its own; at most ``limit`` pairs are returned.
+    """
+    corners = vertices[:, :2][np.asarray(triangles)]  # (M, 3, 2)
     lo, hi = corners.min(axis=1), corners.max(axis=1)
-    order = np.argsort(lo[:, 0], kind="stable")
-    found: list = []
-    for rank, i in enumerate(order):
-        stop = np.searchsorted(lo[order, 0], hi[i, 0], side="right")
-        others = order[rank + 1 : stop]
-        others = others[(lo[others, 1] <= hi[i, 1]) & (hi[others, 1] >= lo[i, 1])]
-        for j in others:
-            if _interiors_intersect(corners[i], corners[j]):
-                found.append((int(min(i, j)), int(max(i, j))))
-                if len(found) >= limit:
-                    return found
-    return found
+    found: set[tuple[int, int]] = set()
+    for i in range(len(corners)) if suspects is None else np.asarray(suspects).tolist():
+        near = np.all((lo <= hi[i]) & (hi >= lo[i]), axis=1)
+        near[i] = False
+        others = np.flatnonzero(near)
+        for j in others[_interiors_intersect(corners[i], corners[others])].tolist():
+            found.add((min(i, j), max(i, j)))
+        if len(found) >= limit:
+            break
+    return sorted(found)[:limit]
 
 
-def _interiors_intersect(t1: np.ndarray, t2: np.ndarray) -> bool:
-    """Separating axis test for two CCW triangles: some side has the other triangle outside."""
-    for tri, other in ((t1, t2), (t2, t1)):
-        for k in range(3):
-            a = np.broadcast_to(tri[k], (3, 2))
-            b = np.broadcast_to(tri[(k + 1) % 3], (3, 2))
-            if np.all(orient_signs(a, b, other) <= 0):
-                return False
-    return True
+def _interiors_intersect(tri: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """For CCW ``tri`` (3, 2) and CCW ``others`` (K, 3, 2): do the interiors intersect?
+
+    Two convex polygons have disjoint interiors iff a side of one has the other on its outer
+    closed side.
+    """
+    k = len(others)
+    separated = np.zeros(k, dtype=bool)
+    for e in range(3):
+        a = np.broadcast_to(tri[e], (k, 2))
+        b = np.broadcast_to(tri[(e + 1) % 3], (k, 2))
+        outside = np.ones(k, dtype=bool)
+        for c in range(3):
+            outside &= orient_signs(a, b, others[:, c]) <= 0
+        separated |= outside
+    for e in range(3):
+        a, b = others[:, e], others[:, (e + 1) % 3]
+        outside = np.ones(k, dtype=bool)
+        for c in range(3):
+            outside &= orient_signs(a, b, np.broadcast_to(tri[c], (k, 2))) <= 0
+        separated |= outside
+    return ~separated
 
 
 def check_tiling(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndarray) -> None:
@@ -298,7 +314,13 @@ def check_tiling(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndar
     residual = boundary_mismatch(rings, vertices, triangles)
     if not residual:
         return
-    pairs = overlapping_pairs(vertices, triangles)
+    # an overlap or a gap leaves unmatched segments along its border: search next to them
+    ends = {p for (a, b), _ in residual for p in (a, b)}
+    xy = [tuple(p) for p in vertices[:, :2].tolist()]
+    suspects = [
+        t for t, tri in enumerate(np.asarray(triangles).tolist()) if any(xy[v] in ends for v in tri)
+    ]
+    pairs = overlapping_pairs(vertices, triangles, suspects)
     assert not pairs, f"overlapping triangles {pairs}: {[triangles[i].tolist() for i in pairs[0]]}"
     raise AssertionError(f"triangles do not tile the polygon; unmatched segments {residual[:6]}")
 
