@@ -5,6 +5,8 @@ See docs/algorithm.md section 2 for the exact rules implemented here.
 
 from __future__ import annotations
 
+import heapq
+
 import numpy as np
 
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
@@ -90,6 +92,8 @@ class _Bridger:
         self.points = SegmentGrid(px, py, px, py)
         self.in_seq = np.zeros(len(x), dtype=bool)
         self.bridges: list[tuple[int, int]] = []
+        self.seq_points: set[tuple[float, float]] = set()
+        self._add_points(self.seq)
         self._seq_changed()
 
     def _seq_changed(self) -> None:
@@ -98,6 +102,9 @@ class _Bridger:
         self.position[self.seq] = np.arange(len(self.seq))
         counts = np.bincount(self.seq, minlength=len(self.x))
         self.repeated = counts > 1
+
+    def _add_points(self, ring: np.ndarray) -> None:
+        self.seq_points.update(zip(self.x[ring].tolist(), self.y[ring].tolist()))
 
     def occurrences(self, vid: int) -> list[int]:
         if self.repeated[vid]:
@@ -225,10 +232,8 @@ class _Bridger:
         h = int(loop[0])
         sk = int(seq[k])
         if x[sk] == x[h] and y[sk] == y[h]:
-            if k == 0:
-                parts = [seq, loop]
-            else:
-                parts = [seq[: k + 1], loop[1:], loop[:1], seq[k + 1 :]]
+            tail = [seq[: k + 1], loop[1:], loop[:1], seq[k + 1 :]]
+            parts = [seq, loop] if k == 0 else tail
         else:
             self.bridges.append((sk, h))
             if k == 0:
@@ -236,25 +241,55 @@ class _Bridger:
             else:
                 parts = [seq[: k + 1], loop, loop[:1], seq[k : k + 1], seq[k + 1 :]]
         self.seq = np.concatenate(parts)
+        self._add_points(island)
         self._seq_changed()
 
 
 def bridge_islands(
     x: np.ndarray, y: np.ndarray, rings: list[np.ndarray], ring_numbers: list[int]
 ) -> np.ndarray:
-    """The single vertex sequence of the outer ring with every island joined by a bridge."""
+    """The single vertex sequence of the outer ring with every island joined by a bridge.
+
+    Islands that share a point with the sequence are joined there (zero-length bridge) before
+    any other island is bridged, so that touching rings never enclose an extra face.
+    """
     if len(rings) == 1:
         return rings[0]
     bridger = _Bridger(x, y, rings)
-    order = []
+    leftmost: list[tuple[float, float, int, int]] = []
+    islands_at: dict[tuple[float, float], list[int]] = {}
     for slot in range(1, len(rings)):
         ring = rings[slot]
         # leftmost vertex: smallest x, then y, then the first in input order
         h_index = int(np.lexsort((ring, y[ring], x[ring]))[0])
         h = int(ring[h_index])
-        order.append((float(x[h]), float(y[h]), slot, h_index))
-    order.sort(key=lambda item: (item[0], item[1], item[2]))
-    for _, _, slot, h_index in order:
+        leftmost.append((float(x[h]), float(y[h]), slot, h_index))
+        for key in set(zip(x[ring].tolist(), y[ring].tolist())):
+            islands_at.setdefault(key, []).append(slot)
+    leftmost.sort()
+    rank = {item[2]: number for number, item in enumerate(leftmost)}
+    joined = [False] * len(rings)
+    touching: list[tuple[int, int]] = []  # heap of (leftmost rank, slot)
+
+    def mark_touching(ring: np.ndarray) -> None:
+        for key in zip(x[ring].tolist(), y[ring].tolist()):
+            for slot in islands_at.get(key, ()):
+                if not joined[slot]:
+                    heapq.heappush(touching, (rank[slot], slot))
+
+    mark_touching(rings[0])
+    pending = iter(leftmost)
+    while True:
+        if touching:
+            _, slot = heapq.heappop(touching)
+            if joined[slot]:
+                continue
+            h_index = _touch_index(x, y, rings[slot], bridger)
+        else:
+            item = next((i for i in pending if not joined[i[2]]), None)
+            if item is None:
+                break
+            slot, h_index = item[2], item[3]
         target = bridger.find_bridge(rings[slot], h_index)
         if target is None:
             raise TriangulationError(
@@ -262,4 +297,17 @@ def bridge_islands(
                 "(the island may lie outside the outer ring or cross it)"
             )
         bridger.splice(target[0], rings[slot], h_index)
+        joined[slot] = True
+        mark_touching(rings[slot])
     return bridger.seq
+
+
+def _touch_index(x: np.ndarray, y: np.ndarray, ring: np.ndarray, bridger: _Bridger) -> int:
+    """Index in ``ring`` of its leftmost vertex that coincides with a vertex of the sequence."""
+    seq_points = bridger.seq_points
+    best = None
+    for index, vid in enumerate(ring.tolist()):
+        key = (float(x[vid]), float(y[vid]))
+        if key in seq_points and (best is None or key < best[0]):
+            best = (key, index)
+    return best[1] if best is not None else 0

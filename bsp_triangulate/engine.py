@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .bridges import bridge_islands, split_touching
-from .predicates import orient_many, strictly_between
+from .predicates import grid_exact, orient_many, strictly_between
 from .rings import PreparedRings, normalise_rings, prepare, ring_label
 from .rules import ApexRule, get_rule
 from .spatial_index import SegmentGrid
@@ -24,6 +24,26 @@ SMALL_SEQUENCE = 64
 _FIRST_CHUNK = 4
 
 
+def facing_candidates(
+    sx: np.ndarray,
+    sy: np.ndarray,
+    lo: int,
+    hi: int,
+    candidates: np.ndarray,
+    exact_inputs: bool = False,
+) -> np.ndarray:
+    """Cheap necessary part of the correct-triangle test, vectorised over candidates.
+
+    Condition 1 (strictly left of the chord) and the apex-angle condition (4).
+    """
+    ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
+    ok = orient_many(ax, ay, bx, by, sx[candidates], sy[candidates], exact_inputs) > 0
+    if ok.any():
+        ok &= _inside_apex_angle(sx, sy, candidates, ax, ay, exact_inputs)
+        ok &= _inside_apex_angle(sx, sy, candidates, bx, by, exact_inputs)
+    return ok
+
+
 def correct_candidates(
     sx: np.ndarray,
     sy: np.ndarray,
@@ -31,20 +51,23 @@ def correct_candidates(
     hi: int,
     candidates: np.ndarray,
     edges: np.ndarray | None = None,
+    facing: bool = False,
+    exact_inputs: bool = False,
 ) -> np.ndarray:
     """Mask of ``candidates`` (positions) forming a correct triangle on the base (hi, lo).
 
     ``sx``, ``sy`` are the sequence coordinates (position m repeats position 0). ``edges`` are
     the positions i of the edges (i, i+1) to test; None means every edge of the sub-polygon.
-    Implements the three conditions of docs/algorithm.md section 4 exactly.
+    ``facing=True`` says the candidates already passed :func:`facing_candidates`;
+    ``exact_inputs`` is :func:`predicates.grid_exact` of the coordinates.
+    Implements the conditions of docs/algorithm.md section 4 exactly.
     """
     ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
     cx, cy = sx[candidates], sy[candidates]
-    ok = orient_many(ax, ay, bx, by, cx, cy) > 0
-    if ok.any():
-        ok &= _inside_apex_angle(sx, sy, candidates, ax, ay) & _inside_apex_angle(
-            sx, sy, candidates, bx, by
-        )
+    if facing:
+        ok = np.ones(len(candidates), dtype=bool)
+    else:
+        ok = facing_candidates(sx, sy, lo, hi, candidates, exact_inputs)
     if edges is None:
         edges = np.arange(lo, hi)
     if not ok.any() or len(edges) == 0:
@@ -53,14 +76,16 @@ def correct_candidates(
     count = len(edges)
     px, py = sx[ends], sy[ends]
     ccx, ccy = cx[:, None], cy[:, None]
-    f_ab = orient_many(ax, ay, bx, by, px, py)
-    f_bc = orient_many(bx, by, ccx, ccy, px, py)
-    f_ca = orient_many(ccx, ccy, ax, ay, px, py)
+    f_ab = orient_many(ax, ay, bx, by, px, py, exact_inputs)
+    f_bc = orient_many(bx, by, ccx, ccy, px, py, exact_inputs)
+    f_ca = orient_many(ccx, ccy, ax, ay, px, py, exact_inputs)
     # condition 3: a vertex in the relative interior of a new side
-    on_side = ((f_bc == 0) & strictly_between(px, py, bx, by, ccx, ccy)) | (
-        (f_ca == 0) & strictly_between(px, py, ccx, ccy, ax, ay)
-    )
-    bad = on_side.any(axis=1)
+    bad = np.zeros(len(candidates), dtype=bool)
+    for f, (ux, uy) in ((f_bc, (bx, by)), (f_ca, (ax, ay))):
+        rows, cols = np.nonzero(f == 0)
+        if len(rows):
+            inside = strictly_between(px[cols], py[cols], ux, uy, cx[rows], cy[rows])
+            bad[rows[inside]] = True
     # condition 2: an edge meets the open triangle (separating-axis test, all exact signs)
     inward = (
         (np.maximum(f_ab[:count], f_ab[count:]) > 0)[None, :]
@@ -71,9 +96,9 @@ def correct_candidates(
         rows, cols = np.nonzero(inward)
         e = edges[cols]
         ex0, ey0, ex1, ey1 = sx[e], sy[e], sx[e + 1], sy[e + 1]
-        g_a = orient_many(ex0, ey0, ex1, ey1, ax, ay)
-        g_b = orient_many(ex0, ey0, ex1, ey1, bx, by)
-        g_c = orient_many(ex0, ey0, ex1, ey1, cx[rows], cy[rows])
+        g_a = orient_many(ex0, ey0, ex1, ey1, ax, ay, exact_inputs)
+        g_b = orient_many(ex0, ey0, ex1, ey1, bx, by, exact_inputs)
+        g_c = orient_many(ex0, ey0, ex1, ey1, cx[rows], cy[rows], exact_inputs)
         lowest = np.minimum(np.minimum(g_a, g_b), g_c)
         highest = np.maximum(np.maximum(g_a, g_b), g_c)
         degenerate = (ex0 == ex1) & (ey0 == ey1)
@@ -84,7 +109,12 @@ def correct_candidates(
 
 
 def _inside_apex_angle(
-    sx: np.ndarray, sy: np.ndarray, candidates: np.ndarray, tx: float, ty: float
+    sx: np.ndarray,
+    sy: np.ndarray,
+    candidates: np.ndarray,
+    tx: float,
+    ty: float,
+    exact_inputs: bool = False,
 ) -> np.ndarray:
     """The direction from each candidate s_j towards t lies in the closed interior angle of
     the sequence at position j (between s_{j-1} s_j and s_j s_{j+1}, interior on the left).
@@ -94,9 +124,9 @@ def _inside_apex_angle(
     px, py = sx[candidates - 1], sy[candidates - 1]
     vx, vy = sx[candidates], sy[candidates]
     nx, ny = sx[candidates + 1], sy[candidates + 1]
-    turn = orient_many(px, py, vx, vy, nx, ny)
-    after_next = orient_many(vx, vy, nx, ny, tx, ty) >= 0
-    after_prev = orient_many(px, py, vx, vy, tx, ty) >= 0
+    turn = orient_many(px, py, vx, vy, nx, ny, exact_inputs)
+    after_next = orient_many(vx, vy, nx, ny, tx, ty, exact_inputs) >= 0
+    after_prev = orient_many(px, py, vx, vy, tx, ty, exact_inputs) >= 0
     spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
     return np.where(
         turn > 0,
@@ -118,6 +148,7 @@ class _Tree:
         self.sz = z[self.ids]
         self.rule = rule
         self.m = len(sequence)
+        self.exact = grid_exact(self.sx, self.sy)
         self.grid = None
         if self.m > SMALL_SEQUENCE:
             starts = np.arange(self.m)
@@ -126,35 +157,51 @@ class _Tree:
             )
 
     def _apex(self, lo: int, hi: int, v1: int, v2: int) -> int:
-        candidates = np.arange(hi - 1, lo, -1)
+        """Position of the apex on the base (v1, v2) of sub-polygon [lo, hi], or -1."""
         rule = self.rule
-        if self.grid is None or hi - lo <= SMALL_SEQUENCE:
-            if rule.exhaustive:
-                chunks = [candidates]
+        sx, sy = self.sx, self.sy
+        small = self.grid is None or hi - lo <= SMALL_SEQUENCE
+        found: list[np.ndarray] = []
+        start = hi - 1
+        size = _FIRST_CHUNK
+        while start > lo:
+            stop = max(start - size, lo)
+            chunk = np.arange(start, stop, -1)
+            start, size = stop, size * 4
+            chunk = chunk[facing_candidates(sx, sy, lo, hi, chunk, self.exact)]
+            if len(chunk) == 0:
+                continue
+            if small:
+                mask = correct_candidates(
+                    sx, sy, lo, hi, chunk, facing=True, exact_inputs=self.exact
+                )
+                correct = chunk[mask]
             else:
-                chunks = [candidates[:_FIRST_CHUNK], candidates[_FIRST_CHUNK:]]
-            for chunk in chunks:
-                if len(chunk) == 0:
-                    continue
-                mask = correct_candidates(self.sx, self.sy, lo, hi, chunk)
-                if mask.any():
-                    return rule.choose(chunk[mask], v1, v2, self.sz)
-            return -1
-        correct = []
-        for c in candidates.tolist():
-            if self._grid_correct(lo, hi, c):
-                correct.append(c)
+                correct = self._grid_correct(lo, hi, chunk, rule.exhaustive)
+            if len(correct):
+                found.append(correct)
                 if not rule.exhaustive:
                     break
-        if not correct:
+        if not found:
             return -1
-        return rule.choose(np.asarray(correct, dtype=np.int64), v1, v2, self.sz)
+        return rule.choose(np.concatenate(found), v1, v2, self.sz)
 
-    def _grid_correct(self, lo: int, hi: int, c: int) -> bool:
-        corners = np.array([hi, lo, c])
-        found = self.grid.query_triangle(self.sx[corners], self.sy[corners])
-        edges = found[(found >= lo) & (found < hi)]
-        return bool(correct_candidates(self.sx, self.sy, lo, hi, np.array([c]), edges)[0])
+    def _grid_correct(self, lo: int, hi: int, chunk: np.ndarray, exhaustive: bool) -> np.ndarray:
+        """The correct candidates of ``chunk`` (in order; only the first unless exhaustive)."""
+        correct = []
+        for c in chunk.tolist():
+            corners = np.array([hi, lo, c])
+            found = self.grid.query_triangle(self.sx[corners], self.sy[corners])
+            edges = found[(found >= lo) & (found < hi)]
+            candidate = np.array([c])
+            mask = correct_candidates(
+                self.sx, self.sy, lo, hi, candidate, edges, facing=True, exact_inputs=self.exact
+            )
+            if mask[0]:
+                correct.append(c)
+                if not exhaustive:
+                    break
+        return np.asarray(correct, dtype=np.int64)
 
     def build(self) -> Triangulation:
         m = self.m
@@ -214,10 +261,7 @@ def _snap(clean: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
     return [np.asarray(r, dtype=np.float64) for r in snap_to_plane(clean, tolerance)]
 
 
-def triangulate(
-    rings: Sequence[object], *, rule: str = "first", planar_tolerance: float = 0.0
-) -> Triangulation:
-    """Triangulate one polygon given as ``[outer ring, island, ...]`` (points (x, y[, z]))."""
+def _triangulate(rings: Sequence[object], *, rule: str, planar_tolerance: float) -> Triangulation:
     apex_rule = get_rule(rule)
     clean, axes = normalise_rings(rings)
     if planar_tolerance > 0 and clean:
@@ -229,6 +273,19 @@ def triangulate(
     sequence = bridge_islands(prepared.x, prepared.y, ring_ids, prepared.ring_numbers)
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule)
     return tree.build()
+
+
+def triangulate(
+    rings: Sequence[object], *, rule: str = "first", planar_tolerance: float = 0.0
+) -> Triangulation:
+    """Triangulate one polygon given as ``[outer ring, island, ...]`` (points (x, y[, z])).
+
+    Degenerate input (zero area, fewer than 3 distinct points) gives an empty result; input
+    that cannot be triangulated raises :class:`TriangulationError` naming the ring.
+    """
+    # overflow in float filters only routes values to the exact path
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        return _triangulate(rings, rule=rule, planar_tolerance=planar_tolerance)
 
 
 def triangulate_many(

@@ -18,10 +18,53 @@ _UNDERFLOW_SLACK = 1e-300
 
 
 def orient_exact(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> int:
-    """Sign of the orientation determinant of (a, b, c), computed exactly."""
-    fcx, fcy = Fraction(cx), Fraction(cy)
-    det = (Fraction(ax) - fcx) * (Fraction(by) - fcy) - (Fraction(ay) - fcy) * (Fraction(bx) - fcx)
+    """Sign of the orientation determinant of (a, b, c), computed exactly (Python integers)."""
+    ratios = [v.as_integer_ratio() for v in (ax, ay, bx, by, cx, cy)]
+    shift = max(den.bit_length() for _, den in ratios)
+    n = [num << (shift - den.bit_length()) for num, den in ratios]
+    det = (n[0] - n[4]) * (n[3] - n[5]) - (n[1] - n[5]) * (n[2] - n[4])
     return (det > 0) - (det < 0)
+
+
+_SPLITTER = 134217729.0  # 2**27 + 1
+
+
+def _diff_error(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Rounding error of x = fl(a - b) (Knuth's two-sum)."""
+    bvirt = a - x
+    avirt = x + bvirt
+    return (a - avirt) + (bvirt - b)
+
+
+def _product_error(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Rounding error of x = fl(a * b) (Dekker's two-product)."""
+    c = _SPLITTER * a
+    ahi = c - (c - a)
+    alo = a - ahi
+    c = _SPLITTER * b
+    bhi = c - (c - b)
+    blo = b - bhi
+    return alo * blo - (((x - ahi * bhi) - alo * bhi) - ahi * blo)
+
+
+def _exactly_computed(ax, ay, bx, by, cx, cy) -> tuple[np.ndarray, np.ndarray]:
+    """Float orientation determinants and a mask of those computed without any rounding."""
+    d1, d2, d3, d4 = ax - cx, by - cy, ay - cy, bx - cx
+    left, right = d1 * d2, d3 * d4
+    det = left - right
+    exact = (
+        (_diff_error(ax, cx, d1) == 0)
+        & (_diff_error(by, cy, d2) == 0)
+        & (_diff_error(ay, cy, d3) == 0)
+        & (_diff_error(bx, cx, d4) == 0)
+        & (_product_error(d1, d2, left) == 0)
+        & (_product_error(d3, d4, right) == 0)
+        & (_diff_error(left, right, det) == 0)
+        & np.isfinite(det)
+        & (np.abs(left) + np.abs(right) > 1e-290)
+    )
+    exact |= (d1 == 0) & (d3 == 0) | (d2 == 0) & (d4 == 0)  # a == c or b == c in a coordinate
+    return det, exact
 
 
 def orient(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> int:
@@ -37,6 +80,26 @@ def orient(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> 
     return orient_exact(ax, ay, bx, by, cx, cy)
 
 
+def grid_exact(*coordinates: np.ndarray) -> bool:
+    """True if every orientation determinant of these coordinates is exact in float64.
+
+    That holds when all values are multiples of one power of two 2**q with magnitude below
+    2**(q + 25) (e.g. integers below 33 million): differences, products and their difference
+    then all fit in 53 bits.
+    """
+    values = np.concatenate([np.ravel(c) for c in coordinates])
+    if not np.isfinite(values).all():
+        return False
+    values = values[values != 0]
+    if len(values) == 0:
+        return True
+    mantissa, exponent = np.frexp(values)
+    integers = (mantissa * 2.0**53).astype(np.int64)
+    lowest_bit = integers & -integers
+    quantum = int((exponent - 53 + np.log2(lowest_bit.astype(np.float64)).astype(np.int64)).min())
+    return bool(np.abs(values).max() < 2.0 ** (quantum + 25))
+
+
 def orient_many(
     ax: np.ndarray,
     ay: np.ndarray,
@@ -44,20 +107,35 @@ def orient_many(
     by: np.ndarray,
     cx: np.ndarray,
     cy: np.ndarray,
+    exact_inputs: bool = False,
 ) -> np.ndarray:
-    """Vectorised :func:`orient` with numpy broadcasting; returns int8 signs."""
-    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        detleft = (ax - cx) * (by - cy)
-        detright = (ay - cy) * (bx - cx)
-        det = detleft - detright
-        bound = CCW_ERRBOUND * (np.abs(detleft) + np.abs(detright)) + _UNDERFLOW_SLACK
-        sure = np.abs(det) > bound
+    """Vectorised :func:`orient` with numpy broadcasting; returns int8 signs.
+
+    ``exact_inputs=True`` asserts that :func:`grid_exact` holds for the coordinates, so the
+    float result is exact. Overflow in the float filter is harmless (it sends the value to
+    the exact path); callers with huge coordinates silence numpy's warnings with
+    ``np.errstate``.
+    """
+    detleft = (ax - cx) * (by - cy)
+    detright = (ay - cy) * (bx - cx)
+    det = detleft - detright
+    if exact_inputs:
+        return np.sign(det).astype(np.int8)
+    bound = CCW_ERRBOUND * (np.abs(detleft) + np.abs(detright)) + _UNDERFLOW_SLACK
+    sure = np.abs(det) > bound
     signs = np.sign(det).astype(np.int8)
     if not sure.all():
         unsure = np.nonzero(~sure)
         arrays = np.broadcast_arrays(ax, ay, bx, by, cx, cy)
-        picked = [a[unsure].tolist() for a in arrays]
-        signs[unsure] = [orient_exact(*point) for point in zip(*picked)]
+        picked = [np.asarray(a[unsure], dtype=np.float64) for a in arrays]
+        det2, exact = _exactly_computed(*picked)
+        values = np.sign(det2).astype(np.int8)
+        if not exact.all():
+            rest = np.flatnonzero(~exact)
+            values[rest] = [
+                orient_exact(*point) for point in zip(*(p[rest].tolist() for p in picked))
+            ]
+        signs[unsure] = values
     return signs
 
 

@@ -87,7 +87,7 @@ def working_axes(outer: np.ndarray) -> tuple[int, int]:
 
 
 def _clean(points: np.ndarray, axes: tuple[int, int]) -> np.ndarray:
-    """Drop consecutive duplicates (equal in the working plane, first kept) and the closing point."""
+    """Drop consecutive duplicates (equal in the working plane) and the closing point."""
     if len(points) == 0:
         return points
     plane = points[:, axes]
