@@ -359,32 +359,29 @@ def reference_triangulate(
 ) -> ReferenceResult:
     """Triangulate ``rings`` (outer ring first) exactly as docs/algorithm.md prescribes."""
     normalised = [normalise_ring(ring) for ring in rings]
+    # every normalised ring is in ``vertices``, also the islands that are ignored
+    vertices = [p for ring in normalised for p in ring]
     if not normalised or len(normalised[0]) < 3:
-        return ReferenceResult()
+        return ReferenceResult(vertices=vertices)
     for ring in normalised:
         if len(ring) >= 3 and not xy_is_working_plane(ring):
             raise NotImplementedError("walls (non-XY working plane) are out of the oracle's scope")
     scale = _integer_scale([c for ring in normalised for p in ring for c in p[:2]])
-
-    def to_int(p: tuple[float, float, float]) -> Point:
-        return (int(Fraction(p[0]) * scale), int(Fraction(p[1]) * scale))
-
-    if _area2([to_int(p) for p in normalised[0]]) == 0:
-        return ReferenceResult()
-    kept = [normalised[0]] + [
-        ring for ring in normalised[1:] if len(ring) >= 3 and _area2([to_int(p) for p in ring]) != 0
-    ]
-    vertices = [p for ring in kept for p in ring]
-    mirrored = _area2([to_int(p) for p in kept[0]]) < 0
-    pts = [to_int(p) for p in vertices]
+    pts = [(int(Fraction(p[0]) * scale), int(Fraction(p[1]) * scale)) for p in vertices]
+    index_rings: list[list[int]] = []
+    offset = 0
+    for number, ring in enumerate(normalised):
+        indices = list(range(offset, offset + len(ring)))
+        offset += len(ring)
+        if number == 0 or (len(ring) >= 3 and _area2([pts[v] for v in indices]) != 0):
+            index_rings.append(indices)
+    area = _area2([pts[v] for v in index_rings[0]])
+    if area == 0:
+        return ReferenceResult(vertices=vertices)
+    mirrored = area < 0
     if mirrored:
         pts = [(-x, y) for x, y in pts]
 
-    index_rings: list[list[int]] = []
-    offset = 0
-    for ring in kept:
-        index_rings.append(list(range(offset, offset + len(ring))))
-        offset += len(ring)
     oriented = [index_rings[0]]
     for ring in index_rings[1:]:
         oriented.append(ring[::-1] if _area2([pts[v] for v in ring]) > 0 else ring)

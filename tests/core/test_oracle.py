@@ -26,6 +26,9 @@ from .checks import (
 )
 from .random_polygons import random_polygon, with_z
 from .reference_bsp import reference_triangulate, xy_is_working_plane
+from .test_earcut_fixtures import FIXTURES, is_valid_polygon, load
+from .test_geos_cases import CASES as GEOS_CASES
+from .test_geos_cases import case_id, polygon_parts, read
 
 FAMILIES = {
     "integer-star": (100, {"integer": True}),
@@ -80,6 +83,27 @@ def test_engine_matches_reference_with_rule_first(family: str, seed: int) -> Non
 @pytest.mark.parametrize("seed", range(60), ids=[f"z-{s}" for s in range(60)])
 def test_engine_matches_reference_with_rule_elevation(seed: int) -> None:
     _assert_same(_build("elevation", seed), "elevation")
+
+
+def _small_valid_inputs() -> list:
+    """Valid earcut fixtures and GEOS polygon parts small enough for the O(n^3) reference."""
+    inputs = []
+    for name in FIXTURES:
+        rings = load(name)
+        if sum(len(r) for r in rings) <= 220 and is_valid_polygon(rings):
+            inputs.append(pytest.param(rings, id=f"earcut-{name}"))
+    for case in GEOS_CASES:
+        if case["input_wkt"].upper().startswith(("LINESTRING", "CURVEPOLYGON")):
+            continue
+        for number, rings in enumerate(polygon_parts(read(case["input_wkt"]))):
+            if is_valid_polygon(rings):
+                inputs.append(pytest.param(rings, id=f"geos-{case_id(case)}-{number}"))
+    return inputs
+
+
+@pytest.mark.parametrize("rings", _small_valid_inputs())
+def test_engine_matches_reference_on_real_test_polygons(rings: list) -> None:
+    _assert_same(rings, "first")
 
 
 def test_reference_reproduces_a_hand_checked_square_with_an_island() -> None:
