@@ -330,7 +330,7 @@ def check_tree(
 ) -> None:
     """The BSP tree is consistent and listed in pre-order.
 
-    Tracking each node's base (V1, V2) from the root's (vertex 0, vertex 1): a left child has
+    Tracking each node's base (V1, V2) from the root's (s0 = vertex 0, s1): a left child has
     base (V1, apex) and a right child (V2, apex) of its parent, each at most once per parent,
     the left subtree before the right one, depth = parent's depth + 1.
     """
@@ -341,8 +341,9 @@ def check_tree(
         return
     tris = np.asarray(triangles).tolist()
     assert parent[0] == -1 and depth[0] == 0 and side[0] == 0, "first triangle is not the root"
-    assert set(tris[0][:2]) == {0, 1}, f"root base {tris[0][:2]} is not the outer ring's s0 s1"
-    bases: list[tuple[int, int]] = [(0, 1)]
+    # s0 is the outer ring's first vertex; s1 its second, or a vertex splitting the first edge
+    assert 0 in tris[0][:2], f"root base {tris[0][:2]} does not start at the outer ring's s0"
+    bases: list[tuple[int, int]] = [(0, tris[0][1] if tris[0][0] == 0 else tris[0][0])]
     children: dict[int, dict[int, int]] = {0: {}}
     path = [0]  # the root-to-current chain; in pre-order a parent is on it
     for i in range(1, m):
