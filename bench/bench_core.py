@@ -156,9 +156,11 @@ def scaling_rows(budget: float | None = DEFAULT_BUDGET) -> list[Row]:
     return rows
 
 
-def run(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> list[Row]:
+def run(
+    quick: bool = False, budget: float | None = DEFAULT_BUDGET, count: int | None = None
+) -> list[Row]:
     """All core benchmarks; ``quick`` uses 5,000 instead of 50,000 star polygons."""
-    count = QUICK_COUNT if quick else DEFAULT_COUNT
+    count = count or (QUICK_COUNT if quick else DEFAULT_COUNT)
     stars_path, _ = ensure_stars(count)
     stars = read_rings(stars_path)
     case = f"{len(stars):,} stars with 1 island ({vertex_count(stars):,} vertices)"
@@ -178,8 +180,9 @@ def main() -> None:
     parser.add_argument(
         "--budget", type=float, default=DEFAULT_BUDGET, help="seconds per measurement at most"
     )
+    parser.add_argument("--count", type=int, help="number of star polygons (overrides --quick)")
     arguments = parser.parse_args()
-    print(rows_table(run(arguments.quick, arguments.budget)))
+    print(rows_table(run(arguments.quick, arguments.budget, arguments.count)))
 
 
 if __name__ == "__main__":

@@ -91,9 +91,11 @@ def algorithm(name: str, **parameters: object) -> list[str]:
     return ["--json", "run", name, *(f"--{key}={value}" for key, value in parameters.items())]
 
 
-def run(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> list[Row]:
+def run(
+    quick: bool = False, budget: float | None = DEFAULT_BUDGET, count: int | None = None
+) -> list[Row]:
     """Rows of wall time and peak RSS per algorithm run."""
-    count = QUICK_COUNT if quick else DEFAULT_COUNT
+    count = count or (QUICK_COUNT if quick else DEFAULT_COUNT)
     polygons, dem = ensure_stars(count)
     output = Path(tempfile.mkdtemp(prefix="bsptri-bench-e2e-"))
     environment = qgis_environment(plugin_dir())
@@ -163,8 +165,9 @@ def main() -> None:
     parser.add_argument(
         "--budget", type=float, default=DEFAULT_BUDGET, help="seconds per run at most"
     )
+    parser.add_argument("--count", type=int, help="number of star polygons (overrides --quick)")
     arguments = parser.parse_args()
-    print(rows_table(run(arguments.quick, arguments.budget)))
+    print(rows_table(run(arguments.quick, arguments.budget, arguments.count)))
 
 
 if __name__ == "__main__":

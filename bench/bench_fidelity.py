@@ -350,7 +350,10 @@ def run_table(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> tup
     return table, rows
 
 
-def run(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> list[Row]:
+def run(
+    quick: bool = False, budget: float | None = DEFAULT_BUDGET, count: int | None = None
+) -> list[Row]:
+    """Fidelity rows (``count`` is not used: the data set is fixed)."""
     return run_table(quick, budget)[1]
 
 

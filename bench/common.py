@@ -9,6 +9,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -87,7 +88,15 @@ class BudgetExceededError(Exception):
     """A measurement did not finish within its time budget."""
 
 
-def _child(function: Callable[[], Any], connection: Any) -> None:
+def _exit_with_parent(parent: int) -> None:
+    """Stop this forked child when the benchmark process that started it is gone."""
+    while os.getppid() == parent:
+        time.sleep(1.0)
+    os._exit(1)
+
+
+def _child(function: Callable[[], Any], connection: Any, parent: int) -> None:
+    threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
     try:
         connection.send((True, function()))
     except BaseException as error:  # report any failure to the parent, then exit
@@ -106,7 +115,7 @@ def within(function: Callable[[], Any], timeout: float | None) -> Any:
         return function()
     context = multiprocessing.get_context("fork")
     receiver, sender = context.Pipe(duplex=False)
-    child = context.Process(target=_child, args=(function, sender), daemon=True)
+    child = context.Process(target=_child, args=(function, sender, os.getpid()), daemon=True)
     child.start()
     sender.close()
     try:
