@@ -19,7 +19,7 @@ PLUGIN_FOLDER = "bsptriangulate"
 # What the plugin needs at run time, relative to the repository root.
 RUNTIME_FILES = ("__init__.py", "plugin.py", "metadata.txt", "LICENSE", "README.md")
 RUNTIME_DIRS = ("bsp_triangulate", "processing_provider", "icons", "i18n")
-RUNTIME_SUFFIXES = {".py", ".svg", ".png", ".qm", ".txt"}
+SKIPPED_SUFFIXES = {".pyc", ".pyo", ".ts", ".pro", ".orig", ".rej", ".swp"}
 
 
 def plugin_version(root: Path = ROOT) -> str:
@@ -38,8 +38,9 @@ def runtime_files(root: Path = ROOT) -> Iterator[Path]:
         for path in sorted((root / folder).rglob("*")):
             if (
                 path.is_file()
-                and path.suffix in RUNTIME_SUFFIXES
+                and path.suffix not in SKIPPED_SUFFIXES
                 and "__pycache__" not in path.parts
+                and not path.name.startswith(".")
             ):
                 yield path.relative_to(root)
 

@@ -80,9 +80,9 @@ def test_zip_holds_one_plugin_folder_with_every_runtime_module_and_nothing_else(
     assert not [name for name in inside if name.endswith((".pyc", ".zip", ".model3"))]
     sources = {
         path.relative_to(ROOT).as_posix()
-        for folder in ("bsp_triangulate", "processing_provider")
-        for path in (ROOT / folder).rglob("*.py")
-        if "__pycache__" not in path.parts
+        for folder in ("bsp_triangulate", "processing_provider", "icons")
+        for path in (ROOT / folder).rglob("*")
+        if path.is_file() and "__pycache__" not in path.parts and path.suffix != ".pyc"
     }
     required = {"__init__.py", "plugin.py", "metadata.txt", "LICENSE", "icons/provider.svg"}
     assert sources | required <= inside
