@@ -112,25 +112,27 @@ class _Bridger:
         return [int(self.position[vid])]
 
     # -- validity -------------------------------------------------------------------------
-    def _inside_angle(self, k: int, tx: float, ty: float) -> bool:
-        """The direction from occurrence k towards (tx, ty) leaves into S's interior angle."""
+    def _inside_angle(self, k: int, tx: float, ty: float, closed: bool = False) -> bool:
+        """The direction from occurrence k towards (tx, ty) lies in S's interior angle there
+        (the open angle, or the closed one with ``closed=True``)."""
         seq, x, y = self.seq, self.x, self.y
         v, p, n = int(seq[k]), int(seq[k - 1]), int(seq[(k + 1) % len(seq)])
         vx, vy = x[v], y[v]
         turn = orient(x[p], y[p], vx, vy, x[n], y[n])
-        left_next = orient(vx, vy, x[n], y[n], tx, ty) > 0
-        left_prev = orient(x[p], y[p], vx, vy, tx, ty) > 0
+        least = 0 if closed else 1
+        after_next = orient(vx, vy, x[n], y[n], tx, ty) >= least
+        after_prev = orient(x[p], y[p], vx, vy, tx, ty) >= least
         if turn > 0:
-            return left_next and left_prev
+            return after_next and after_prev
         if turn < 0:
-            return left_next or left_prev
+            return after_next or after_prev
         if (x[n] - vx) * (x[p] - vx) + (y[n] - vy) * (y[p] - vy) < 0:
-            return left_next  # straight angle
+            return after_next  # straight angle
         # spike: everything but the spike's own ray
         on_ray = orient(vx, vy, x[n], y[n], tx, ty) == 0 and (
             (tx - vx) * (x[n] - vx) + (ty - vy) * (y[n] - vy) > 0
         )
-        return not on_ray
+        return closed or not on_ray
 
     def _segment_clear(self, u: int, w: int) -> bool:
         """No ring edge or earlier bridge meets the open segment u-w, no vertex lies on it."""
@@ -167,10 +169,12 @@ class _Bridger:
         if x[vid] == x[h] and y[vid] == y[h]:
             nxt = int(island[(h_index + 1) % len(island)])
             prv = int(island[h_index - 1])
+            # the island's corner at h must lie within S's closed angle at occurrence k
             return [
                 k
                 for k in self.occurrences(vid)
-                if self._inside_angle(k, x[nxt], y[nxt]) or self._inside_angle(k, x[prv], y[prv])
+                if self._inside_angle(k, x[nxt], y[nxt], closed=True)
+                and self._inside_angle(k, x[prv], y[prv], closed=True)
             ]
         ks = [k for k in self.occurrences(vid) if self._inside_angle(k, x[h], y[h])]
         if ks and self._segment_clear(vid, h):
@@ -311,3 +315,35 @@ def _touch_index(x: np.ndarray, y: np.ndarray, ring: np.ndarray, bridger: _Bridg
         if key in seq_points and (best is None or key < best[0]):
             best = (key, index)
     return best[1] if best is not None else 0
+
+
+def remove_spikes(x: np.ndarray, y: np.ndarray, seq: np.ndarray) -> np.ndarray:
+    """Cancel every edge that is immediately walked back (..., p, s, p, ...) -> (..., p, ...).
+
+    Such zero-width spikes come from rings sharing an edge (invalid input, e.g. an island
+    along the outer ring); they enclose no area. The sequence is cyclic.
+    """
+    xs, ys = x[seq].tolist(), y[seq].tolist()
+    stack: list[int] = []
+    for index in range(len(seq)):
+        point = (xs[index], ys[index])
+        if len(stack) >= 2 and (xs[stack[-2]], ys[stack[-2]]) == point:
+            stack.pop()
+            continue
+        stack.append(index)
+    changed = True
+    while changed and len(stack) >= 3:
+        changed = False
+        first, second = stack[0], stack[1]
+        last, before_last = stack[-1], stack[-2]
+        if (xs[last], ys[last]) == (xs[second], ys[second]):
+            stack = stack[1:-1] if len(stack) > 3 else []  # spike at the first position
+            changed = True
+        elif (xs[before_last], ys[before_last]) == (xs[first], ys[first]):
+            stack = stack[:-2]  # spike at the last position
+            changed = True
+    if len(stack) < 3:
+        return seq[:0]
+    if len(stack) == len(seq):
+        return seq
+    return seq[np.asarray(stack, dtype=np.int64)]

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .bridges import bridge_islands, split_touching
+from .bridges import bridge_islands, remove_spikes, split_touching
 from .predicates import grid_exact, orient_many, strictly_between
 from .rings import PreparedRings, normalise_rings, prepare, ring_label
 from .rules import ApexRule, get_rule
@@ -271,6 +271,9 @@ def _triangulate(rings: Sequence[object], *, rule: str, planar_tolerance: float)
         return Triangulation(vertices=prepared.vertices)
     ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
     sequence = bridge_islands(prepared.x, prepared.y, ring_ids, prepared.ring_numbers)
+    sequence = remove_spikes(prepared.x, prepared.y, sequence)
+    if len(sequence) < 3:
+        return Triangulation(vertices=prepared.vertices)
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule)
     return tree.build()
 
