@@ -1,0 +1,106 @@
+"""Vectorised batch path of ``triangulate_many``: many small polygons in lock-step.
+
+Contract of :func:`triangulate_batch`:
+
+- ``triangulate_batch(polygons, rule)`` returns one entry per polygon, in input order: a
+  :class:`Triangulation` equal field by field to what ``engine.triangulate(rings, rule=rule)``
+  returns (``planar_tolerance`` 0), or None where the polygon is left to the engine.
+- None is returned for anything the batch path does not decide exactly like the engine:
+  polygons with more than ``max_vertices`` vertices, rings that touch each other or
+  themselves (shared points, a vertex on an edge), islands with fewer than 3 points or zero
+  area, outer rings of zero or near-zero area, steep faces (working plane other than XY),
+  nearly equal bridge distances, unusual input (empty rings, non-finite or malformed points),
+  rules other than "first" and "elevation", and polygons the engine would reject (its error
+  message comes from the engine).
+- The result's ``vertices`` may be a view into an array shared by the batch.
+
+Pipeline: ``batch_rings`` (normalisation), ``batch_bridges`` (islands), ``batch_bsp`` (tree).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .batch_bridges import bridge_sequences
+from .batch_bsp import build_trees
+from .batch_rings import _ragged_index, flatten_rings, touching_polygons
+from .triangulation import Triangulation
+
+# Larger polygons go to the engine (its grid index beats the all-edges tests there).
+MAX_VERTICES = 256
+_RULES = {"first": False, "elevation": True}
+
+
+def triangulate_batch(
+    polygons: Sequence[Sequence[object]], rule: str = "first", max_vertices: int = MAX_VERTICES
+) -> list[Triangulation | None]:
+    """Triangulations of ``polygons`` (each ``[outer ring, island, ...]``); None where the
+    polygon is left to the engine (see the module docstring)."""
+    results: list[Triangulation | None] = [None] * len(polygons)
+    if rule not in _RULES or not len(polygons):
+        return results
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        return _triangulate(polygons, _RULES[rule], max_vertices, results)
+
+
+def _triangulate(
+    polygons: Sequence[Sequence[object]],
+    exhaustive: bool,
+    max_vertices: int,
+    results: list[Triangulation | None],
+) -> list[Triangulation | None]:
+    flat = flatten_rings(polygons, max_vertices)
+    wx = np.where(np.repeat(flat.mirrored[flat.ring_poly], flat.ring_len), -flat.vx, flat.vx)
+    wy = flat.vy
+    vertices = np.column_stack([flat.vx, flat.vy, flat.vz])
+    handled = flat.handled.copy()
+    handled &= ~touching_polygons(flat, wx) | flat.empty
+    for p in np.flatnonzero(handled & flat.empty).tolist():
+        s = int(flat.poly_vstart[p])
+        results[p] = Triangulation(vertices=vertices[s : s + int(flat.poly_vcount[p])])
+    polys = np.flatnonzero(handled & ~flat.empty)
+    if len(polys) == 0:
+        return results
+    seq, seq_start, seq_len, bridged = bridge_sequences(flat, wx, wy, polys)
+    polys_ok = polys[bridged]
+    seq_start, seq_len = seq_start[bridged], seq_len[bridged]
+    # each sequence with its closing repeat of position 0
+    ext_len = seq_len + 1
+    pos = _ragged_index(seq_start, seq_len)
+    owner = np.repeat(np.arange(len(polys_ok), dtype=np.int64), seq_len)
+    ext_start = np.cumsum(ext_len) - ext_len
+    ext = np.empty(int(ext_len.sum()), dtype=np.int64)
+    ext[_ragged_index(ext_start, seq_len)] = seq[pos]
+    ext[ext_start + seq_len] = seq[seq_start]
+    ext_owner = np.repeat(np.arange(len(polys_ok), dtype=np.int64), ext_len)
+    del owner
+    local = ext - flat.poly_vstart[polys_ok][ext_owner]
+    trees = build_trees(
+        local,
+        wx[ext],
+        wy[ext],
+        flat.vz[ext],
+        ext_start,
+        seq_len,
+        flat.mirrored[polys_ok],
+        exhaustive,
+    )
+    starts = trees.start.tolist()
+    counts = trees.count.tolist()
+    vstarts = flat.poly_vstart[polys_ok].tolist()
+    vcounts = flat.poly_vcount[polys_ok].tolist()
+    good = trees.ok.tolist()
+    for i, p in enumerate(polys_ok.tolist()):
+        if not good[i]:
+            continue
+        s, n, vs = starts[i], counts[i], vstarts[i]
+        results[p] = Triangulation(
+            vertices=vertices[vs : vs + vcounts[i]],
+            triangles=trees.triangles[s : s + n],
+            parent=trees.parent[s : s + n],
+            depth=trees.depth[s : s + n],
+            side=trees.side[s : s + n],
+        )
+    return results

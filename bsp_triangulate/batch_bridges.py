@@ -1,0 +1,260 @@
+"""Island bridges for the batch path: ``bridges.bridge_islands`` over many polygons at once.
+
+Only for polygons whose rings do not touch (no shared points, no vertex on an edge), where the
+engine joins the islands in leftmost order, each to its nearest valid bridge vertex. Each round
+tests the nearest untested occurrence of every polygon; a polygon whose nearest valid bridge
+is not clear-cut in float64 (near-equal distances to different points) is not handled.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .batch_rings import FlatRings, _ragged_index
+from .predicates import orient_many, strictly_between
+
+# relative margin within which two squared distances count as a tie (left to the engine)
+_TIE = 1e-12
+_MAX_TRIES = 24
+
+
+def traversal_ids(flat: FlatRings) -> np.ndarray:
+    """Vertex ids of every ring in traversal order (reversed islands backwards), laid out
+    like the vertices themselves (ring r at ``ring_start[r]``)."""
+    nv = len(flat.vx)
+    ids = np.arange(nv, dtype=np.int64)
+    rev = np.flatnonzero(flat.ring_reversed)
+    if len(rev):
+        pos = _ragged_index(flat.ring_start[rev], flat.ring_len[rev])
+        ring_of = np.repeat(rev, flat.ring_len[rev])
+        first = flat.ring_start[ring_of]
+        ids[pos] = first + flat.ring_len[ring_of] - 1 - (pos - first)
+    return ids
+
+
+def _segments(
+    src: np.ndarray, starts: np.ndarray, lengths: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Gather of ``src`` segments (rows of ``starts``/``lengths`` concatenated per row)."""
+    flat_len = lengths.reshape(-1)
+    out = src[_ragged_index(starts.reshape(-1), flat_len)]
+    return out, lengths.sum(axis=1)
+
+
+def _inside_angle(
+    wx: np.ndarray,
+    wy: np.ndarray,
+    p: np.ndarray,
+    v: np.ndarray,
+    n: np.ndarray,
+    tx: np.ndarray,
+    ty: np.ndarray,
+) -> np.ndarray:
+    """``bridges._Bridger._inside_angle`` for arrays of (previous, vertex, next) occurrences."""
+    px, py, vx, vy, nx, ny = wx[p], wy[p], wx[v], wy[v], wx[n], wy[n]
+    turn = orient_many(px, py, vx, vy, nx, ny)
+    on_next = orient_many(vx, vy, nx, ny, tx, ty)
+    left_next = on_next > 0
+    left_prev = orient_many(px, py, vx, vy, tx, ty) > 0
+    straight = (nx - vx) * (px - vx) + (ny - vy) * (py - vy) < 0
+    on_ray = (on_next == 0) & ((tx - vx) * (nx - vx) + (ty - vy) * (ny - vy) > 0)
+    collinear = np.where(straight, left_next, ~on_ray)
+    return np.where(
+        turn > 0, left_next & left_prev, np.where(turn < 0, left_next | left_prev, collinear)
+    )
+
+
+def _segment_clear(
+    wx: np.ndarray,
+    wy: np.ndarray,
+    u: np.ndarray,
+    w: np.ndarray,
+    edge_start: np.ndarray,
+    edge_count: np.ndarray,
+    edge_a: np.ndarray,
+    edge_b: np.ndarray,
+) -> np.ndarray:
+    """Per test i: no edge of its range meets the open segment u_i w_i, no vertex lies on it."""
+    item = np.repeat(np.arange(len(u), dtype=np.int64), edge_count)
+    e = _ragged_index(edge_start, edge_count)
+    a, b = edge_a[e], edge_b[e]
+    ux, uy, vx, vy = wx[u][item], wy[u][item], wx[w][item], wy[w][item]
+    ax, ay, bx, by = wx[a], wy[a], wx[b], wy[b]
+    o1 = orient_many(ux, uy, vx, vy, ax, ay)
+    o2 = orient_many(ux, uy, vx, vy, bx, by)
+    blocked = ((o1 == 0) & strictly_between(ax, ay, ux, uy, vx, vy)) | (
+        (o2 == 0) & strictly_between(bx, by, ux, uy, vx, vy)
+    )
+    straddle = np.flatnonzero((o1.astype(np.int16) * o2) < 0)
+    if len(straddle):
+        s = straddle
+        o3 = orient_many(ax[s], ay[s], bx[s], by[s], ux[s], uy[s])
+        o4 = orient_many(ax[s], ay[s], bx[s], by[s], vx[s], vy[s])
+        blocked[s[(o3.astype(np.int16) * o4) < 0]] = True
+    return np.bincount(item[blocked], minlength=len(u)) == 0
+
+
+def bridge_sequences(
+    flat: FlatRings, wx: np.ndarray, wy: np.ndarray, polys: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bridged vertex sequences of ``polys`` (rings must not touch).
+
+    Returns the flat sequence of vertex ids, each polygon's start and length in it, and a mask
+    of the polygons whose bridges were decided (the others are left to the engine).
+    """
+    trav = traversal_ids(flat)
+    ring0 = flat.poly_ring0[polys]
+    islands = flat.poly_rings[polys] - 1
+    seq_len = flat.ring_len[ring0].copy()
+    seq, _ = _segments(trav, flat.ring_start[ring0][:, None], seq_len[:, None])
+    seq_start = np.cumsum(seq_len) - seq_len
+    ok = np.ones(len(polys), dtype=bool)
+    if not (islands > 0).any():
+        return seq, seq_start, seq_len, ok
+    # islands of each polygon in the order of their leftmost vertex (x, then y)
+    island_rings = _ragged_index(ring0 + 1, islands)
+    island_poly = np.repeat(np.arange(len(polys), dtype=np.int64), islands)
+    rlen = flat.ring_len[island_rings]
+    pos = _ragged_index(flat.ring_start[island_rings], rlen)
+    ring_item = np.repeat(np.arange(len(island_rings), dtype=np.int64), rlen)
+    vid = trav[pos]
+    order = np.lexsort((wy[vid], wx[vid], ring_item))
+    first_of = np.cumsum(rlen) - rlen
+    h_pos = pos[order[first_of]]  # traversal position of the leftmost vertex
+    h_index = h_pos - flat.ring_start[island_rings]
+    h_id = trav[h_pos]
+    rank = np.lexsort((island_rings, wy[h_id], wx[h_id], island_poly))
+    island_first = np.cumsum(islands) - islands
+    step_of = np.empty(len(rank), dtype=np.int64)
+    step_of[rank] = np.arange(len(rank)) - np.repeat(island_first, islands)
+    # ring edges of each polygon: (v, next in ring) for all its vertices
+    nv = len(wx)
+    nxt = np.arange(nv, dtype=np.int64) + 1
+    nxt[flat.ring_start + flat.ring_len - 1] = flat.ring_start
+    bridge_a: list[np.ndarray] = []
+    bridge_b: list[np.ndarray] = []
+    bridge_p: list[np.ndarray] = []
+    for step in range(int(islands.max())):
+        chosen = np.flatnonzero(step_of == step)
+        chosen = chosen[ok[island_poly[chosen]]]
+        if len(chosen) == 0:
+            break
+        active = island_poly[chosen]
+        ring = island_rings[chosen]
+        hid = h_id[chosen]
+        hx, hy = wx[hid], wy[hid]
+        # edges: ring edges plus the bridges so far, grouped per active polygon
+        vstart = flat.poly_vstart[polys[active]]
+        vcount = flat.poly_vcount[polys[active]]
+        ea = _ragged_index(vstart, vcount)
+        eb = nxt[ea]
+        e_owner = np.repeat(np.arange(len(active), dtype=np.int64), vcount)
+        if bridge_p:
+            slot = np.full(len(polys), -1, dtype=np.int64)
+            slot[active] = np.arange(len(active))
+            bp = slot[np.concatenate(bridge_p)]
+            keep = bp >= 0
+            ea = np.concatenate([ea, np.concatenate(bridge_a)[keep]])
+            eb = np.concatenate([eb, np.concatenate(bridge_b)[keep]])
+            e_owner = np.concatenate([e_owner, bp[keep]])
+            by_owner = np.argsort(e_owner, kind="stable")
+            ea, eb, e_owner = ea[by_owner], eb[by_owner], e_owner[by_owner]
+        e_count = np.bincount(e_owner, minlength=len(active))
+        e_start = np.cumsum(e_count) - e_count
+        # candidates: every occurrence of the current sequences
+        c_len = seq_len[active]
+        c_start = np.cumsum(c_len) - c_len
+        c_pos = _ragged_index(seq_start[active], c_len)
+        c_owner = np.repeat(np.arange(len(active), dtype=np.int64), c_len)
+        c_id = seq[c_pos]
+        c_x, c_y = wx[c_id], wy[c_id]
+        d2 = (c_x - hx[c_owner]) ** 2 + (c_y - hy[c_owner]) ** 2
+        local = np.arange(len(c_pos), dtype=np.int64) - c_start[c_owner]
+        remaining = np.ones(len(c_pos), dtype=bool)
+        pending = np.ones(len(active), dtype=bool)
+        k_of = np.full(len(active), -1, dtype=np.int64)
+        for _ in range(_MAX_TRIES):
+            if not pending.any():
+                break
+            masked = np.where(remaining & pending[c_owner], d2, np.inf)
+            low = np.minimum.reduceat(masked, c_start)
+            first = np.where(masked == low[c_owner], np.arange(len(masked)), len(masked))
+            best = np.minimum.reduceat(first, c_start)
+            live = np.flatnonzero(pending & np.isfinite(low) & (low > 1e-200))
+            dead = pending.copy()
+            dead[live] = False
+            pending[dead] = False
+            ok[active[dead]] = False
+            if len(live) == 0:
+                break
+            b = best[live]
+            k = local[b]
+            n_len = c_len[live]
+            seq0 = c_start[live]
+            prev = c_id[seq0 + (k - 1) % n_len]
+            nxt_occ = c_id[seq0 + (k + 1) % n_len]
+            valid = _inside_angle(wx, wy, prev, c_id[b], nxt_occ, hx[live], hy[live])
+            test = np.flatnonzero(valid)
+            if len(test):
+                clear = _segment_clear(
+                    wx,
+                    wy,
+                    c_id[b[test]],
+                    hid[live[test]],
+                    e_start[live[test]],
+                    e_count[live[test]],
+                    ea,
+                    eb,
+                )
+                valid[test[~clear]] = False
+            remaining[b[~valid]] = False
+            done = live[valid]
+            if len(done):
+                # a different point at a near-equal distance: the engine decides exactly
+                bd = best[done]
+                best_rep = np.minimum(best, len(masked) - 1)[c_owner]
+                near = remaining & (d2 <= (low * (1 + _TIE))[c_owner])
+                other = near & ((c_x != c_x[best_rep]) | (c_y != c_y[best_rep]))
+                tie = np.bincount(c_owner[other], minlength=len(active)) > 0
+                k_of[done] = local[bd]
+                pending[done] = False
+                ok[active[done[tie[done]]]] = False
+        ok[active[pending]] = False
+        # splice the island into every decided sequence
+        go = np.flatnonzero(ok[active] & (k_of >= 0))
+        if len(go) == 0:
+            continue
+        gp = active[go]
+        k = k_of[go]
+        n_len = seq_len[gp]
+        s0 = seq_start[gp]
+        r = ring[go]
+        i0 = flat.ring_start[r] + len(seq)
+        il = flat.ring_len[r]
+        hi_ = h_index[chosen[go]]
+        at0 = k == 0
+        zero = np.zeros(len(go), dtype=np.int64)
+        starts = np.column_stack([s0, s0, i0 + hi_, i0, i0 + hi_, s0 + k])
+        lengths = np.column_stack(
+            [
+                np.where(at0, n_len, k + 1),
+                at0.astype(np.int64),
+                il - hi_,
+                hi_,
+                zero + 1,
+                np.where(at0, 0, n_len - k),
+            ]
+        )
+        new_seq, new_len = _segments(np.concatenate([seq, trav]), starts, lengths)
+        bridge_a.append(seq[s0 + k])
+        bridge_b.append(h_id[chosen[go]])
+        bridge_p.append(gp)
+        # rebuild the flat sequence with the grown polygons replaced
+        seq_len_new = seq_len.copy()
+        seq_len_new[gp] = new_len
+        src_start = seq_start.copy()
+        src_start[gp] = len(seq) + np.cumsum(new_len) - new_len
+        seq = _segments(np.concatenate([seq, new_seq]), src_start[:, None], seq_len_new[:, None])[0]
+        seq_len = seq_len_new
+        seq_start = np.cumsum(seq_len) - seq_len
+    return seq, seq_start, seq_len, ok

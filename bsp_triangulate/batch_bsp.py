@@ -1,0 +1,282 @@
+"""The BSP tree of many bridged sequences in lock-step rounds (docs/algorithm.md, 3-5).
+
+Every open node (sub-polygon) of every polygon tests candidates in the same round; the tests
+are the engine's ``facing_candidates`` and ``correct_candidates`` over flat ragged arrays.
+Each node knows its pre-order index when it is created (a node on the range [lo, hi] has
+hi - lo - 1 triangles below and including it), so triangles are written straight into their
+final slots.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from .batch_rings import _ragged_index
+from .predicates import grid_exact, orient_many, strictly_between
+
+# test items x sub-polygon vertices per numpy pass (bounds the memory of one round)
+_CHUNK_ELEMENTS = 1 << 21
+
+
+@dataclass
+class Trees:
+    """BSP results of many sequences: triangle rows of sequence i at ``start[i]``."""
+
+    triangles: np.ndarray  # (T, 3) local vertex indices
+    parent: np.ndarray
+    depth: np.ndarray
+    side: np.ndarray
+    start: np.ndarray
+    count: np.ndarray
+    ok: np.ndarray
+
+
+def _apex_angle(
+    sx: np.ndarray, sy: np.ndarray, c: np.ndarray, tx: np.ndarray, ty: np.ndarray, exact: bool
+) -> np.ndarray:
+    """``engine._inside_apex_angle`` for candidate positions ``c`` towards (tx, ty)."""
+    px, py = sx[c - 1], sy[c - 1]
+    vx, vy = sx[c], sy[c]
+    nx, ny = sx[c + 1], sy[c + 1]
+    turn = orient_many(px, py, vx, vy, nx, ny, exact)
+    after_next = orient_many(vx, vy, nx, ny, tx, ty, exact) >= 0
+    after_prev = orient_many(px, py, vx, vy, tx, ty, exact) >= 0
+    spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
+    return np.where(
+        turn > 0,
+        after_next & after_prev,
+        np.where(turn < 0, after_next | after_prev, after_next | spike),
+    )
+
+
+def correct_mask(
+    sx: np.ndarray,
+    sy: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    exact: bool,
+) -> np.ndarray:
+    """Per test item: candidate position ``c`` forms a correct triangle on the base of the
+    sub-polygon [lo, hi] (the engine's facing and correct-candidate conditions)."""
+    ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
+    cx, cy = sx[c], sy[c]
+    ok = orient_many(ax, ay, bx, by, cx, cy, exact) > 0
+    idx = np.flatnonzero(ok)
+    if len(idx) == 0:
+        return ok
+    ok[idx] = _apex_angle(sx, sy, c[idx], ax[idx], ay[idx], exact) & _apex_angle(
+        sx, sy, c[idx], bx[idx], by[idx], exact
+    )
+    idx = idx[ok[idx]]
+    if len(idx) == 0:
+        return ok
+    counts = hi[idx] - lo[idx] + 1
+    item = np.repeat(np.arange(len(idx), dtype=np.int64), counts)
+    pos = _ragged_index(lo[idx], counts)
+    px, py = sx[pos], sy[pos]
+    iax, iay, ibx, iby = ax[idx][item], ay[idx][item], bx[idx][item], by[idx][item]
+    icx, icy = cx[idx][item], cy[idx][item]
+    f_ab = orient_many(iax, iay, ibx, iby, px, py, exact)
+    f_bc = orient_many(ibx, iby, icx, icy, px, py, exact)
+    f_ca = orient_many(icx, icy, iax, iay, px, py, exact)
+    # condition 3: a vertex in the relative interior of a new side
+    bad = np.zeros(len(pos), dtype=bool)
+    for f, ux, uy in ((f_bc, ibx, iby), (f_ca, iax, iay)):
+        zero = np.flatnonzero(f == 0)
+        if len(zero):
+            inside = strictly_between(px[zero], py[zero], ux[zero], uy[zero], icx[zero], icy[zero])
+            bad[zero[inside]] = True
+    # condition 2: an edge (element e to e + 1 of one item) meets the open triangle
+    ends = np.cumsum(counts)
+    edge = np.ones(len(pos), dtype=bool)
+    edge[ends - 1] = False
+    e = np.flatnonzero(edge)
+    e1 = e + 1
+    inward = (
+        (np.maximum(f_ab[e], f_ab[e1]) > 0)
+        & (np.maximum(f_bc[e], f_bc[e1]) > 0)
+        & (np.maximum(f_ca[e], f_ca[e1]) > 0)
+    )
+    e = e[inward]
+    if len(e):
+        e1 = e + 1
+        ex0, ey0, ex1, ey1 = px[e], py[e], px[e1], py[e1]
+        g_a = orient_many(ex0, ey0, ex1, ey1, iax[e], iay[e], exact)
+        g_b = orient_many(ex0, ey0, ex1, ey1, ibx[e], iby[e], exact)
+        g_c = orient_many(ex0, ey0, ex1, ey1, icx[e], icy[e], exact)
+        lowest = np.minimum(np.minimum(g_a, g_b), g_c)
+        highest = np.maximum(np.maximum(g_a, g_b), g_c)
+        degenerate = (ex0 == ex1) & (ey0 == ey1)
+        bad[e[((lowest < 0) & (highest > 0)) | degenerate]] = True
+    hit = np.bincount(item[bad], minlength=len(idx)) > 0
+    ok[idx[hit]] = False
+    return ok
+
+
+def _chunked_correct(sx, sy, lo, hi, c, exact) -> np.ndarray:
+    """:func:`correct_mask` in passes of bounded size."""
+    n = len(c)
+    if n == 0:
+        return np.zeros(0, dtype=bool)
+    work = np.cumsum(hi - lo + 1)
+    if work[-1] <= _CHUNK_ELEMENTS:
+        return correct_mask(sx, sy, lo, hi, c, exact)
+    out = np.empty(n, dtype=bool)
+    cuts = np.searchsorted(work, np.arange(_CHUNK_ELEMENTS, work[-1], _CHUNK_ELEMENTS))
+    bounds = np.unique(np.concatenate([[0], cuts, [n]]))
+    for s, t in zip(bounds[:-1], bounds[1:]):
+        out[s:t] = correct_mask(sx, sy, lo[s:t], hi[s:t], c[s:t], exact)
+    return out
+
+
+def _choose_elevation(
+    sz: np.ndarray, owner: np.ndarray, cand: np.ndarray, v1: np.ndarray, v2: np.ndarray
+) -> np.ndarray:
+    """``rules.ElevationRule.choose`` per owner: ``cand`` grouped by owner in candidate order;
+    ``v1``, ``v2`` per owner. Returns the chosen position per owner."""
+    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    z1, z2 = sz[v1][owner[starts]], sz[v2][owner[starts]]
+    group = np.cumsum(np.r_[False, owner[1:] != owner[:-1]])
+    zc = sz[cand]
+    approx = np.abs(2.0 * zc - z1[group] - z2[group])
+    error = 8.0 * 2.0**-53 * (2.0 * np.abs(zc) + np.abs(z1[group]) + np.abs(z2[group])) + 1e-300
+    top = np.minimum.reduceat(approx + error, starts)
+    close = approx - error <= top[group]
+    n = len(cand)
+    first_close = np.minimum.reduceat(np.where(close, np.arange(n), n), starts)
+    zmin = np.minimum.reduceat(np.where(close, zc, np.inf), starts)
+    zmax = np.maximum.reduceat(np.where(close, zc, -np.inf), starts)
+    chosen = cand[first_close]
+    # near-ties between different z values: decided exactly as the rule does
+    for g in np.flatnonzero(zmin != zmax).tolist():
+        members = np.flatnonzero(close & (group == g))
+        target = Fraction(float(z1[g])) + Fraction(float(z2[g]))
+        exact = [abs(2 * Fraction(float(zc[i])) - target) for i in members]
+        chosen[g] = cand[members[exact.index(min(exact))]]
+    return chosen
+
+
+def build_trees(
+    ids: np.ndarray,
+    sx: np.ndarray,
+    sy: np.ndarray,
+    sz: np.ndarray,
+    seq_start: np.ndarray,
+    seq_len: np.ndarray,
+    mirrored: np.ndarray,
+    exhaustive: bool,
+) -> Trees:
+    """BSP trees of sequences laid out with their closing repeat (length ``seq_len + 1``) at
+    ``seq_start``; ``ids`` are the output vertex indices of every position."""
+    count = len(seq_start)
+    exact = grid_exact(sx, sy)
+    m = seq_len
+    tri_count = np.maximum(m - 2, 0)
+    tri_start = np.cumsum(tri_count) - tri_count
+    total = int(tri_count.sum())
+    triangles = np.zeros((total, 3), dtype=np.int64)
+    parent = np.zeros(total, dtype=np.int64)
+    depth = np.zeros(total, dtype=np.int64)
+    side = np.zeros(total, dtype=np.int8)
+    ok = np.ones(count, dtype=bool)
+    # open nodes
+    poly = np.flatnonzero(m >= 3)
+    lo = seq_start[poly] + 1
+    hi = seq_start[poly] + m[poly]
+    at_hi = np.ones(len(poly), dtype=bool)
+    pre = np.zeros(len(poly), dtype=np.int64)
+    par = np.full(len(poly), -1, dtype=np.int64)
+    dep = np.zeros(len(poly), dtype=np.int64)
+    sd = np.zeros(len(poly), dtype=np.int8)
+    cand = hi - 1
+    while len(poly):
+        if exhaustive:
+            span = hi - lo - 1
+            owner = np.repeat(np.arange(len(poly), dtype=np.int64), span)
+            c = np.repeat(hi - 1, span) - _ragged_index(np.zeros(len(poly), np.int64), span)
+            good = _chunked_correct(sx, sy, lo[owner], hi[owner], c, exact)
+            found = np.bincount(owner[good], minlength=len(poly)) > 0
+            apex = np.full(len(poly), -1, dtype=np.int64)
+            if found.any():
+                v1 = np.where(at_hi, hi, lo)
+                v2 = np.where(at_hi, lo, hi)
+                apex[found] = _choose_elevation(sz, owner[good], c[good], v1, v2)
+            failed = ~found
+        else:
+            good = _chunked_correct(sx, sy, lo, hi, cand, exact)
+            found = good
+            apex = cand
+            failed = ~good & (cand - 1 <= lo)
+        if failed.any():
+            ok[poly[failed]] = False
+        # emit triangles
+        emit = np.flatnonzero(found & ok[poly])
+        p, l_, h, a = poly[emit], lo[emit], hi[emit], apex[emit]
+        row = tri_start[p] + pre[emit]
+        mir = mirrored[p]
+        triangles[row, 0] = np.where(mir, ids[l_], ids[h])
+        triangles[row, 1] = np.where(mir, ids[h], ids[l_])
+        triangles[row, 2] = ids[a]
+        parent[row] = par[emit]
+        depth[row] = dep[emit]
+        side[row] = sd[emit]
+        # children: upper (apex, hi, V1 at hi) and lower (lo, apex, V1 at lo)
+        ah = at_hi[emit]
+        left_lo = np.where(ah, a, l_)
+        left_hi = np.where(ah, h, a)
+        right_lo = np.where(ah, l_, a)
+        right_hi = np.where(ah, a, h)
+        left_size = left_hi - left_lo - 1
+        has_left = left_size > 0
+        has_right = right_hi - right_lo - 1 > 0
+        node_pre = pre[emit]
+        retry = np.flatnonzero(~found & ~failed & ok[poly]) if not exhaustive else np.zeros(0, int)
+        parts = [
+            (
+                p[has_left],
+                left_lo[has_left],
+                left_hi[has_left],
+                ah[has_left],
+                node_pre[has_left] + 1,
+                node_pre[has_left],
+                dep[emit][has_left] + 1,
+                1,
+            ),
+            (
+                p[has_right],
+                right_lo[has_right],
+                right_hi[has_right],
+                ~ah[has_right],
+                node_pre[has_right] + 1 + left_size[has_right],
+                node_pre[has_right],
+                dep[emit][has_right] + 1,
+                2,
+            ),
+        ]
+        new_poly = [poly[retry]] + [q[0] for q in parts]
+        new_lo = [lo[retry]] + [q[1] for q in parts]
+        new_hi = [hi[retry]] + [q[2] for q in parts]
+        new_at = [at_hi[retry]] + [q[3] for q in parts]
+        new_pre = [pre[retry]] + [q[4] for q in parts]
+        new_par = [par[retry]] + [q[5] for q in parts]
+        new_dep = [dep[retry]] + [q[6] for q in parts]
+        new_sd = [sd[retry]] + [np.full(len(q[0]), q[7], dtype=np.int8) for q in parts]
+        new_cand = [cand[retry] - 1] + [q[2] - 1 for q in parts]
+        poly = np.concatenate(new_poly)
+        lo = np.concatenate(new_lo)
+        hi = np.concatenate(new_hi)
+        at_hi = np.concatenate(new_at)
+        pre = np.concatenate(new_pre)
+        par = np.concatenate(new_par)
+        dep = np.concatenate(new_dep)
+        sd = np.concatenate(new_sd)
+        cand = np.concatenate(new_cand)
+        live = ok[poly]
+        if not live.all():
+            poly, lo, hi, at_hi = poly[live], lo[live], hi[live], at_hi[live]
+            pre, par, dep, sd, cand = pre[live], par[live], dep[live], sd[live], cand[live]
+    return Trees(triangles, parent, depth, side, tri_start, tri_count, ok)

@@ -1,0 +1,268 @@
+"""Ring normalisation for the batch path, as flat arrays over many polygons.
+
+Gives the same vertices, working coordinates, orientation and ring order as ``rings.py`` for
+the polygons it accepts; a polygon it cannot decide the same way (steep faces, rings that
+touch, zero-area islands, near-zero areas, unusual input) is marked as not handled.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .predicates import orient_many
+
+_EPS = 2.0**-53
+_UNDERFLOW_SLACK = 1e-300
+
+
+@dataclass
+class FlatRings:
+    """Cleaned rings of many polygons, in input order, as flat arrays.
+
+    - ``vx, vy, vz``: every cleaned vertex (output coordinates, not mirrored).
+    - ``ring_start``, ``ring_len``, ``ring_poly``: the rings (vertices contiguous in ``v*``).
+    - ``poly_ring0``, ``poly_rings``: first ring and number of rings of each polygon.
+    - ``poly_vstart``, ``poly_vcount``: each polygon's vertices (its output ``vertices``).
+    - ``handled``: polygons the batch path decides like the engine.
+    - ``empty``: handled polygons whose result is an empty triangulation.
+    - ``mirrored``: the outer ring is clockwise (x is negated in the working plane).
+    - ``ring_reversed``: the ring is traversed backwards (islands that are counter-clockwise
+      after mirroring).
+    """
+
+    vx: np.ndarray
+    vy: np.ndarray
+    vz: np.ndarray
+    ring_start: np.ndarray
+    ring_len: np.ndarray
+    ring_poly: np.ndarray
+    poly_ring0: np.ndarray
+    poly_rings: np.ndarray
+    poly_vstart: np.ndarray
+    poly_vcount: np.ndarray
+    handled: np.ndarray
+    empty: np.ndarray
+    mirrored: np.ndarray
+    ring_reversed: np.ndarray
+
+
+def _ragged_index(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Concatenation of ``arange(s, s + c)`` for every (s, c)."""
+    total = int(counts.sum())
+    if total == 0:
+        return np.zeros(0, dtype=np.int64)
+    ends = np.cumsum(counts)
+    return np.arange(total, dtype=np.int64) + np.repeat(starts - (ends - counts), counts)
+
+
+def _parse(polygons: Sequence[Sequence[object]]) -> tuple[list[np.ndarray], list[int], np.ndarray]:
+    """Input rings as float arrays; the ring count per polygon (-1: not handled)."""
+    arrays: list[np.ndarray] = []
+    counts: list[int] = []
+    for rings in polygons:
+        if isinstance(rings, np.ndarray) and rings.ndim == 2:
+            rings = [rings]
+        try:
+            parsed = [np.asarray(ring, dtype=np.float64) for ring in rings]
+        except (TypeError, ValueError):
+            counts.append(-1)
+            continue
+        if not parsed or any(
+            a.ndim != 2 or a.shape[1] not in (2, 3, 4) or a.shape[0] == 0 for a in parsed
+        ):
+            counts.append(-1)
+            continue
+        arrays.extend(parsed)
+        counts.append(len(parsed))
+    widths = np.array([a.shape[1] for a in arrays], dtype=np.int64)
+    return arrays, counts, widths
+
+
+def _stack(arrays: list[np.ndarray], widths: np.ndarray) -> np.ndarray:
+    """All rings as one (N, 3) array, z = 0 where absent."""
+    if not arrays:
+        return np.zeros((0, 3))
+    if (widths == 2).all():
+        xy = np.concatenate(arrays)
+        return np.column_stack([xy, np.zeros(len(xy))])
+    if (widths == 3).all():
+        return np.concatenate(arrays)
+    padded = [
+        np.column_stack([a, np.zeros(len(a))]) if a.shape[1] == 2 else a[:, :3] for a in arrays
+    ]
+    return np.concatenate(padded)
+
+
+def _sum_with_bound(terms: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> tuple:
+    """Per-segment sums of ``terms`` and a bound on the error of any summation order."""
+    total = np.add.reduceat(terms, starts)
+    magnitude = np.add.reduceat(np.abs(terms), starts)
+    bound = magnitude * (counts + 8) * 4.0 * _EPS + _UNDERFLOW_SLACK * counts
+    return total, bound
+
+
+def _xy_is_working_plane(p: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Per ring: ``rings.working_axes`` surely picks XY for it (Newell normal mostly z)."""
+    nxt = np.arange(len(p)) + 1
+    last = starts + counts - 1
+    nxt[last] = starts
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    xn, yn, zn = x[nxt], y[nxt], z[nxt]
+    flat = np.logical_and.reduceat(z == 0, starts)
+    nx, bx = _sum_with_bound((y - yn) * (z + zn), starts, counts)
+    ny, by = _sum_with_bound((z - zn) * (x + xn), starts, counts)
+    nz, bz = _sum_with_bound((x - xn) * (y + yn), starts, counts)
+    # the engine compares its own rounded sums: leave room for both errors
+    clear = np.abs(nz) - 2 * bz > np.maximum(np.abs(nx) + 2 * bx, np.abs(ny) + 2 * by)
+    return flat | (clear & np.isfinite(nz))
+
+
+def _area_signs(x: np.ndarray, y: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Sign of each ring's shoelace area; 0 where it is zero or not surely decided."""
+    nxt = np.arange(len(x)) + 1
+    nxt[starts + counts - 1] = starts
+    terms = x * y[nxt] - x[nxt] * y
+    total = np.add.reduceat(terms, starts)
+    magnitude = np.add.reduceat(np.abs(x * y[nxt]) + np.abs(x[nxt] * y), starts)
+    bound = 2.0 * (magnitude * (counts + 4) * 2.0 * _EPS + _UNDERFLOW_SLACK * counts)
+    sure = (np.abs(total) > bound) & np.isfinite(total) & np.isfinite(bound)
+    return np.where(sure, np.sign(total), 0).astype(np.int64)
+
+
+def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> FlatRings:
+    """Parse, clean and orient the rings of ``polygons`` (see the module docstring)."""
+    count = len(polygons)
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        arrays, ring_counts, widths = _parse(polygons)
+        raw = _stack(arrays, widths)
+        handled = np.array([c > 0 for c in ring_counts], dtype=bool)
+        poly_rings = np.array([max(c, 0) for c in ring_counts], dtype=np.int64)
+        raw_len = np.array([len(a) for a in arrays], dtype=np.int64)
+        ring_poly = np.repeat(np.arange(count, dtype=np.int64), poly_rings)
+        poly_ring0 = np.cumsum(poly_rings) - poly_rings
+        raw_start = np.cumsum(raw_len) - raw_len
+        if len(raw):
+            finite = np.isfinite(raw).all(axis=1)
+            ring_finite = np.logical_and.reduceat(finite, raw_start)
+            handled[ring_poly[~ring_finite]] = False
+            outer_rings = poly_ring0[poly_rings > 0]
+            outer_len = raw_len[outer_rings]
+            outer_points = raw[_ragged_index(raw_start[outer_rings], outer_len)]
+            plane = _xy_is_working_plane(outer_points, np.cumsum(outer_len) - outer_len, outer_len)
+            handled[ring_poly[outer_rings[~plane]]] = False
+        # clean: consecutive duplicates in XY, then a closing point equal to the first
+        x, y = raw[:, 0], raw[:, 1]
+        keep = np.ones(len(raw), dtype=bool)
+        keep[1:] = (x[1:] != x[:-1]) | (y[1:] != y[:-1])
+        keep[raw_start] = True
+        kept_count = np.add.reduceat(keep.astype(np.int64), raw_start) if len(raw) else raw_len
+        # position of each ring's last kept point and its first point
+        last_raw = np.zeros(len(raw_len), dtype=np.int64)
+        if len(raw):
+            last_raw = np.maximum.reduceat(np.where(keep, np.arange(len(raw)), -1), raw_start)
+        closing = (kept_count > 1) & (x[last_raw] == x[raw_start]) & (y[last_raw] == y[raw_start])
+        keep[last_raw[closing]] = False
+        points = raw[keep]
+        ring_len = kept_count - closing
+        ring_start = np.cumsum(ring_len) - ring_len
+        too_small = ring_len < 3
+        outer_small = too_small[poly_ring0[poly_rings > 0]]
+        polys_with_rings = np.flatnonzero(poly_rings > 0)
+        empty = np.zeros(count, dtype=bool)
+        empty[polys_with_rings[outer_small]] = True
+        # islands with fewer than 3 points are ignored by the engine: not handled here
+        is_island = np.ones(len(ring_len), dtype=bool)
+        is_island[poly_ring0[poly_rings > 0]] = False
+        handled[ring_poly[too_small & is_island]] = False
+        px, py = points[:, 0], points[:, 1]
+        safe_len = np.maximum(ring_len, 1)
+        signs = np.zeros(len(ring_len), dtype=np.int64)
+        nonempty = ring_len > 0
+        if nonempty.any():
+            signs[nonempty] = _area_signs(px, py, ring_start[nonempty], safe_len[nonempty])
+        outer_sign = np.zeros(count, dtype=np.int64)
+        outer_sign[polys_with_rings] = signs[poly_ring0[polys_with_rings]]
+        # an undecided sign: zero area (empty result) or too close to call (engine decides)
+        undecided_outer = (outer_sign == 0) & ~empty & (poly_rings > 0)
+        handled[undecided_outer] = False
+        handled[ring_poly[(signs == 0) & is_island]] = False
+        mirrored = outer_sign < 0
+        ring_sign = signs * np.where(mirrored[ring_poly], -1, 1)
+        ring_reversed = is_island & (ring_sign > 0)
+        poly_vcount = np.zeros(count, dtype=np.int64)
+        np.add.at(poly_vcount, ring_poly, ring_len)
+        poly_vstart = np.cumsum(poly_vcount) - poly_vcount
+        handled[poly_vcount > max_vertices] = False
+        empty &= handled
+    return FlatRings(
+        vx=np.ascontiguousarray(points[:, 0]),
+        vy=np.ascontiguousarray(points[:, 1]),
+        vz=np.ascontiguousarray(points[:, 2]),
+        ring_start=ring_start,
+        ring_len=ring_len,
+        ring_poly=ring_poly,
+        poly_ring0=poly_ring0,
+        poly_rings=poly_rings,
+        poly_vstart=poly_vstart,
+        poly_vcount=poly_vcount,
+        handled=handled,
+        empty=empty,
+        mirrored=mirrored,
+        ring_reversed=ring_reversed,
+    )
+
+
+def touching_polygons(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
+    """Per polygon: two of its vertices coincide, or a vertex lies in the relative interior of
+    a ring edge (the engine then splits edges or joins rings at that point)."""
+    count = len(flat.handled)
+    vy = flat.vy
+    nv = len(wx)
+    touching = np.zeros(count, dtype=bool)
+    if nv == 0:
+        return touching
+    poly_of = np.repeat(flat.ring_poly, flat.ring_len)
+    nxt = np.arange(nv, dtype=np.int64) + 1
+    nxt[flat.ring_start + flat.ring_len - 1] = flat.ring_start
+    # monotone key per polygon: poly + (x - xmin) * scale keeps the x order of each polygon
+    has = flat.poly_vcount > 0
+    starts = flat.poly_vstart[has]
+    xmin = np.zeros(count)
+    xmax = np.zeros(count)
+    xmin[has] = np.minimum.reduceat(wx, starts)
+    xmax[has] = np.maximum.reduceat(wx, starts)
+    width = np.where(xmax > xmin, xmax - xmin, 1.0)
+    scale = 0.5 / width
+
+    def key(values: np.ndarray, poly: np.ndarray) -> np.ndarray:
+        return poly + (values - xmin[poly]) * scale[poly]
+
+    vkey = key(wx, poly_of)
+    order = np.argsort(vkey, kind="stable")
+    sorted_key = vkey[order]
+    ex0 = np.minimum(wx, wx[nxt])
+    ex1 = np.maximum(wx, wx[nxt])
+    first = np.searchsorted(sorted_key, key(ex0, poly_of), "left")
+    last = np.searchsorted(sorted_key, key(ex1, poly_of), "right")
+    counts = last - first
+    pair_sorted = _ragged_index(first, counts)
+    edge = np.repeat(np.arange(nv, dtype=np.int64), counts)
+    vertex = order[pair_sorted]
+    a, b = edge, nxt[edge]
+    keep = (vertex != a) & (vertex != b)
+    edge, vertex, a, b = edge[keep], vertex[keep], a[keep], b[keep]
+    px, py = wx[vertex], vy[vertex]
+    ax, ay, bx, by = wx[a], vy[a], wx[b], vy[b]
+    # the x-range holds by construction; the y-range decides the rest cheaply
+    in_box = (py >= np.minimum(ay, by)) & (py <= np.maximum(ay, by))
+    at_end = ((px == ax) & (py == ay)) | ((px == bx) & (py == by))
+    touching[poly_of[vertex[in_box & at_end]]] = True
+    inner = in_box & ~at_end & (px >= ex0[edge]) & (px <= ex1[edge])
+    if inner.any():
+        idx = np.flatnonzero(inner)
+        on_line = orient_many(ax[idx], ay[idx], bx[idx], by[idx], px[idx], py[idx]) == 0
+        touching[poly_of[vertex[idx[on_line]]]] = True
+    return touching
