@@ -1,0 +1,199 @@
+"""The batch path (``triangulate_batch``) against the engine, field by field.
+
+Wherever the batch path returns a result it must equal ``triangulate``'s (vertices, triangles,
+parent, depth, side, dtypes included); where it returns None the engine decides. Every test
+also asserts that the batch path handled most of its polygons, so that it cannot pass by
+returning None. Inputs: random polygons (integer grids with collinear runs, polyomino outlines,
+float stars, 1-3 islands, islands touching at a vertex, both orientations, z values with rule
+"elevation", duplicate points), earcut's small fixtures and the Swellendam farms layer.
+"""
+
+from __future__ import annotations
+
+import json
+import random
+
+import numpy as np
+import pytest
+
+from bsp_triangulate import TriangulationError, triangulate
+from bsp_triangulate.batch import MAX_VERTICES, triangulate_batch
+
+from ..conftest import SHARED_DATA
+from .random_polygons import is_valid, random_polygon, rings_are_disjoint, with_z
+
+FIELDS = ("vertices", "triangles", "parent", "depth", "side")
+FARMS = SHARED_DATA / "swellendam" / "farms_33S.shp"
+EARCUT = SHARED_DATA / "earcut" / "fixtures"
+
+
+def mismatches(polygons: list, rule: str = "first") -> tuple[list[str], int]:
+    """Descriptions of batch results that differ from the engine's, and how many were handled."""
+    results = triangulate_batch(polygons, rule)
+    assert len(results) == len(polygons)
+    problems = []
+    handled = 0
+    for number, (rings, mine) in enumerate(zip(polygons, results)):
+        if mine is None:
+            continue
+        handled += 1
+        try:
+            expected = triangulate(rings, rule=rule)
+        except TriangulationError as exc:
+            problems.append(f"polygon {number}: engine raises {exc}, batch gives a result")
+            continue
+        for name in FIELDS:
+            got, want = getattr(mine, name), getattr(expected, name)
+            if got.dtype != want.dtype or not np.array_equal(got, want):
+                problems.append(f"polygon {number}: {name} differs")
+                break
+    return problems, handled
+
+
+def with_duplicates(rnd: random.Random, rings: list) -> list:
+    """Each ring with a few points repeated in place and its closing point added."""
+    out = []
+    for ring in rings:
+        points = []
+        for point in ring:
+            points.append(point)
+            if rnd.random() < 0.15:
+                points.append(point)
+        out.append([*points, points[0]])
+    return out
+
+
+def random_set(seed: int, count: int, **options) -> list:
+    rnd = random.Random(seed)
+    return [random_polygon(rnd, **options) for _ in range(count)]
+
+
+@pytest.mark.parametrize(
+    ("family", "options"),
+    [
+        ("integer-star", {}),
+        ("polyomino-collinear-runs", {"grid": True}),
+        ("float-star", {"integer": False}),
+        ("one-to-three-islands", {"islands": None}),
+        ("float-islands", {"islands": 2, "integer": False}),
+    ],
+)
+def test_batch_equals_engine_on_random_simple_polygons(family: str, options: dict) -> None:
+    seed = sum(map(ord, family))
+    if options.get("islands", 0) is None:
+        rnd = random.Random(seed)
+        polygons = [random_polygon(rnd, islands=rnd.randint(1, 3)) for _ in range(80)]
+    else:
+        polygons = random_set(seed, 80, **options)
+    problems, handled = mismatches(polygons)
+    assert problems == []
+    assert handled >= 0.9 * len(polygons)
+
+
+def test_batch_equals_engine_with_duplicate_and_closing_points() -> None:
+    rnd = random.Random(11)
+    polygons = [
+        with_duplicates(rnd, random_polygon(rnd, islands=rnd.randint(0, 2))) for _ in range(60)
+    ]
+    problems, handled = mismatches(polygons)
+    assert problems == []
+    assert handled >= 0.9 * len(polygons)
+
+
+def test_batch_leaves_touching_islands_to_the_engine_or_agrees() -> None:
+    rnd = random.Random(5)
+    polygons = [random_polygon(rnd, islands=1, touching=2) for _ in range(60)]
+    problems, _ = mismatches(polygons)
+    assert problems == []
+    results = triangulate_batch(polygons)
+    touching = [not rings_are_disjoint(rings) for rings in polygons]
+    assert sum(touching) >= 40
+    # rings apart from each other (no touching island was found for them) are handled
+    assert all(r is not None for r, t in zip(results, touching) if not t)
+
+
+def test_batch_equals_engine_with_rule_elevation_on_polygons_with_z() -> None:
+    rnd = random.Random(23)
+    polygons = [with_z(rnd, random_polygon(rnd, islands=rnd.randint(0, 2))) for _ in range(80)]
+    problems, handled = mismatches(polygons, rule="elevation")
+    assert problems == []
+    # small rings with z 0-9 can be steep (another working plane): left to the engine
+    assert handled >= 0.6 * len(polygons)
+
+
+def test_batch_equals_engine_on_flat_z_with_rule_elevation() -> None:
+    """All z equal: every correct candidate ties, the first in candidate order wins."""
+    rnd = random.Random(29)
+    polygons = [
+        [[(x, y, 5.0) for x, y in ring] for ring in random_polygon(rnd, islands=1)]
+        for _ in range(40)
+    ]
+    problems, handled = mismatches(polygons, rule="elevation")
+    assert problems == []
+    assert handled >= 0.9 * len(polygons)
+
+
+def test_batch_gives_empty_results_for_degenerate_outer_rings() -> None:
+    polygons = [
+        [[(0.0, 0.0), (1.0, 1.0), (0.0, 0.0)]],
+        [[(2.0, 2.0), (2.0, 2.0), (2.0, 2.0)]],
+        [[(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]],
+    ]
+    results = triangulate_batch(polygons)
+    assert results[0] is not None and results[0].is_empty
+    assert results[1] is not None and results[1].is_empty
+    assert results[2] is not None and len(results[2]) == 2
+    assert mismatches(polygons)[0] == []
+
+
+def test_batch_leaves_unknown_rules_and_large_polygons_to_the_engine() -> None:
+    square = [[(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]]
+    assert triangulate_batch([square], "no-such-rule") == [None]
+    angles = np.linspace(0.0, 2.0 * np.pi, MAX_VERTICES + 1, endpoint=False)
+    big = [np.column_stack([np.cos(angles), np.sin(angles)])]
+    assert triangulate_batch([big, square])[0] is None
+
+
+def without_closing_points(rings: list) -> list:
+    return [[tuple(p) for p in (r[:-1] if len(r) > 1 and r[0] == r[-1] else r)] for r in rings]
+
+
+def test_batch_equals_engine_on_small_earcut_fixtures() -> None:
+    polygons = []
+    for path in sorted(EARCUT.glob("*.json")):
+        rings = json.loads(path.read_text())
+        if sum(len(ring) for ring in rings) <= MAX_VERTICES:
+            polygons.append(rings)
+    problems, _ = mismatches(polygons)
+    assert problems == []
+    # most small fixtures touch or are degenerate on purpose; the plain ones must be handled
+    plain = [is_valid(r) and rings_are_disjoint(r) for r in map(without_closing_points, polygons)]
+    results = triangulate_batch(polygons)
+    assert sum(plain) >= 8
+    assert all(r is not None for r, p in zip(results, plain) if p)
+
+
+def farm_polygons(limit: int) -> list:
+    import shapely
+    from osgeo import ogr
+
+    source = ogr.Open(str(FARMS))
+    polygons = []
+    for feature in source.GetLayer(0):
+        geometry = shapely.from_wkb(bytes(feature.GetGeometryRef().ExportToWkb()))
+        for part in getattr(geometry, "geoms", [geometry]):
+            rings = [np.asarray(part.exterior.coords)]
+            rings += [np.asarray(ring.coords) for ring in part.interiors]
+            if sum(len(r) for r in rings) <= 60:
+                polygons.append(rings)
+        if len(polygons) >= limit:
+            break
+    return polygons
+
+
+def test_batch_equals_engine_on_swellendam_farms() -> None:
+    polygons = farm_polygons(120)
+    assert len(polygons) >= 100
+    problems, handled = mismatches(polygons)
+    assert problems == []
+    assert handled >= 0.9 * len(polygons)
