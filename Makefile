@@ -14,7 +14,7 @@ PYTEST_ARGS ?=
 SUDO := $(shell [ "$$(id -u)" -eq 0 ] || echo sudo)
 # Debian 12's qgis_process wrapper is broken; its qgis_process.bin works. Tests pick the same.
 QGIS_PROCESS := $(shell command -v qgis_process.bin || command -v qgis_process)
-APT_PACKAGES := python3-qgis qgis python3-venv python3-pip
+APT_PACKAGES := python3-qgis qgis python3-venv
 
 export QT_QPA_PLATFORM := offscreen
 
@@ -23,11 +23,13 @@ export QT_QPA_PLATFORM := offscreen
 demo: venv
 	$(PY) scripts/demo.py
 
-test: test-host test-340
+# The two suites are independent: run them side by side, each one's output printed whole.
+test: qgis
+	$(MAKE) -j2 --output-sync=target test-host test-340
 
 test-host: pytest lint
 
-test-340:
+test-340: | qgis
 	scripts/chroot_qgis340.sh make VENV=/opt/bsptriangulate-venv pytest PYTEST_ARGS="$(PYTEST_ARGS)"
 
 # pytest's exit code 5 (no test collected) fails here too, as any non-zero code does.
@@ -38,15 +40,18 @@ pytest: venv
 lint: venv
 	$(PY) -m ruff check .
 
+# QGIS from Debian when its Python bindings are missing; python3-venv, without which Debian's
+# python3 makes venvs without pip.
 qgis:
 	@/usr/bin/python3 -c 'import qgis.core' 2>/dev/null || { \
 		echo "Installing QGIS from Debian's packages"; \
 		$(SUDO) apt-get update -qq && \
 		$(SUDO) env DEBIAN_FRONTEND=noninteractive \
 			apt-get install -y -qq --no-install-recommends $(APT_PACKAGES); }
-	@/usr/bin/python3 -c 'import ensurepip' 2>/dev/null || \
+	@dpkg -s python3-venv >/dev/null 2>&1 || { \
+		$(SUDO) apt-get update -qq && \
 		$(SUDO) env DEBIAN_FRONTEND=noninteractive \
-			apt-get install -y -qq --no-install-recommends python3-venv python3-pip
+			apt-get install -y -qq --no-install-recommends python3-venv; }
 
 venv: $(VENV)/.done
 $(VENV)/.done: requirements-dev.txt | qgis
