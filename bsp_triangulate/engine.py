@@ -22,6 +22,9 @@ from .triangulation import Triangulation, TriangulationError
 SMALL_SEQUENCE = 64
 # Candidates tested together per step in small sub-polygons with rule "first".
 _FIRST_CHUNK = 4
+# Largest candidates x edges matrix tested in one vectorised step in large sequences.
+_BATCH_ELEMENTS = 1 << 17
+_MAX_CHUNK = 64
 
 
 def facing_candidates(
@@ -34,14 +37,36 @@ def facing_candidates(
 ) -> np.ndarray:
     """Cheap necessary part of the correct-triangle test, vectorised over candidates.
 
-    Condition 1 (strictly left of the chord) and the apex-angle condition (4).
+    Condition 1 (strictly left of the chord) and condition 4 (the triangle lies in the
+    sequence's interior angle at the apex position: this tells apart duplicate occurrences
+    of one point, at bridge ends and touching rings).
     """
+    count = len(candidates)
     ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
-    ok = orient_many(ax, ay, bx, by, sx[candidates], sy[candidates], exact_inputs) > 0
-    if ok.any():
-        ok &= _inside_apex_angle(sx, sy, candidates, ax, ay, exact_inputs)
-        ok &= _inside_apex_angle(sx, sy, candidates, bx, by, exact_inputs)
-    return ok
+    cx, cy = sx[candidates], sy[candidates]
+    px, py = sx[candidates - 1], sy[candidates - 1]
+    nx, ny = sx[candidates + 1], sy[candidates + 1]
+    ones = np.ones(count)
+    # rows: chord side, turn at the apex, then a and b against the apex's two edges
+    signs = orient_many(
+        np.stack([ax * ones, px, cx, px, cx, px]),
+        np.stack([ay * ones, py, cy, py, cy, py]),
+        np.stack([bx * ones, cx, nx, cx, nx, cx]),
+        np.stack([by * ones, cy, ny, cy, ny, cy]),
+        np.stack([cx, nx, ax * ones, ax * ones, bx * ones, bx * ones]),
+        np.stack([cy, ny, ay * ones, ay * ones, by * ones, by * ones]),
+        exact_inputs,
+    )
+    turn = signs[1]
+    after_next = signs[2:6:2] >= 0
+    after_prev = signs[3:6:2] >= 0
+    spike = (turn == 0) & ((nx - cx) * (px - cx) + (ny - cy) * (py - cy) > 0)
+    inside = np.where(
+        turn > 0,
+        after_next & after_prev,
+        np.where(turn < 0, after_next | after_prev, after_next | spike),
+    )
+    return (signs[0] > 0) & inside[0] & inside[1]
 
 
 def correct_candidates(
@@ -62,8 +87,6 @@ def correct_candidates(
     ``exact_inputs`` is :func:`predicates.grid_exact` of the coordinates.
     Implements the conditions of docs/algorithm.md section 4 exactly.
     """
-    ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
-    cx, cy = sx[candidates], sy[candidates]
     if facing:
         ok = np.ones(len(candidates), dtype=bool)
     else:
@@ -72,67 +95,47 @@ def correct_candidates(
         edges = np.arange(lo, hi)
     if not ok.any() or len(edges) == 0:
         return ok
+    ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
+    cx, cy = sx[candidates], sy[candidates]
     ends = np.concatenate([edges, edges + 1])
     count = len(edges)
     px, py = sx[ends], sy[ends]
-    ccx, ccy = cx[:, None], cy[:, None]
-    f_ab = orient_many(ax, ay, bx, by, px, py, exact_inputs)
-    f_bc = orient_many(bx, by, ccx, ccy, px, py, exact_inputs)
-    f_ca = orient_many(ccx, ccy, ax, ay, px, py, exact_inputs)
+    ones = np.ones((len(candidates), 1))
+    # f[0]: side of line a->b, f[1]: of b->c, f[2]: of c->a, for every edge end point
+    f = orient_many(
+        np.stack([ax * ones, bx * ones, cx[:, None]]),
+        np.stack([ay * ones, by * ones, cy[:, None]]),
+        np.stack([bx * ones, cx[:, None], ax * ones]),
+        np.stack([by * ones, cy[:, None], ay * ones]),
+        px,
+        py,
+        exact_inputs,
+    )
     # condition 3: a vertex in the relative interior of a new side
     bad = np.zeros(len(candidates), dtype=bool)
-    for f, (ux, uy) in ((f_bc, (bx, by)), (f_ca, (ax, ay))):
-        rows, cols = np.nonzero(f == 0)
+    for side, (ux, uy) in ((1, (bx, by)), (2, (ax, ay))):
+        rows, cols = np.nonzero(f[side] == 0)
         if len(rows):
             inside = strictly_between(px[cols], py[cols], ux, uy, cx[rows], cy[rows])
             bad[rows[inside]] = True
     # condition 2: an edge meets the open triangle (separating-axis test, all exact signs)
-    inward = (
-        (np.maximum(f_ab[:count], f_ab[count:]) > 0)[None, :]
-        & (np.maximum(f_bc[:, :count], f_bc[:, count:]) > 0)
-        & (np.maximum(f_ca[:, :count], f_ca[:, count:]) > 0)
-    )
+    inward = (np.maximum(f[:, :, :count], f[:, :, count:]) > 0).all(axis=0)
     if inward.any():
         rows, cols = np.nonzero(inward)
         e = edges[cols]
         ex0, ey0, ex1, ey1 = sx[e], sy[e], sx[e + 1], sy[e + 1]
-        g_a = orient_many(ex0, ey0, ex1, ey1, ax, ay, exact_inputs)
-        g_b = orient_many(ex0, ey0, ex1, ey1, bx, by, exact_inputs)
-        g_c = orient_many(ex0, ey0, ex1, ey1, cx[rows], cy[rows], exact_inputs)
-        lowest = np.minimum(np.minimum(g_a, g_b), g_c)
-        highest = np.maximum(np.maximum(g_a, g_b), g_c)
+        k = np.ones(len(e))
+        g = orient_many(
+            ex0, ey0, ex1, ey1,
+            np.stack([ax * k, bx * k, cx[rows]]),
+            np.stack([ay * k, by * k, cy[rows]]),
+            exact_inputs,
+        )  # fmt: skip
         degenerate = (ex0 == ex1) & (ey0 == ey1)
-        crossing = ((lowest < 0) & (highest > 0)) | degenerate
+        crossing = ((g.min(axis=0) < 0) & (g.max(axis=0) > 0)) | degenerate
         if crossing.any():
             bad[rows[crossing]] = True
     return ok & ~bad
-
-
-def _inside_apex_angle(
-    sx: np.ndarray,
-    sy: np.ndarray,
-    candidates: np.ndarray,
-    tx: float,
-    ty: float,
-    exact_inputs: bool = False,
-) -> np.ndarray:
-    """The direction from each candidate s_j towards t lies in the closed interior angle of
-    the sequence at position j (between s_{j-1} s_j and s_j s_{j+1}, interior on the left).
-
-    This tells apart duplicate occurrences of one point (bridge ends, touching rings).
-    """
-    px, py = sx[candidates - 1], sy[candidates - 1]
-    vx, vy = sx[candidates], sy[candidates]
-    nx, ny = sx[candidates + 1], sy[candidates + 1]
-    turn = orient_many(px, py, vx, vy, nx, ny, exact_inputs)
-    after_next = orient_many(vx, vy, nx, ny, tx, ty, exact_inputs) >= 0
-    after_prev = orient_many(px, py, vx, vy, tx, ty, exact_inputs) >= 0
-    spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
-    return np.where(
-        turn > 0,
-        after_next & after_prev,
-        np.where(turn < 0, after_next | after_prev, after_next | spike),
-    )
 
 
 class _Tree:
@@ -167,7 +170,7 @@ class _Tree:
         while start > lo:
             stop = max(start - size, lo)
             chunk = np.arange(start, stop, -1)
-            start, size = stop, size * 4
+            start, size = stop, min(size * 4, _MAX_CHUNK)
             chunk = chunk[facing_candidates(sx, sy, lo, hi, chunk, self.exact)]
             if len(chunk) == 0:
                 continue
@@ -188,16 +191,25 @@ class _Tree:
 
     def _grid_correct(self, lo: int, hi: int, chunk: np.ndarray, exhaustive: bool) -> np.ndarray:
         """The correct candidates of ``chunk`` (in order; only the first unless exhaustive)."""
+        sx, sy, exact = self.sx, self.sy, self.exact
+        corners = np.concatenate([[hi, lo], chunk])
+        found = self.grid.query_box(
+            float(sx[corners].min()),
+            float(sy[corners].min()),
+            float(sx[corners].max()),
+            float(sy[corners].max()),
+        )
+        edges = np.unique(found[(found >= lo) & (found < hi)])
+        if len(edges) * len(chunk) <= _BATCH_ELEMENTS:
+            mask = correct_candidates(sx, sy, lo, hi, chunk, edges, True, exact)
+            correct = chunk[mask]
+            return correct if exhaustive else correct[:1]
+        # large triangles: query the cells each one covers
         correct = []
         for c in chunk.tolist():
-            corners = np.array([hi, lo, c])
-            found = self.grid.query_triangle(self.sx[corners], self.sy[corners])
+            found = self.grid.query_triangle(sx[[hi, lo, c]], sy[[hi, lo, c]])
             edges = found[(found >= lo) & (found < hi)]
-            candidate = np.array([c])
-            mask = correct_candidates(
-                self.sx, self.sy, lo, hi, candidate, edges, facing=True, exact_inputs=self.exact
-            )
-            if mask[0]:
+            if correct_candidates(sx, sy, lo, hi, np.array([c]), edges, True, exact)[0]:
                 correct.append(c)
                 if not exhaustive:
                     break
