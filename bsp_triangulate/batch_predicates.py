@@ -1,0 +1,72 @@
+"""Exact orientation signs for the batch path, fast where the float result is clear.
+
+A point p against the line through a and b (one line per row, many points per row) is
+evaluated as Shewchuk's orient2d(b, p, a) = (bx - ax)(py - ay) - (by - ay)(px - ax), which
+has the same sign as orient(a, b, p). Its rounding error is at most
+``CCW_ERRBOUND * (|l| + |r|)`` (l, r the two products); this module uses a per-row bound of
+that from the extent of the points, so only (nearly) collinear points are re-decided, by
+``predicates.orient_many``, which is exact.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .predicates import CCW_ERRBOUND, orient_many
+
+_EPS = 2.0**-53
+# |fl(p - a)| <= (1 + eps) |p - a|, the extents and the bound itself are rounded: margin
+_BOUND_FACTOR = CCW_ERRBOUND * (1.0 + 32.0 * _EPS)
+_UNDERFLOW_SLACK = 1e-300
+
+
+def row_bound(ux: np.ndarray, uy: np.ndarray, width: np.ndarray, height: np.ndarray) -> np.ndarray:
+    """Error bound per row for points whose |p - a| is at most (width, height) per axis."""
+    return _BOUND_FACTOR * (np.abs(ux) * height + np.abs(uy) * width) + _UNDERFLOW_SLACK
+
+
+def orient_rows(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    bound: np.ndarray | None,
+    px: np.ndarray,
+    py: np.ndarray,
+    known_zero: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+) -> np.ndarray:
+    """int8 signs of orient(a, b, p); ``a``, ``b``, ``bound`` broadcast against ``p`` (2D).
+
+    ``bound`` None means the coordinates are grid-exact (every float result is exact).
+    ``known_zero(rows, cols)`` marks entries the caller knows to be exactly 0 (p is a or b).
+    """
+    ux = bx - ax
+    uy = by - ay
+    det = ux * (py - ay)
+    det -= uy * (px - ax)
+    if bound is None:
+        return np.sign(det).astype(np.int8)
+    signs = (det > bound).view(np.int8) - (det < -bound).view(np.int8)
+    where = np.nonzero(signs == 0)
+    if known_zero is not None and len(where[0]):
+        keep = ~known_zero(*where)
+        where = (where[0][keep], where[1][keep])
+    if len(where[0]) == 0:
+        return signs
+    shape = det.shape
+    pxu = np.broadcast_to(px, shape)[where]
+    pyu = np.broadcast_to(py, shape)[where]
+    axu = np.broadcast_to(ax, shape)[where]
+    ayu = np.broadcast_to(ay, shape)[where]
+    bxu = np.broadcast_to(bx, shape)[where]
+    byu = np.broadcast_to(by, shape)[where]
+    # a point equal to a or b lies on the line: exact zero, the common case here
+    at_end = ((pxu == axu) & (pyu == ayu)) | ((pxu == bxu) & (pyu == byu))
+    rest = np.flatnonzero(~at_end)
+    if len(rest):
+        values = np.zeros(len(pxu), dtype=np.int8)
+        values[rest] = orient_many(axu[rest], ayu[rest], bxu[rest], byu[rest], pxu[rest], pyu[rest])
+        signs[where] = values
+    return signs
