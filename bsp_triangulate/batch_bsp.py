@@ -14,6 +14,7 @@ from fractions import Fraction
 
 import numpy as np
 
+from .batch_predicates import orient_rows, row_bound
 from .batch_rings import _ragged_index
 from .predicates import grid_exact, orient_many, strictly_between
 
@@ -52,16 +53,25 @@ def _apex_angle(
     )
 
 
+# padded row widths of the sub-polygon vertex tables (rows pad with the position hi)
+_WIDTHS = np.array([4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024])
+
+
 def correct_mask(
     sx: np.ndarray,
     sy: np.ndarray,
     lo: np.ndarray,
     hi: np.ndarray,
     c: np.ndarray,
+    extent_x: np.ndarray,
+    extent_y: np.ndarray,
     exact: bool,
 ) -> np.ndarray:
     """Per test item: candidate position ``c`` forms a correct triangle on the base of the
-    sub-polygon [lo, hi] (the engine's facing and correct-candidate conditions)."""
+    sub-polygon [lo, hi] (the engine's facing and correct-candidate conditions).
+
+    ``extent_x``, ``extent_y``: per item, the extent of its polygon (bounds |p - q|).
+    """
     ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
     cx, cy = sx[c], sy[c]
     ok = orient_many(ax, ay, bx, by, cx, cy, exact) > 0
@@ -74,62 +84,113 @@ def correct_mask(
     idx = idx[ok[idx]]
     if len(idx) == 0:
         return ok
-    counts = hi[idx] - lo[idx] + 1
-    item = np.repeat(np.arange(len(idx), dtype=np.int64), counts)
-    pos = _ragged_index(lo[idx], counts)
-    px, py = sx[pos], sy[pos]
-    iax, iay, ibx, iby = ax[idx][item], ay[idx][item], bx[idx][item], by[idx][item]
-    icx, icy = cx[idx][item], cy[idx][item]
-    f_ab = orient_many(iax, iay, ibx, iby, px, py, exact)
-    f_bc = orient_many(ibx, iby, icx, icy, px, py, exact)
-    f_ca = orient_many(icx, icy, iax, iay, px, py, exact)
-    # condition 3: a vertex in the relative interior of a new side
-    bad = np.zeros(len(pos), dtype=bool)
-    for f, ux, uy in ((f_bc, ibx, iby), (f_ca, iax, iay)):
-        zero = np.flatnonzero(f == 0)
-        if len(zero):
-            inside = strictly_between(px[zero], py[zero], ux[zero], uy[zero], icx[zero], icy[zero])
-            bad[zero[inside]] = True
-    # condition 2: an edge (element e to e + 1 of one item) meets the open triangle
-    ends = np.cumsum(counts)
-    edge = np.ones(len(pos), dtype=bool)
-    edge[ends - 1] = False
-    e = np.flatnonzero(edge)
-    e1 = e + 1
-    inward = (
-        (np.maximum(f_ab[e], f_ab[e1]) > 0)
-        & (np.maximum(f_bc[e], f_bc[e1]) > 0)
-        & (np.maximum(f_ca[e], f_ca[e1]) > 0)
-    )
-    e = e[inward]
-    if len(e):
-        e1 = e + 1
-        ex0, ey0, ex1, ey1 = px[e], py[e], px[e1], py[e1]
-        g_a = orient_many(ex0, ey0, ex1, ey1, iax[e], iay[e], exact)
-        g_b = orient_many(ex0, ey0, ex1, ey1, ibx[e], iby[e], exact)
-        g_c = orient_many(ex0, ey0, ex1, ey1, icx[e], icy[e], exact)
-        lowest = np.minimum(np.minimum(g_a, g_b), g_c)
-        highest = np.maximum(np.maximum(g_a, g_b), g_c)
-        degenerate = (ex0 == ex1) & (ey0 == ey1)
-        bad[e[((lowest < 0) & (highest > 0)) | degenerate]] = True
-    hit = np.bincount(item[bad], minlength=len(idx)) > 0
-    ok[idx[hit]] = False
+    size = hi[idx] - lo[idx] + 1
+    widths = np.minimum(np.searchsorted(_WIDTHS, size), len(_WIDTHS) - 1)
+    for k in np.unique(widths).tolist():
+        rows = idx[widths == k]
+        width = max(int(_WIDTHS[k]), int(size[widths == k].max()))
+        bad = _bad_rows(
+            sx, sy, lo[rows], hi[rows], c[rows], extent_x[rows], extent_y[rows], width, exact
+        )
+        ok[rows[bad]] = False
     return ok
 
 
-def _chunked_correct(sx, sy, lo, hi, c, exact) -> np.ndarray:
+def _bad_rows(
+    sx: np.ndarray,
+    sy: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    extent_x: np.ndarray,
+    extent_y: np.ndarray,
+    width: int,
+    exact: bool,
+) -> np.ndarray:
+    """Conditions 2 and 3 of the correct triangle for rows of one padded width."""
+    n = len(lo)
+    pos = lo[:, None] + np.arange(width, dtype=np.int64)
+    np.minimum(pos, hi[:, None], out=pos)
+    px, py = sx[pos], sy[pos]
+    ax, ay = sx[hi][:, None], sy[hi][:, None]
+    bx, by = sx[lo][:, None], sy[lo][:, None]
+    cx, cy = sx[c][:, None], sy[c][:, None]
+    last = (hi - lo)[:, None]
+    ccol = (c - lo)[:, None]
+    ex, ey = extent_x[:, None], extent_y[:, None]
+
+    def bound(ux: np.ndarray, uy: np.ndarray) -> np.ndarray | None:
+        return None if exact else row_bound(ux, uy, ex, ey)
+
+    # entries known to be exactly zero: p at position lo (b), hi and the padding (a), c
+    f_ab = orient_rows(
+        ax,
+        ay,
+        bx,
+        by,
+        bound(bx - ax, by - ay),
+        px,
+        py,
+        lambda r, k: (k == 0) | (k >= last[r, 0]),
+    )
+    f_bc = orient_rows(
+        bx,
+        by,
+        cx,
+        cy,
+        bound(cx - bx, cy - by),
+        px,
+        py,
+        lambda r, k: (k == 0) | (k == ccol[r, 0]),
+    )
+    f_ca = orient_rows(
+        cx,
+        cy,
+        ax,
+        ay,
+        bound(ax - cx, ay - cy),
+        px,
+        py,
+        lambda r, k: (k == ccol[r, 0]) | (k >= last[r, 0]),
+    )
+    bad = np.zeros(n, dtype=bool)
+    # condition 3: a vertex in the relative interior of a new side
+    for f, ux, uy in ((f_bc, bx, by), (f_ca, ax, ay)):
+        r, k = np.nonzero(f == 0)
+        if len(r):
+            inside = strictly_between(px[r, k], py[r, k], ux[r, 0], uy[r, 0], cx[r, 0], cy[r, 0])
+            bad[r[inside]] = True
+    # condition 2: an edge meets the open triangle (the padding adds only point edges at a,
+    # where f_ab is 0 at both ends: never inward)
+    inward = np.maximum(f_ab[:, :-1], f_ab[:, 1:]) > 0
+    inward &= np.maximum(f_bc[:, :-1], f_bc[:, 1:]) > 0
+    inward &= np.maximum(f_ca[:, :-1], f_ca[:, 1:]) > 0
+    r, k = np.nonzero(inward)
+    if len(r):
+        ex0, ey0, ex1, ey1 = px[r, k], py[r, k], px[r, k + 1], py[r, k + 1]
+        g_a = orient_many(ex0, ey0, ex1, ey1, ax[r, 0], ay[r, 0], exact)
+        g_b = orient_many(ex0, ey0, ex1, ey1, bx[r, 0], by[r, 0], exact)
+        g_c = orient_many(ex0, ey0, ex1, ey1, cx[r, 0], cy[r, 0], exact)
+        lowest = np.minimum(np.minimum(g_a, g_b), g_c)
+        highest = np.maximum(np.maximum(g_a, g_b), g_c)
+        degenerate = (ex0 == ex1) & (ey0 == ey1)
+        bad[r[((lowest < 0) & (highest > 0)) | degenerate]] = True
+    return bad
+
+
+def _chunked_correct(sx, sy, lo, hi, c, ext_x, ext_y, exact) -> np.ndarray:
     """:func:`correct_mask` in passes of bounded size."""
     n = len(c)
     if n == 0:
         return np.zeros(0, dtype=bool)
     work = np.cumsum(hi - lo + 1)
     if work[-1] <= _CHUNK_ELEMENTS:
-        return correct_mask(sx, sy, lo, hi, c, exact)
+        return correct_mask(sx, sy, lo, hi, c, ext_x, ext_y, exact)
     out = np.empty(n, dtype=bool)
     cuts = np.searchsorted(work, np.arange(_CHUNK_ELEMENTS, work[-1], _CHUNK_ELEMENTS))
     bounds = np.unique(np.concatenate([[0], cuts, [n]]))
     for s, t in zip(bounds[:-1], bounds[1:]):
-        out[s:t] = correct_mask(sx, sy, lo[s:t], hi[s:t], c[s:t], exact)
+        out[s:t] = correct_mask(sx, sy, lo[s:t], hi[s:t], c[s:t], ext_x[s:t], ext_y[s:t], exact)
     return out
 
 
@@ -160,6 +221,13 @@ def _choose_elevation(
     return chosen
 
 
+def _extents(sx, sy, starts, lengths) -> tuple[np.ndarray, np.ndarray]:
+    """Per sequence: max - min of x and of y (bounds every coordinate difference in it)."""
+    extent_x = np.maximum.reduceat(sx, starts) - np.minimum.reduceat(sx, starts)
+    extent_y = np.maximum.reduceat(sy, starts) - np.minimum.reduceat(sy, starts)
+    return extent_x, extent_y
+
+
 def build_trees(
     ids: np.ndarray,
     sx: np.ndarray,
@@ -174,6 +242,7 @@ def build_trees(
     ``seq_start``; ``ids`` are the output vertex indices of every position."""
     count = len(seq_start)
     exact = grid_exact(sx, sy)
+    extent_x, extent_y = _extents(sx, sy, seq_start, seq_len + 1)
     m = seq_len
     tri_count = np.maximum(m - 2, 0)
     tri_start = np.cumsum(tri_count) - tri_count
@@ -198,7 +267,10 @@ def build_trees(
             span = hi - lo - 1
             owner = np.repeat(np.arange(len(poly), dtype=np.int64), span)
             c = np.repeat(hi - 1, span) - _ragged_index(np.zeros(len(poly), np.int64), span)
-            good = _chunked_correct(sx, sy, lo[owner], hi[owner], c, exact)
+            po = poly[owner]
+            good = _chunked_correct(
+                sx, sy, lo[owner], hi[owner], c, extent_x[po], extent_y[po], exact
+            )
             found = np.bincount(owner[good], minlength=len(poly)) > 0
             apex = np.full(len(poly), -1, dtype=np.int64)
             if found.any():
@@ -207,7 +279,7 @@ def build_trees(
                 apex[found] = _choose_elevation(sz, owner[good], c[good], v1, v2)
             failed = ~found
         else:
-            good = _chunked_correct(sx, sy, lo, hi, cand, exact)
+            good = _chunked_correct(sx, sy, lo, hi, cand, extent_x[poly], extent_y[poly], exact)
             found = good
             apex = cand
             failed = ~good & (cand - 1 <= lo)

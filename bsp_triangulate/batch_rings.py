@@ -215,11 +215,38 @@ def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> Fl
     )
 
 
+def _band_pairs(
+    coord: np.ndarray,
+    poly_of: np.ndarray,
+    count: int,
+    edges: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(edge, vertex) pairs of one polygon whose ``coord`` lies in [lo, hi] of the edge."""
+    has = np.bincount(poly_of, minlength=count) > 0
+    first = np.flatnonzero(np.r_[True, poly_of[1:] != poly_of[:-1]])
+    cmin = np.zeros(count)
+    cmax = np.zeros(count)
+    cmin[has] = np.minimum.reduceat(coord, first)
+    cmax[has] = np.maximum.reduceat(coord, first)
+    scale = 0.5 / np.where(cmax > cmin, cmax - cmin, 1.0)
+    # poly + (value - min) * scale is monotone in value within a polygon (rounding included)
+    key = poly_of + (coord - cmin[poly_of]) * scale[poly_of]
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    owner = poly_of[edges]
+    start = np.searchsorted(sorted_key, owner + (lo - cmin[owner]) * scale[owner], "left")
+    stop = np.searchsorted(sorted_key, owner + (hi - cmin[owner]) * scale[owner], "right")
+    counts = stop - start
+    return np.repeat(edges, counts), order[_ragged_index(start, counts)]
+
+
 def touching_polygons(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
     """Per polygon: two of its vertices coincide, or a vertex lies in the relative interior of
     a ring edge (the engine then splits edges or joins rings at that point)."""
     count = len(flat.handled)
-    vy = flat.vy
+    wy = flat.vy
     nv = len(wx)
     touching = np.zeros(count, dtype=bool)
     if nv == 0:
@@ -227,42 +254,27 @@ def touching_polygons(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
     poly_of = np.repeat(flat.ring_poly, flat.ring_len)
     nxt = np.arange(nv, dtype=np.int64) + 1
     nxt[flat.ring_start + flat.ring_len - 1] = flat.ring_start
-    # monotone key per polygon: poly + (x - xmin) * scale keeps the x order of each polygon
-    has = flat.poly_vcount > 0
-    starts = flat.poly_vstart[has]
-    xmin = np.zeros(count)
-    xmax = np.zeros(count)
-    xmin[has] = np.minimum.reduceat(wx, starts)
-    xmax[has] = np.maximum.reduceat(wx, starts)
-    width = np.where(xmax > xmin, xmax - xmin, 1.0)
-    scale = 0.5 / width
-
-    def key(values: np.ndarray, poly: np.ndarray) -> np.ndarray:
-        return poly + (values - xmin[poly]) * scale[poly]
-
-    vkey = key(wx, poly_of)
-    order = np.argsort(vkey, kind="stable")
-    sorted_key = vkey[order]
-    ex0 = np.minimum(wx, wx[nxt])
-    ex1 = np.maximum(wx, wx[nxt])
-    first = np.searchsorted(sorted_key, key(ex0, poly_of), "left")
-    last = np.searchsorted(sorted_key, key(ex1, poly_of), "right")
-    counts = last - first
-    pair_sorted = _ragged_index(first, counts)
-    edge = np.repeat(np.arange(nv, dtype=np.int64), counts)
-    vertex = order[pair_sorted]
+    x0, x1 = np.minimum(wx, wx[nxt]), np.maximum(wx, wx[nxt])
+    y0, y1 = np.minimum(wy, wy[nxt]), np.maximum(wy, wy[nxt])
+    # candidates from the thinner slab of each edge's bounding box
+    steep = x1 - x0 <= y1 - y0
+    e_x, v_x = _band_pairs(wx, poly_of, count, np.flatnonzero(steep), x0[steep], x1[steep])
+    flat_ = ~steep
+    e_y, v_y = _band_pairs(wy, poly_of, count, np.flatnonzero(flat_), y0[flat_], y1[flat_])
+    edge = np.concatenate([e_x, e_y])
+    vertex = np.concatenate([v_x, v_y])
+    keep = (vertex != edge) & (vertex != nxt[edge])
+    edge, vertex = edge[keep], vertex[keep]
+    px, py = wx[vertex], wy[vertex]
+    in_box = (px >= x0[edge]) & (px <= x1[edge]) & (py >= y0[edge]) & (py <= y1[edge])
+    edge, vertex, px, py = edge[in_box], vertex[in_box], px[in_box], py[in_box]
     a, b = edge, nxt[edge]
-    keep = (vertex != a) & (vertex != b)
-    edge, vertex, a, b = edge[keep], vertex[keep], a[keep], b[keep]
-    px, py = wx[vertex], vy[vertex]
-    ax, ay, bx, by = wx[a], vy[a], wx[b], vy[b]
-    # the x-range holds by construction; the y-range decides the rest cheaply
-    in_box = (py >= np.minimum(ay, by)) & (py <= np.maximum(ay, by))
+    ax, ay, bx, by = wx[a], wy[a], wx[b], wy[b]
     at_end = ((px == ax) & (py == ay)) | ((px == bx) & (py == by))
-    touching[poly_of[vertex[in_box & at_end]]] = True
-    inner = in_box & ~at_end & (px >= ex0[edge]) & (px <= ex1[edge])
-    if inner.any():
-        idx = np.flatnonzero(inner)
-        on_line = orient_many(ax[idx], ay[idx], bx[idx], by[idx], px[idx], py[idx]) == 0
-        touching[poly_of[vertex[idx[on_line]]]] = True
+    touching[poly_of[vertex[at_end]]] = True
+    inner = np.flatnonzero(~at_end)
+    if len(inner):
+        i = inner
+        on_line = orient_many(ax[i], ay[i], bx[i], by[i], px[i], py[i]) == 0
+        touching[poly_of[vertex[i[on_line]]]] = True
     return touching
