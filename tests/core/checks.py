@@ -330,9 +330,11 @@ def check_tree(
 ) -> None:
     """The BSP tree is consistent and listed in pre-order.
 
-    Tracking each node's base (V1, V2) from the root's (s0 = vertex 0, s1): a left child has
-    base (V1, apex) and a right child (V2, apex) of its parent, each at most once per parent,
-    the left subtree before the right one, depth = parent's depth + 1.
+    Parent earlier and on the current root path, left subtree before the right one, at most one
+    child per side, depth = parent's depth + 1, and the bases: tracking each node's (V1, V2)
+    from the root's, a left child has base (V1, apex) and a right child (V2, apex) of its
+    parent. The root's V1 is s0, normally vertex 0; for inputs where S does not start at
+    vertex 0 (the engine may drop zero-width spikes of invalid rings) the other order is tried.
     """
     m = len(triangles)
     for name, arr in (("parent", parent), ("depth", depth), ("side", side)):
@@ -341,9 +343,6 @@ def check_tree(
         return
     tris = np.asarray(triangles).tolist()
     assert parent[0] == -1 and depth[0] == 0 and side[0] == 0, "first triangle is not the root"
-    # s0 is the outer ring's first vertex; s1 its second, or a vertex splitting the first edge
-    assert 0 in tris[0][:2], f"root base {tris[0][:2]} does not start at the outer ring's s0"
-    bases: list[tuple[int, int]] = [(0, tris[0][1] if tris[0][0] == 0 else tris[0][0])]
     children: dict[int, dict[int, int]] = {0: {}}
     path = [0]  # the root-to-current chain; in pre-order a parent is on it
     for i in range(1, m):
@@ -359,13 +358,27 @@ def check_tree(
         children[p][s] = i
         children[i] = {}
         path.append(i)
+    a, b = tris[0][:2]
+    first = _base_mismatch(tris, parent, side, (b, a) if b == 0 else (a, b))
+    if first is not None and 0 not in (a, b) and _base_mismatch(tris, parent, side, (b, a)) is None:
+        return
+    assert first is None, first
+
+
+def _base_mismatch(
+    tris: list, parent: np.ndarray, side: np.ndarray, root: tuple[int, int]
+) -> str | None:
+    """The first child whose base is not (V1, apex) or (V2, apex) of its parent, or None."""
+    bases: list[tuple[int, int]] = [root]
+    for i in range(1, len(tris)):
+        p, s = int(parent[i]), int(side[i])
         v1, v2 = bases[p]
         apex = tris[p][2]
         base = (v1, apex) if s == 1 else (v2, apex)
-        assert set(tris[i][:2]) == set(base), (
-            f"triangle {i} {tris[i]}: base is not {base} from parent {p} {tris[p]}, side {s}"
-        )
+        if set(tris[i][:2]) != set(base):
+            return f"triangle {i} {tris[i]}: base is not {base} from parent {p} {tris[p]}, side {s}"
         bases.append(base)
+    return None
 
 
 # --- everything at once --------------------------------------------------------------------------

@@ -19,6 +19,7 @@ from bsp_triangulate import triangulate
 
 from .checks import (
     check_tiling,
+    check_tree,
     check_triangulation,
     deviation,
     overlapping_pairs,
@@ -151,3 +152,18 @@ def test_deviation_is_exact_for_a_tiny_gap() -> None:
     square = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
     vertices = np.array([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (1.0, 1.0, 0.0), (0.0, 1.0 - 2**-52, 0)])
     assert deviation([square], vertices, np.array([[0, 1, 2], [0, 2, 3]])) == 2.0**-53
+
+
+def test_check_tree_rejects_a_swapped_side_and_a_broken_pre_order() -> None:
+    outer = [(0, 0), (10, 0), (10, 10), (0, 10)]
+    result = reference_triangulate([outer, [(4, 4), (6, 4), (6, 6), (4, 6)]])
+    tris, parent = np.asarray(result.triangles), np.asarray(result.parent)
+    depth, side = np.asarray(result.depth), np.asarray(result.side)
+    check_tree(tris, parent, depth, side)
+    swapped = side.copy()
+    swapped[1] = 3 - swapped[1]
+    with pytest.raises(AssertionError, match="base is not"):
+        check_tree(tris, parent, depth, swapped)
+    order = [0, *range(2, len(tris)), 1]
+    with pytest.raises(AssertionError):
+        check_tree(tris[order], parent[order], depth[order], side[order])
