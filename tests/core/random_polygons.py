@@ -46,10 +46,10 @@ def grid_ring(rnd: random.Random, cells: int, size: int = 8) -> list[tuple[float
         return None
     dense = shapely.segmentize(union.exterior, 1.0)
     ring = [(float(px), float(py)) for px, py in dense.coords[:-1]]
-    return _without_collinear_duplicates(ring)
+    return _without_repeats(ring)
 
 
-def _without_collinear_duplicates(ring: list) -> list:
+def _without_repeats(ring: list) -> list:
     out: list = []
     for p in ring:
         if not out or out[-1] != p:

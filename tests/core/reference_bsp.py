@@ -10,6 +10,8 @@ raises ``NotImplementedError``), planar tolerance 0. Touching rings: edges are s
 rings' vertices on them, and islands sharing a point with the sequence are joined there first
 (see ``bridge``); docs/algorithm.md section 2 only has the leftmost-vertex rule, which for an
 island touching at another vertex gives a sequence that crosses itself at the touching point.
+Likewise a correct triangle needs a fourth condition besides section 4's three (see
+``is_correct_triangle``) to tell duplicate occurrences of a point apart.
 """
 
 from __future__ import annotations
