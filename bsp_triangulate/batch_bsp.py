@@ -123,40 +123,23 @@ def _bad_rows(
         return None if exact else row_bound(ux, uy, ex, ey)
 
     # entries known to be exactly zero: p at position lo (b), hi and the padding (a), c
-    f_ab = orient_rows(
-        ax,
-        ay,
-        bx,
-        by,
-        bound(bx - ax, by - ay),
-        px,
-        py,
+    pad_count = int((width - last).sum())
+    f_ab, _ = orient_rows(
+        ax, ay, bx, by, bound(bx - ax, by - ay), px, py, n + pad_count,
         lambda r, k: (k == 0) | (k >= last[r, 0]),
-    )
-    f_bc = orient_rows(
-        bx,
-        by,
-        cx,
-        cy,
-        bound(cx - bx, cy - by),
-        px,
-        py,
+    )  # fmt: skip
+    f_bc, zero_bc = orient_rows(
+        bx, by, cx, cy, bound(cx - bx, cy - by), px, py, 2 * n,
         lambda r, k: (k == 0) | (k == ccol[r, 0]),
-    )
-    f_ca = orient_rows(
-        cx,
-        cy,
-        ax,
-        ay,
-        bound(ax - cx, ay - cy),
-        px,
-        py,
+    )  # fmt: skip
+    f_ca, zero_ca = orient_rows(
+        cx, cy, ax, ay, bound(ax - cx, ay - cy), px, py, n + pad_count,
         lambda r, k: (k == ccol[r, 0]) | (k >= last[r, 0]),
-    )
+    )  # fmt: skip
     bad = np.zeros(n, dtype=bool)
-    # condition 3: a vertex in the relative interior of a new side
-    for f, ux, uy in ((f_bc, bx, by), (f_ca, ax, ay)):
-        r, k = np.nonzero(f == 0)
+    # condition 3: a vertex in the relative interior of a new side (the known zeros are the
+    # corners themselves)
+    for (r, k), ux, uy in ((zero_bc, bx, by), (zero_ca, ax, ay)):
         if len(r):
             inside = strictly_between(px[r, k], py[r, k], ux[r, 0], uy[r, 0], cx[r, 0], cy[r, 0])
             bad[r[inside]] = True

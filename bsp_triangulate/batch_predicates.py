@@ -35,26 +35,32 @@ def orient_rows(
     bound: np.ndarray | None,
     px: np.ndarray,
     py: np.ndarray,
-    known_zero: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
-) -> np.ndarray:
-    """int8 signs of orient(a, b, p); ``a``, ``b``, ``bound`` broadcast against ``p`` (2D).
+    known_count: int,
+    known_zero: Callable[[np.ndarray, np.ndarray], np.ndarray],
+) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """int8 signs of orient(a, b, p), with ``a``, ``b``, ``bound`` broadcast against the 2D
+    ``p``; and the (rows, cols) of the zero signs other than the known ones.
 
     ``bound`` None means the coordinates are grid-exact (every float result is exact).
-    ``known_zero(rows, cols)`` marks entries the caller knows to be exactly 0 (p is a or b).
+    ``known_zero(rows, cols)`` marks the ``known_count`` entries that the caller knows to be
+    exactly 0 (p is a or b itself: the float result is then exactly 0 too).
     """
     ux = bx - ax
     uy = by - ay
     det = ux * (py - ay)
     det -= uy * (px - ax)
     if bound is None:
-        return np.sign(det).astype(np.int8)
-    signs = (det > bound).view(np.int8) - (det < -bound).view(np.int8)
-    where = np.nonzero(signs == 0)
-    if known_zero is not None and len(where[0]):
-        keep = ~known_zero(*where)
-        where = (where[0][keep], where[1][keep])
-    if len(where[0]) == 0:
-        return signs
+        signs = np.sign(det).astype(np.int8)
+    else:
+        signs = (det > bound).view(np.int8) - (det < -bound).view(np.int8)
+    zero = signs == 0
+    if np.count_nonzero(zero) == known_count:
+        return signs, _NONE
+    where = np.nonzero(zero)
+    keep = ~known_zero(*where)
+    where = (where[0][keep], where[1][keep])
+    if bound is None or len(where[0]) == 0:
+        return signs, where
     shape = det.shape
     pxu = np.broadcast_to(px, shape)[where]
     pyu = np.broadcast_to(py, shape)[where]
@@ -62,11 +68,16 @@ def orient_rows(
     ayu = np.broadcast_to(ay, shape)[where]
     bxu = np.broadcast_to(bx, shape)[where]
     byu = np.broadcast_to(by, shape)[where]
-    # a point equal to a or b lies on the line: exact zero, the common case here
+    # a point equal to a or b (another occurrence of it) lies on the line: exact zero
     at_end = ((pxu == axu) & (pyu == ayu)) | ((pxu == bxu) & (pyu == byu))
     rest = np.flatnonzero(~at_end)
     if len(rest):
         values = np.zeros(len(pxu), dtype=np.int8)
         values[rest] = orient_many(axu[rest], ayu[rest], bxu[rest], byu[rest], pxu[rest], pyu[rest])
         signs[where] = values
-    return signs
+        still = values == 0
+        where = (where[0][still], where[1][still])
+    return signs, where
+
+
+_NONE = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
