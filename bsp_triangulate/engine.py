@@ -23,8 +23,16 @@ SMALL_SEQUENCE = 64
 # Candidates tested together per step in small sub-polygons with rule "first".
 _FIRST_CHUNK = 4
 # Largest candidates x edges matrix tested in one vectorised step in large sequences.
-_BATCH_ELEMENTS = 1 << 17
+_BATCH_ELEMENTS = 1 << 18
 _MAX_CHUNK = 64
+
+
+def _rows(length: int, *rows: np.ndarray | float) -> np.ndarray:
+    """Stack arrays and scalars (broadcast) into a (len(rows), length) array."""
+    out = np.empty((len(rows), length))
+    for index, row in enumerate(rows):
+        out[index] = row
+    return out
 
 
 def facing_candidates(
@@ -46,15 +54,14 @@ def facing_candidates(
     cx, cy = sx[candidates], sy[candidates]
     px, py = sx[candidates - 1], sy[candidates - 1]
     nx, ny = sx[candidates + 1], sy[candidates + 1]
-    ones = np.ones(count)
     # rows: chord side, turn at the apex, then a and b against the apex's two edges
     signs = orient_many(
-        np.stack([ax * ones, px, cx, px, cx, px]),
-        np.stack([ay * ones, py, cy, py, cy, py]),
-        np.stack([bx * ones, cx, nx, cx, nx, cx]),
-        np.stack([by * ones, cy, ny, cy, ny, cy]),
-        np.stack([cx, nx, ax * ones, ax * ones, bx * ones, bx * ones]),
-        np.stack([cy, ny, ay * ones, ay * ones, by * ones, by * ones]),
+        _rows(count, ax, px, cx, px, cx, px),
+        _rows(count, ay, py, cy, py, cy, py),
+        _rows(count, bx, cx, nx, cx, nx, cx),
+        _rows(count, by, cy, ny, cy, ny, cy),
+        _rows(count, cx, nx, ax, ax, bx, bx),
+        _rows(count, cy, ny, ay, ay, by, by),
         exact_inputs,
     )
     turn = signs[1]
@@ -96,46 +103,64 @@ def correct_candidates(
     if not ok.any() or len(edges) == 0:
         return ok
     ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
-    cx, cy = sx[candidates], sy[candidates]
-    ends = np.concatenate([edges, edges + 1])
-    count = len(edges)
-    px, py = sx[ends], sy[ends]
-    ones = np.ones((len(candidates), 1))
-    # f[0]: side of line a->b, f[1]: of b->c, f[2]: of c->a, for every edge end point
+    live = np.flatnonzero(ok)
+    cx, cy = sx[candidates[live]], sy[candidates[live]]
+    # only edges whose bounding box meets the triangle's can matter (exact comparisons)
+    ex0, ey0, ex1, ey1 = sx[edges], sy[edges], sx[edges + 1], sy[edges + 1]
+    tx0 = np.minimum(np.minimum(ax, bx), cx)[:, None]
+    tx1 = np.maximum(np.maximum(ax, bx), cx)[:, None]
+    ty0 = np.minimum(np.minimum(ay, by), cy)[:, None]
+    ty1 = np.maximum(np.maximum(ay, by), cy)[:, None]
+    near = (
+        (np.maximum(ex0, ex1) >= tx0)
+        & (np.minimum(ex0, ex1) <= tx1)
+        & (np.maximum(ey0, ey1) >= ty0)
+        & (np.minimum(ey0, ey1) <= ty1)
+    )
+    rows, cols = np.nonzero(near)
+    if len(rows) == 0:
+        return ok
+    count = len(rows)
+    # edge end points of every (candidate, edge) pair: p's then q's
+    px = np.concatenate([ex0[cols], ex1[cols]])
+    py = np.concatenate([ey0[cols], ey1[cols]])
+    pcx = np.concatenate([cx[rows], cx[rows]])
+    pcy = np.concatenate([cy[rows], cy[rows]])
+    # f[0]: side of line a->b, f[1]: of b->c, f[2]: of c->a
     f = orient_many(
-        np.stack([ax * ones, bx * ones, cx[:, None]]),
-        np.stack([ay * ones, by * ones, cy[:, None]]),
-        np.stack([bx * ones, cx[:, None], ax * ones]),
-        np.stack([by * ones, cy[:, None], ay * ones]),
+        _rows(2 * count, ax, bx, pcx),
+        _rows(2 * count, ay, by, pcy),
+        _rows(2 * count, bx, pcx, ax),
+        _rows(2 * count, by, pcy, ay),
         px,
         py,
         exact_inputs,
     )
+    bad = np.zeros(len(live), dtype=bool)
+    pair_rows = np.concatenate([rows, rows])
     # condition 3: a vertex in the relative interior of a new side
-    bad = np.zeros(len(candidates), dtype=bool)
     for side, (ux, uy) in ((1, (bx, by)), (2, (ax, ay))):
-        rows, cols = np.nonzero(f[side] == 0)
-        if len(rows):
-            inside = strictly_between(px[cols], py[cols], ux, uy, cx[rows], cy[rows])
-            bad[rows[inside]] = True
+        zero = np.flatnonzero(f[side] == 0)
+        if len(zero):
+            inside = strictly_between(px[zero], py[zero], ux, uy, pcx[zero], pcy[zero])
+            bad[pair_rows[zero[inside]]] = True
     # condition 2: an edge meets the open triangle (separating-axis test, all exact signs)
-    inward = (np.maximum(f[:, :, :count], f[:, :, count:]) > 0).all(axis=0)
+    inward = (np.maximum(f[:, :count], f[:, count:]) > 0).all(axis=0)
     if inward.any():
-        rows, cols = np.nonzero(inward)
-        e = edges[cols]
-        ex0, ey0, ex1, ey1 = sx[e], sy[e], sx[e + 1], sy[e + 1]
-        k = np.ones(len(e))
+        hit = np.flatnonzero(inward)
+        qx0, qy0, qx1, qy1 = px[hit], py[hit], px[hit + count], py[hit + count]
         g = orient_many(
-            ex0, ey0, ex1, ey1,
-            np.stack([ax * k, bx * k, cx[rows]]),
-            np.stack([ay * k, by * k, cy[rows]]),
+            qx0, qy0, qx1, qy1,
+            _rows(len(hit), ax, bx, pcx[hit]),
+            _rows(len(hit), ay, by, pcy[hit]),
             exact_inputs,
         )  # fmt: skip
-        degenerate = (ex0 == ex1) & (ey0 == ey1)
+        degenerate = (qx0 == qx1) & (qy0 == qy1)
         crossing = ((g.min(axis=0) < 0) & (g.max(axis=0) > 0)) | degenerate
         if crossing.any():
-            bad[rows[crossing]] = True
-    return ok & ~bad
+            bad[rows[hit[crossing]]] = True
+    ok[live[bad]] = False
+    return ok
 
 
 class _Tree:
