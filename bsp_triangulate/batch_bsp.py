@@ -14,7 +14,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from .batch_predicates import orient_rows, row_bound
+from .batch_predicates import orient_items, orient_rows, row_bound
 from .batch_rings import _ragged_index
 from .predicates import grid_exact, orient_many, strictly_between
 
@@ -38,13 +38,13 @@ class Trees:
 def _apex_angle(
     sx: np.ndarray, sy: np.ndarray, c: np.ndarray, tx: np.ndarray, ty: np.ndarray, exact: bool
 ) -> np.ndarray:
-    """``engine._inside_apex_angle`` for candidate positions ``c`` towards (tx, ty)."""
+    """``engine`` condition 4 for candidate positions ``c`` towards (tx, ty)."""
     px, py = sx[c - 1], sy[c - 1]
     vx, vy = sx[c], sy[c]
     nx, ny = sx[c + 1], sy[c + 1]
-    turn = orient_many(px, py, vx, vy, nx, ny, exact)
-    after_next = orient_many(vx, vy, nx, ny, tx, ty, exact) >= 0
-    after_prev = orient_many(px, py, vx, vy, tx, ty, exact) >= 0
+    turn = orient_items(px, py, vx, vy, nx, ny, exact)
+    after_next = orient_items(vx, vy, nx, ny, tx, ty, exact) >= 0
+    after_prev = orient_items(px, py, vx, vy, tx, ty, exact) >= 0
     spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
     return np.where(
         turn > 0,
@@ -74,7 +74,7 @@ def correct_mask(
     """
     ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
     cx, cy = sx[c], sy[c]
-    ok = orient_many(ax, ay, bx, by, cx, cy, exact) > 0
+    ok = orient_items(ax, ay, bx, by, cx, cy, exact) > 0
     idx = np.flatnonzero(ok)
     if len(idx) == 0:
         return ok

@@ -112,6 +112,8 @@ def _xy_is_working_plane(p: np.ndarray, starts: np.ndarray, counts: np.ndarray) 
     x, y, z = p[:, 0], p[:, 1], p[:, 2]
     xn, yn, zn = x[nxt], y[nxt], z[nxt]
     flat = np.logical_and.reduceat(z == 0, starts)
+    if flat.all():
+        return flat
     nx, bx = _sum_with_bound((y - yn) * (z + zn), starts, counts)
     ny, by = _sum_with_bound((z - zn) * (x + xn), starts, counts)
     nz, bz = _sum_with_bound((x - xn) * (y + yn), starts, counts)
@@ -233,7 +235,7 @@ def _band_pairs(
     scale = 0.5 / np.where(cmax > cmin, cmax - cmin, 1.0)
     # poly + (value - min) * scale is monotone in value within a polygon (rounding included)
     key = poly_of + (coord - cmin[poly_of]) * scale[poly_of]
-    order = np.argsort(key, kind="stable")
+    order = np.argsort(key)
     sorted_key = key[order]
     owner = poly_of[edges]
     start = np.searchsorted(sorted_key, owner + (lo - cmin[owner]) * scale[owner], "left")
