@@ -54,7 +54,7 @@ def _triangulate(
     flat = flatten_rings(polygons, max_vertices)
     wx = np.where(np.repeat(flat.mirrored[flat.ring_poly], flat.ring_len), -flat.vx, flat.vx)
     wy = flat.vy
-    vertices = np.column_stack([flat.vx, flat.vy, flat.vz])
+    vertices = flat.vertices
     handled = flat.handled.copy()
     handled &= ~touching_polygons(flat, wx) | flat.empty
     for p in np.flatnonzero(handled & flat.empty).tolist():

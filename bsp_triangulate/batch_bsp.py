@@ -124,17 +124,19 @@ def _bad_rows(
 
     # entries known to be exactly zero: p at position lo (b), hi and the padding (a), c
     pad_count = int((width - last).sum())
+    dxa, dya = px - ax, py - ay
     f_ab, _ = orient_rows(
-        ax, ay, bx, by, bound(bx - ax, by - ay), px, py, n + pad_count,
+        ax, ay, bx, by, px, py, dxa, dya, bound(bx - ax, by - ay), n + pad_count,
         lambda r, k: (k == 0) | (k >= last[r, 0]),
     )  # fmt: skip
-    f_bc, zero_bc = orient_rows(
-        bx, by, cx, cy, bound(cx - bx, cy - by), px, py, 2 * n,
-        lambda r, k: (k == 0) | (k == ccol[r, 0]),
-    )  # fmt: skip
-    f_ca, zero_ca = orient_rows(
-        cx, cy, ax, ay, bound(ax - cx, ay - cy), px, py, n + pad_count,
+    # orient(a, c, p) = -orient(c, a, p), sharing p - a with the line a -> b
+    g_ac, zero_ca = orient_rows(
+        ax, ay, cx, cy, px, py, dxa, dya, bound(cx - ax, cy - ay), n + pad_count,
         lambda r, k: (k == ccol[r, 0]) | (k >= last[r, 0]),
+    )  # fmt: skip
+    f_bc, zero_bc = orient_rows(
+        bx, by, cx, cy, px, py, px - bx, py - by, bound(cx - bx, cy - by), 2 * n,
+        lambda r, k: (k == 0) | (k == ccol[r, 0]),
     )  # fmt: skip
     bad = np.zeros(n, dtype=bool)
     # condition 3: a vertex in the relative interior of a new side (the known zeros are the
@@ -147,7 +149,7 @@ def _bad_rows(
     # where f_ab is 0 at both ends: never inward)
     inward = np.maximum(f_ab[:, :-1], f_ab[:, 1:]) > 0
     inward &= np.maximum(f_bc[:, :-1], f_bc[:, 1:]) > 0
-    inward &= np.maximum(f_ca[:, :-1], f_ca[:, 1:]) > 0
+    inward &= np.minimum(g_ac[:, :-1], g_ac[:, 1:]) < 0
     r, k = np.nonzero(inward)
     if len(r):
         ex0, ey0, ex1, ey1 = px[r, k], py[r, k], px[r, k + 1], py[r, k + 1]

@@ -32,31 +32,31 @@ def orient_rows(
     ay: np.ndarray,
     bx: np.ndarray,
     by: np.ndarray,
-    bound: np.ndarray | None,
     px: np.ndarray,
     py: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+    bound: np.ndarray | None,
     known_count: int,
     known_zero: Callable[[np.ndarray, np.ndarray], np.ndarray],
 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-    """int8 signs of orient(a, b, p), with ``a``, ``b``, ``bound`` broadcast against the 2D
-    ``p``; and the (rows, cols) of the zero signs other than the known ones.
+    """int8 signs of orient(a, b, p), with ``a``, ``b``, ``bound`` (one per row) broadcast
+    against the 2D ``p``; and the (rows, cols) of the zero signs other than the known ones.
 
+    ``dx``, ``dy`` are ``px - ax``, ``py - ay`` (shared between lines through a).
     ``bound`` None means the coordinates are grid-exact (every float result is exact).
     ``known_zero(rows, cols)`` marks the ``known_count`` entries that the caller knows to be
     exactly 0 (p is a or b itself: the float result is then exactly 0 too).
     """
-    ux = bx - ax
-    uy = by - ay
-    det = ux * (py - ay)
-    det -= uy * (px - ax)
+    det = (bx - ax) * dy
+    det -= (by - ay) * dx
     if bound is None:
         signs = np.sign(det).astype(np.int8)
     else:
         signs = (det > bound).view(np.int8) - (det < -bound).view(np.int8)
-    zero = signs == 0
-    if np.count_nonzero(zero) == known_count:
+    if signs.size - np.count_nonzero(signs) == known_count:
         return signs, _NONE
-    where = np.nonzero(zero)
+    where = np.nonzero(signs == 0)
     keep = ~known_zero(*where)
     where = (where[0][keep], where[1][keep])
     if bound is None or len(where[0]) == 0:

@@ -22,7 +22,8 @@ _UNDERFLOW_SLACK = 1e-300
 class FlatRings:
     """Cleaned rings of many polygons, in input order, as flat arrays.
 
-    - ``vx, vy, vz``: every cleaned vertex (output coordinates, not mirrored).
+    - ``vertices``: (N, 3) every cleaned vertex (output coordinates, not mirrored);
+      ``vx, vy, vz`` its columns.
     - ``ring_start``, ``ring_len``, ``ring_poly``: the rings (vertices contiguous in ``v*``).
     - ``poly_ring0``, ``poly_rings``: first ring and number of rings of each polygon.
     - ``poly_vstart``, ``poly_vcount``: each polygon's vertices (its output ``vertices``).
@@ -33,6 +34,7 @@ class FlatRings:
       after mirroring).
     """
 
+    vertices: np.ndarray
     vx: np.ndarray
     vy: np.ndarray
     vz: np.ndarray
@@ -87,7 +89,9 @@ def _stack(arrays: list[np.ndarray], widths: np.ndarray) -> np.ndarray:
         return np.zeros((0, 3))
     if (widths == 2).all():
         xy = np.concatenate(arrays)
-        return np.column_stack([xy, np.zeros(len(xy))])
+        out = np.zeros((len(xy), 3))
+        out[:, :2] = xy
+        return out
     if (widths == 3).all():
         return np.concatenate(arrays)
     padded = [
@@ -200,6 +204,7 @@ def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> Fl
         handled[poly_vcount > max_vertices] = False
         empty &= handled
     return FlatRings(
+        vertices=points,
         vx=np.ascontiguousarray(points[:, 0]),
         vy=np.ascontiguousarray(points[:, 1]),
         vz=np.ascontiguousarray(points[:, 2]),

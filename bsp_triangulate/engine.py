@@ -22,8 +22,6 @@ from .triangulation import Triangulation, TriangulationError
 SMALL_SEQUENCE = 64
 # Candidates tested together per step in small sub-polygons with rule "first".
 _FIRST_CHUNK = 4
-# Largest candidates x edges matrix tested in one vectorised step in large sequences.
-_BATCH_ELEMENTS = 1 << 18
 _MAX_CHUNK = 64
 
 
@@ -118,12 +116,35 @@ def correct_candidates(
         & (np.minimum(ey0, ey1) <= ty1)
     )
     rows, cols = np.nonzero(near)
+    ok[live[pairs_failing(sx, sy, lo, hi, candidates[live], rows, edges[cols], exact_inputs)]] = (
+        False
+    )
+    return ok
+
+
+def pairs_failing(
+    sx: np.ndarray,
+    sy: np.ndarray,
+    lo: int,
+    hi: int,
+    candidates: np.ndarray,
+    rows: np.ndarray,
+    edges: np.ndarray,
+    exact_inputs: bool = False,
+) -> np.ndarray:
+    """Indices into ``candidates`` that fail conditions 2 or 3 on one of the given pairs.
+
+    Pair k is candidate ``candidates[rows[k]]`` with the edge (edges[k], edges[k] + 1).
+    """
     if len(rows) == 0:
-        return ok
+        return rows
+    ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
+    cx, cy = sx[candidates], sy[candidates]
     count = len(rows)
+    ex0, ey0, ex1, ey1 = sx[edges], sy[edges], sx[edges + 1], sy[edges + 1]
     # edge end points of every (candidate, edge) pair: p's then q's
-    px = np.concatenate([ex0[cols], ex1[cols]])
-    py = np.concatenate([ey0[cols], ey1[cols]])
+    px = np.concatenate([ex0, ex1])
+    py = np.concatenate([ey0, ey1])
     pcx = np.concatenate([cx[rows], cx[rows]])
     pcy = np.concatenate([cy[rows], cy[rows]])
     # f[0]: side of line a->b, f[1]: of b->c, f[2]: of c->a
@@ -136,7 +157,7 @@ def correct_candidates(
         py,
         exact_inputs,
     )
-    bad = np.zeros(len(live), dtype=bool)
+    bad = np.zeros(len(candidates), dtype=bool)
     pair_rows = np.concatenate([rows, rows])
     # condition 3: a vertex in the relative interior of a new side
     for side, (ux, uy) in ((1, (bx, by)), (2, (ax, ay))):
@@ -159,8 +180,7 @@ def correct_candidates(
         crossing = ((g.min(axis=0) < 0) & (g.max(axis=0) > 0)) | degenerate
         if crossing.any():
             bad[rows[hit[crossing]]] = True
-    ok[live[bad]] = False
-    return ok
+    return np.flatnonzero(bad)
 
 
 class _Tree:
@@ -215,30 +235,28 @@ class _Tree:
         return rule.choose(np.concatenate(found), v1, v2, self.sz)
 
     def _grid_correct(self, lo: int, hi: int, chunk: np.ndarray, exhaustive: bool) -> np.ndarray:
-        """The correct candidates of ``chunk`` (in order; only the first unless exhaustive)."""
-        sx, sy, exact = self.sx, self.sy, self.exact
-        corners = np.concatenate([[hi, lo], chunk])
-        found = self.grid.query_box(
-            float(sx[corners].min()),
-            float(sy[corners].min()),
-            float(sx[corners].max()),
-            float(sy[corners].max()),
+        """The correct candidates of ``chunk`` (in order; only the first unless exhaustive).
+
+        Each candidate's triangle is looked up in the grid; all (candidate, edge) pairs are
+        then tested in one vectorised step.
+        """
+        sx, sy = self.sx, self.sy
+        rows, edges = [], []
+        corners_x = np.array([sx[hi], sx[lo], 0.0])
+        corners_y = np.array([sy[hi], sy[lo], 0.0])
+        for index, c in enumerate(chunk.tolist()):
+            corners_x[2], corners_y[2] = sx[c], sy[c]
+            found = self.grid.query_triangle(corners_x, corners_y)
+            found = np.unique(found[(found >= lo) & (found < hi)])
+            edges.append(found)
+            rows.append(np.full(len(found), index))
+        failing = pairs_failing(
+            sx, sy, lo, hi, chunk, np.concatenate(rows), np.concatenate(edges), self.exact
         )
-        edges = np.unique(found[(found >= lo) & (found < hi)])
-        if len(edges) * len(chunk) <= _BATCH_ELEMENTS:
-            mask = correct_candidates(sx, sy, lo, hi, chunk, edges, True, exact)
-            correct = chunk[mask]
-            return correct if exhaustive else correct[:1]
-        # large triangles: query the cells each one covers
-        correct = []
-        for c in chunk.tolist():
-            found = self.grid.query_triangle(sx[[hi, lo, c]], sy[[hi, lo, c]])
-            edges = found[(found >= lo) & (found < hi)]
-            if correct_candidates(sx, sy, lo, hi, np.array([c]), edges, True, exact)[0]:
-                correct.append(c)
-                if not exhaustive:
-                    break
-        return np.asarray(correct, dtype=np.int64)
+        mask = np.ones(len(chunk), dtype=bool)
+        mask[failing] = False
+        correct = chunk[mask]
+        return correct if exhaustive else correct[:1]
 
     def build(self) -> Triangulation:
         m = self.m

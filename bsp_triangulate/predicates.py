@@ -125,6 +125,9 @@ def orient_many(
     sure = np.abs(det) > bound
     signs = np.sign(det).astype(np.int8)
     if not sure.all():
+        # both products exactly zero (a coordinate of c equals one of a or b): det is exactly 0
+        sure = sure | (((ax == cx) | (by == cy)) & ((ay == cy) | (bx == cx)))
+    if not sure.all():
         unsure = np.nonzero(~sure)
         arrays = np.broadcast_arrays(ax, ay, bx, by, cx, cy)
         picked = [np.asarray(a[unsure], dtype=np.float64) for a in arrays]

@@ -6,6 +6,8 @@ are done by the caller on the returned candidates.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -80,53 +82,57 @@ class SegmentGrid:
         offsets = np.arange(total, dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
         return self.items[np.repeat(first, counts) + offsets]
 
+    def _cell_x(self, x: float) -> int:
+        return min(max(math.floor((x - self.x0) / self.size_x), 0), self.nx - 1)
+
+    def _cell_y(self, y: float) -> int:
+        return min(max(math.floor((y - self.y0) / self.size_y), 0), self.ny - 1)
+
     def query_box(self, xmin: float, ymin: float, xmax: float, ymax: float) -> np.ndarray:
         """Ids of segments in the cells that meet the closed box (may repeat ids)."""
-        c0 = int(self._col(xmin, -self.pad))
-        c1 = int(self._col(xmax, self.pad))
-        r0 = int(self._row(ymin, -self.pad))
-        r1 = int(self._row(ymax, self.pad))
+        c0, c1 = self._cell_x(xmin - self.pad), self._cell_x(xmax + self.pad)
+        r0, r1 = self._cell_y(ymin - self.pad), self._cell_y(ymax + self.pad)
+        starts = self.starts
         if r0 == r1 and c0 == c1:
             cell = r0 * self.nx + c0
-            return self.items[self.starts[cell] : self.starts[cell + 1]]
+            return self.items[starts[cell] : starts[cell + 1]]
+        if c1 - c0 < self.nx // 2 or r1 - r0 < 2:
+            pieces = [
+                self.items[starts[r * self.nx + c0] : starts[r * self.nx + c1 + 1]]
+                for r in range(r0, r1 + 1)
+            ]
+            return np.concatenate(pieces)
         rows = np.arange(r0, r1 + 1)
         return self._gather(rows, np.full(len(rows), c0), np.full(len(rows), c1))
 
     def query_triangle(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
         """Ids of segments in the cells that meet the closed triangle (or segment) with the
         corners ``(px[k], py[k])`` (may repeat ids)."""
-        xmin, xmax = float(px.min()), float(px.max())
-        ymin, ymax = float(py.min()), float(py.max())
-        c0 = int(self._col(xmin, -self.pad))
-        c1 = int(self._col(xmax, self.pad))
-        r0 = int(self._row(ymin, -self.pad))
-        r1 = int(self._row(ymax, self.pad))
-        if (c1 - c0 + 1) * (r1 - r0 + 1) <= 9 or r0 == r1:
+        xs, ys = px.tolist(), py.tolist()
+        xmin, xmax, ymin, ymax = min(xs), max(xs), min(ys), max(ys)
+        c0, c1 = self._cell_x(xmin - self.pad), self._cell_x(xmax + self.pad)
+        r0, r1 = self._cell_y(ymin - self.pad), self._cell_y(ymax + self.pad)
+        if (c1 - c0 + 1) * (r1 - r0 + 1) <= 12 or r0 == r1 or c0 == c1:
             return self.query_box(xmin, ymin, xmax, ymax)
         # per row of cells, the x-extent of the triangle inside that row's band
         rows = np.arange(r0, r1 + 1)
         band_lo = np.maximum(self.y0 + rows * self.size_y - self.pad, ymin)
         band_hi = np.minimum(self.y0 + (rows + 1) * self.size_y + self.pad, ymax)
-        lo_x = np.full(len(rows), np.inf)
-        hi_x = np.full(len(rows), -np.inf)
-        for k in range(len(px)):
-            k2 = (k + 1) % len(px)
-            xa, ya, xb, yb = float(px[k]), float(py[k]), float(px[k2]), float(py[k2])
-            ylo, yhi = min(ya, yb), max(ya, yb)
-            clip_lo = np.clip(band_lo, ylo, yhi)
-            clip_hi = np.clip(band_hi, ylo, yhi)
-            valid = (band_hi >= ylo) & (band_lo <= yhi)
-            if ya == yb:
-                xs_lo = np.full(len(rows), min(xa, xb))
-                xs_hi = np.full(len(rows), max(xa, xb))
-            else:
-                slope = (xb - xa) / (yb - ya)
-                xl = xa + (clip_lo - ya) * slope
-                xh = xa + (clip_hi - ya) * slope
-                xs_lo = np.minimum(xl, xh)
-                xs_hi = np.maximum(xl, xh)
-            lo_x = np.where(valid, np.minimum(lo_x, xs_lo), lo_x)
-            hi_x = np.where(valid, np.maximum(hi_x, xs_hi), hi_x)
+        ax = np.array(xs)[:, None]
+        ay = np.array(ys)[:, None]
+        bx = np.roll(ax, -1, axis=0)
+        by = np.roll(ay, -1, axis=0)
+        ylo, yhi = np.minimum(ay, by), np.maximum(ay, by)
+        clip_lo = np.clip(band_lo, ylo, yhi)
+        clip_hi = np.clip(band_hi, ylo, yhi)
+        valid = (band_hi >= ylo) & (band_lo <= yhi)
+        dy = by - ay
+        flat = dy == 0
+        slope = np.where(flat, 0.0, (bx - ax) / np.where(flat, 1.0, dy))
+        xl = np.where(flat, np.minimum(ax, bx), ax + (clip_lo - ay) * slope)
+        xh = np.where(flat, np.maximum(ax, bx), ax + (clip_hi - ay) * slope)
+        lo_x = np.where(valid, np.minimum(xl, xh), np.inf).min(axis=0)
+        hi_x = np.where(valid, np.maximum(xl, xh), -np.inf).max(axis=0)
         present = lo_x <= hi_x
         rows, lo_x, hi_x = rows[present], lo_x[present], hi_x[present]
         return self._gather(rows, self._col(lo_x, -self.pad), self._col(hi_x, self.pad))
