@@ -21,7 +21,7 @@ from .triangulation import Triangulation, TriangulationError
 # larger sequences use a grid over the edges.
 SMALL_SEQUENCE = 64
 # Candidates tested together per step in small sub-polygons with rule "first".
-_FIRST_CHUNK = 4
+_FIRST_CHUNK = 1
 _MAX_CHUNK = 64
 
 
@@ -215,7 +215,7 @@ class _Tree:
         while start > lo:
             stop = max(start - size, lo)
             chunk = np.arange(start, stop, -1)
-            start, size = stop, min(size * 4, _MAX_CHUNK)
+            start, size = stop, min(size * 2, _MAX_CHUNK)
             chunk = chunk[facing_candidates(sx, sy, lo, hi, chunk, self.exact)]
             if len(chunk) == 0:
                 continue
