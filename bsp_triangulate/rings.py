@@ -70,6 +70,9 @@ def working_axes(outer: np.ndarray) -> tuple[int, int]:
     """The two coordinates the engine works on: XY unless the outer ring is a steep face."""
     if len(outer) < 3:
         return 0, 1
+    largest = float(np.abs(outer).max())
+    if largest > 0:
+        outer = outer / largest  # only a decision: rounding is harmless, overflow is not
     nxt = np.roll(outer, -1, axis=0)
     normal = np.array(
         [

@@ -33,11 +33,13 @@ class SegmentGrid:
         extent = max(width, height, 1e-300)
         width = max(width, extent * 1e-6)
         height = max(height, extent * 1e-6)
-        size = float(np.sqrt(width * height / cells))
+        size = float(np.sqrt(width) * np.sqrt(height) / np.sqrt(cells))  # no underflow
         # cells no smaller than a typical segment, so that segments span few cells
         lengths = np.maximum(np.abs(bx - ax), np.abs(by - ay))
         if count:
             size = max(size, float(np.median(lengths)))
+        if not size > 0:
+            size = extent
         self.size = size
         self.nx = int(min(max(1, np.ceil(width / size)), 4096))
         self.ny = int(min(max(1, np.ceil(height / size)), 4096))

@@ -86,7 +86,9 @@ def test_unknown_rule_is_a_value_error() -> None:
 
 
 @pytest.mark.parametrize(
-    ("offset", "scale"), [(1e15, 1.0), (0.0, 1e-9), (-1e8, 1e-6)], ids=["1e15", "1e-9", "mixed"]
+    ("offset", "scale"),
+    [(1e15, 1.0), (0.0, 1e-9), (-1e8, 1e-6), (0.0, 1e300), (0.0, 1e-300)],
+    ids=["1e15", "1e-9", "mixed", "huge", "subnormal-range"],
 )
 def test_far_or_tiny_comb_polygon_is_tiled_exactly(offset: float, scale: float) -> None:
     # a comb: deep notches with nearly collinear teeth tips
