@@ -84,6 +84,8 @@ def correct_mask(
     idx = idx[ok[idx]]
     if len(idx) == 0:
         return ok
+    # a 3-vertex sub-polygon has only its corners and its own sides: conditions 2 and 3 hold
+    idx = idx[hi[idx] - lo[idx] > 2]
     size = hi[idx] - lo[idx] + 1
     widths = np.minimum(np.searchsorted(_WIDTHS, size), len(_WIDTHS) - 1)
     for k in np.unique(widths).tolist():
@@ -107,55 +109,57 @@ def _bad_rows(
     width: int,
     exact: bool,
 ) -> np.ndarray:
-    """Conditions 2 and 3 of the correct triangle for rows of one padded width."""
+    """Conditions 2 and 3 of the correct triangle for items of one padded width.
+
+    Tables are (width, items): column i holds the positions lo_i .. hi_i, padded with hi_i,
+    so that per-item values broadcast along long contiguous rows.
+    """
     n = len(lo)
-    pos = lo[:, None] + np.arange(width, dtype=np.int64)
-    np.minimum(pos, hi[:, None], out=pos)
+    pos = np.arange(width, dtype=np.int64)[:, None] + lo
+    np.minimum(pos, hi, out=pos)
     px, py = sx[pos], sy[pos]
-    ax, ay = sx[hi][:, None], sy[hi][:, None]
-    bx, by = sx[lo][:, None], sy[lo][:, None]
-    cx, cy = sx[c][:, None], sy[c][:, None]
-    last = (hi - lo)[:, None]
-    ccol = (c - lo)[:, None]
-    ex, ey = extent_x[:, None], extent_y[:, None]
+    ax, ay, bx, by, cx, cy = sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]
+    last = hi - lo
+    ccol = c - lo
 
     def bound(ux: np.ndarray, uy: np.ndarray) -> np.ndarray | None:
-        return None if exact else row_bound(ux, uy, ex, ey)
+        return None if exact else row_bound(ux, uy, extent_x, extent_y)
 
     # entries known to be exactly zero: p at position lo (b), hi and the padding (a), c
     pad_count = int((width - last).sum())
     dxa, dya = px - ax, py - ay
-    f_ab, _ = orient_rows(
+    pos_ab, _, _ = orient_rows(
         ax, ay, bx, by, px, py, dxa, dya, bound(bx - ax, by - ay), n + pad_count,
-        lambda r, k: (k == 0) | (k >= last[r, 0]),
+        lambda k, r: (k == 0) | (k >= last[r]),
     )  # fmt: skip
     # orient(a, c, p) = -orient(c, a, p), sharing p - a with the line a -> b
-    g_ac, zero_ca = orient_rows(
+    _, pos_ca, zero_ca = orient_rows(
         ax, ay, cx, cy, px, py, dxa, dya, bound(cx - ax, cy - ay), n + pad_count,
-        lambda r, k: (k == ccol[r, 0]) | (k >= last[r, 0]),
+        lambda k, r: (k == ccol[r]) | (k >= last[r]),
     )  # fmt: skip
-    f_bc, zero_bc = orient_rows(
+    pos_bc, _, zero_bc = orient_rows(
         bx, by, cx, cy, px, py, px - bx, py - by, bound(cx - bx, cy - by), 2 * n,
-        lambda r, k: (k == 0) | (k == ccol[r, 0]),
+        lambda k, r: (k == 0) | (k == ccol[r]),
     )  # fmt: skip
     bad = np.zeros(n, dtype=bool)
     # condition 3: a vertex in the relative interior of a new side (the known zeros are the
     # corners themselves)
-    for (r, k), ux, uy in ((zero_bc, bx, by), (zero_ca, ax, ay)):
+    for (k, r), ux, uy in ((zero_bc, bx, by), (zero_ca, ax, ay)):
         if len(r):
-            inside = strictly_between(px[r, k], py[r, k], ux[r, 0], uy[r, 0], cx[r, 0], cy[r, 0])
+            inside = strictly_between(px[k, r], py[k, r], ux[r], uy[r], cx[r], cy[r])
             bad[r[inside]] = True
     # condition 2: an edge meets the open triangle (the padding adds only point edges at a,
     # where f_ab is 0 at both ends: never inward)
-    inward = np.maximum(f_ab[:, :-1], f_ab[:, 1:]) > 0
-    inward &= np.maximum(f_bc[:, :-1], f_bc[:, 1:]) > 0
-    inward &= np.minimum(g_ac[:, :-1], g_ac[:, 1:]) < 0
-    r, k = np.nonzero(inward)
-    if len(r):
-        ex0, ey0, ex1, ey1 = px[r, k], py[r, k], px[r, k + 1], py[r, k + 1]
-        g_a = orient_many(ex0, ey0, ex1, ey1, ax[r, 0], ay[r, 0], exact)
-        g_b = orient_many(ex0, ey0, ex1, ey1, bx[r, 0], by[r, 0], exact)
-        g_c = orient_many(ex0, ey0, ex1, ey1, cx[r, 0], cy[r, 0], exact)
+    inward = pos_ab[:-1] | pos_ab[1:]
+    inward &= pos_bc[:-1] | pos_bc[1:]
+    inward &= pos_ca[:-1] | pos_ca[1:]
+    flat = np.flatnonzero(inward)
+    if len(flat):
+        k, r = np.divmod(flat, n)
+        ex0, ey0, ex1, ey1 = px[k, r], py[k, r], px[k + 1, r], py[k + 1, r]
+        g_a = orient_many(ex0, ey0, ex1, ey1, ax[r], ay[r], exact)
+        g_b = orient_many(ex0, ey0, ex1, ey1, bx[r], by[r], exact)
+        g_c = orient_many(ex0, ey0, ex1, ey1, cx[r], cy[r], exact)
         lowest = np.minimum(np.minimum(g_a, g_b), g_c)
         highest = np.maximum(np.maximum(g_a, g_b), g_c)
         degenerate = (ex0 == ex1) & (ey0 == ey1)

@@ -39,9 +39,10 @@ def orient_rows(
     bound: np.ndarray | None,
     known_count: int,
     known_zero: Callable[[np.ndarray, np.ndarray], np.ndarray],
-) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-    """int8 signs of orient(a, b, p), with ``a``, ``b``, ``bound`` (one per row) broadcast
-    against the 2D ``p``; and the (rows, cols) of the zero signs other than the known ones.
+) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """Exact orient(a, b, p) > 0 and < 0 masks, with ``a``, ``b``, ``bound`` (one per row)
+    broadcast against the 2D ``p``; and the (rows, cols) of the zero signs other than the
+    known ones.
 
     ``dx``, ``dy`` are ``px - ax``, ``py - ay`` (shared between lines through a).
     ``bound`` None means the coordinates are grid-exact (every float result is exact).
@@ -51,16 +52,18 @@ def orient_rows(
     det = (bx - ax) * dy
     det -= (by - ay) * dx
     if bound is None:
-        signs = np.sign(det).astype(np.int8)
+        positive = det > 0
+        negative = det < 0
     else:
-        signs = (det > bound).view(np.int8) - (det < -bound).view(np.int8)
-    if signs.size - np.count_nonzero(signs) == known_count:
-        return signs, _NONE
-    where = np.nonzero(signs == 0)
+        positive = det > bound
+        negative = det < -bound
+    if det.size - np.count_nonzero(positive) - np.count_nonzero(negative) == known_count:
+        return positive, negative, _NONE
+    where = np.nonzero(~(positive | negative))
     keep = ~known_zero(*where)
     where = (where[0][keep], where[1][keep])
     if bound is None or len(where[0]) == 0:
-        return signs, where
+        return positive, negative, where
     shape = det.shape
     pxu = np.broadcast_to(px, shape)[where]
     pyu = np.broadcast_to(py, shape)[where]
@@ -74,10 +77,11 @@ def orient_rows(
     if len(rest):
         values = np.zeros(len(pxu), dtype=np.int8)
         values[rest] = orient_many(axu[rest], ayu[rest], bxu[rest], byu[rest], pxu[rest], pyu[rest])
-        signs[where] = values
+        positive[where] = values > 0
+        negative[where] = values < 0
         still = values == 0
         where = (where[0][still], where[1][still])
-    return signs, where
+    return positive, negative, where
 
 
 _NONE = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
