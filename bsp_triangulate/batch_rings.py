@@ -53,11 +53,17 @@ class FlatRings:
 
 def _ragged_index(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     """Concatenation of ``arange(s, s + c)`` for every (s, c)."""
+    keep = counts > 0
+    starts, counts = starts[keep], counts[keep]
     total = int(counts.sum())
     if total == 0:
         return np.zeros(0, dtype=np.int64)
-    ends = np.cumsum(counts)
-    return np.arange(total, dtype=np.int64) + np.repeat(starts - (ends - counts), counts)
+    # steps of 1 inside a run, a jump to the next start between runs: one cumulative sum
+    steps = np.ones(total, dtype=np.int64)
+    steps[0] = starts[0]
+    firsts = np.cumsum(counts[:-1])
+    steps[firsts] = starts[1:] - (starts[:-1] + counts[:-1] - 1)
+    return np.cumsum(steps)
 
 
 def _parse(polygons: Sequence[Sequence[object]]) -> tuple[list[np.ndarray], list[int], np.ndarray]:
