@@ -23,6 +23,8 @@ SMALL_SEQUENCE = 64
 # Candidates tested together per step in small sub-polygons with rule "first".
 _FIRST_CHUNK = 1
 _MAX_CHUNK = 64
+# Edges remembered per base as likely blockers of its next candidates.
+_MAX_BLOCKERS = 256
 
 
 def _rows(length: int, *rows: np.ndarray | float) -> np.ndarray:
@@ -116,9 +118,8 @@ def correct_candidates(
         & (np.minimum(ey0, ey1) <= ty1)
     )
     rows, cols = np.nonzero(near)
-    ok[live[pairs_failing(sx, sy, lo, hi, candidates[live], rows, edges[cols], exact_inputs)]] = (
-        False
-    )
+    failing, _ = pairs_failing(sx, sy, lo, hi, candidates[live], rows, edges[cols], exact_inputs)
+    ok[live[failing]] = False
     return ok
 
 
@@ -131,13 +132,14 @@ def pairs_failing(
     rows: np.ndarray,
     edges: np.ndarray,
     exact_inputs: bool = False,
-) -> np.ndarray:
-    """Indices into ``candidates`` that fail conditions 2 or 3 on one of the given pairs.
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices into ``candidates`` that fail conditions 2 or 3 on one of the given pairs, and
+    the edges that made them fail.
 
     Pair k is candidate ``candidates[rows[k]]`` with the edge (edges[k], edges[k] + 1).
     """
     if len(rows) == 0:
-        return rows
+        return rows, rows
     ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
     cx, cy = sx[candidates], sy[candidates]
     count = len(rows)
@@ -158,13 +160,16 @@ def pairs_failing(
         exact_inputs,
     )
     bad = np.zeros(len(candidates), dtype=bool)
+    blockers = [edges[:0]]
     pair_rows = np.concatenate([rows, rows])
+    pair_edges = np.concatenate([edges, edges])
     # condition 3: a vertex in the relative interior of a new side
     for side, (ux, uy) in ((1, (bx, by)), (2, (ax, ay))):
         zero = np.flatnonzero(f[side] == 0)
         if len(zero):
             inside = strictly_between(px[zero], py[zero], ux, uy, pcx[zero], pcy[zero])
             bad[pair_rows[zero[inside]]] = True
+            blockers.append(pair_edges[zero[inside]])
     # condition 2: an edge meets the open triangle (separating-axis test, all exact signs)
     inward = (np.maximum(f[:, :count], f[:, count:]) > 0).all(axis=0)
     if inward.any():
@@ -180,7 +185,8 @@ def pairs_failing(
         crossing = ((g.min(axis=0) < 0) & (g.max(axis=0) > 0)) | degenerate
         if crossing.any():
             bad[rows[hit[crossing]]] = True
-    return np.flatnonzero(bad)
+            blockers.append(edges[hit[crossing]])
+    return np.flatnonzero(bad), np.concatenate(blockers)
 
 
 class _Tree:
@@ -210,6 +216,7 @@ class _Tree:
         sx, sy = self.sx, self.sy
         small = self.grid is None or hi - lo <= SMALL_SEQUENCE
         found: list[np.ndarray] = []
+        blockers: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
         start = hi - 1
         size = _FIRST_CHUNK
         while start > lo:
@@ -225,7 +232,7 @@ class _Tree:
                 )
                 correct = chunk[mask]
             else:
-                correct = self._grid_correct(lo, hi, chunk, rule.exhaustive)
+                correct = self._grid_correct(lo, hi, chunk, rule.exhaustive, blockers)
             if len(correct):
                 found.append(correct)
                 if not rule.exhaustive:
@@ -234,13 +241,28 @@ class _Tree:
             return -1
         return rule.choose(np.concatenate(found), v1, v2, self.sz)
 
-    def _grid_correct(self, lo: int, hi: int, chunk: np.ndarray, exhaustive: bool) -> np.ndarray:
+    def _grid_correct(
+        self, lo: int, hi: int, chunk: np.ndarray, exhaustive: bool, blockers: list[np.ndarray]
+    ) -> np.ndarray:
         """The correct candidates of ``chunk`` (in order; only the first unless exhaustive).
 
-        Each candidate's triangle is looked up in the grid; all (candidate, edge) pairs are
-        then tested in one vectorised step.
+        Edges that blocked earlier candidates of this base (``blockers``, updated) often block
+        the next ones too: they are tried first. The others are looked up in the grid per
+        candidate triangle; all (candidate, edge) pairs are tested in one vectorised step.
         """
         sx, sy = self.sx, self.sy
+        known = np.unique(np.concatenate(blockers))
+        if len(known):
+            rows = np.repeat(np.arange(len(chunk)), len(known))
+            failing, _ = pairs_failing(
+                sx, sy, lo, hi, chunk, rows, np.tile(known, len(chunk)), self.exact
+            )
+            if len(failing):
+                keep = np.ones(len(chunk), dtype=bool)
+                keep[failing] = False
+                chunk = chunk[keep]
+                if len(chunk) == 0:
+                    return chunk
         rows, edges = [], []
         corners_x = np.array([sx[hi], sx[lo], 0.0])
         corners_y = np.array([sy[hi], sy[lo], 0.0])
@@ -250,9 +272,11 @@ class _Tree:
             found = np.unique(found[(found >= lo) & (found < hi)])
             edges.append(found)
             rows.append(np.full(len(found), index))
-        failing = pairs_failing(
+        failing, blocking = pairs_failing(
             sx, sy, lo, hi, chunk, np.concatenate(rows), np.concatenate(edges), self.exact
         )
+        if len(blocking) and len(known) < _MAX_BLOCKERS:
+            blockers.append(blocking)
         mask = np.ones(len(chunk), dtype=bool)
         mask[failing] = False
         correct = chunk[mask]
