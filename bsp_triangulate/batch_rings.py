@@ -251,7 +251,15 @@ def _band_pairs(
     owner = poly_of[edges]
     start = np.searchsorted(sorted_key, owner + (lo - cmin[owner]) * scale[owner], "left")
     stop = np.searchsorted(sorted_key, owner + (hi - cmin[owner]) * scale[owner], "right")
-    counts = stop - start
+    # the band's first and last keys are the edge's own end points': drop them unless another
+    # vertex has the same key
+    tied = np.zeros(len(sorted_key), dtype=bool)
+    same = sorted_key[1:] == sorted_key[:-1]
+    tied[1:] |= same
+    tied[:-1] |= same
+    start += ~tied[start]
+    stop -= ~tied[stop - 1]
+    counts = np.maximum(stop - start, 0)
     return np.repeat(edges, counts), order[_ragged_index(start, counts)]
 
 
@@ -269,19 +277,34 @@ def touching_polygons(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
     nxt[flat.ring_start + flat.ring_len - 1] = flat.ring_start
     x0, x1 = np.minimum(wx, wx[nxt]), np.maximum(wx, wx[nxt])
     y0, y1 = np.minimum(wy, wy[nxt]), np.maximum(wy, wy[nxt])
-    # candidates from the thinner slab of each edge's bounding box
+    # candidates from the thinner slab of each edge's bounding box, then its other side
     steep = x1 - x0 <= y1 - y0
-    e_x, v_x = _band_pairs(wx, poly_of, count, np.flatnonzero(steep), x0[steep], x1[steep])
-    flat_ = ~steep
-    e_y, v_y = _band_pairs(wy, poly_of, count, np.flatnonzero(flat_), y0[flat_], y1[flat_])
-    edge = np.concatenate([e_x, e_y])
-    vertex = np.concatenate([v_x, v_y])
-    keep = (vertex != edge) & (vertex != nxt[edge])
-    edge, vertex = edge[keep], vertex[keep]
+    groups = []
+    for mask, along, across, lo, hi in (
+        (steep, wx, wy, y0, y1),
+        (~steep, wy, wx, x0, x1),
+    ):
+        chosen = np.flatnonzero(mask)
+        band_lo = np.minimum(along[chosen], along[nxt[chosen]])
+        band_hi = np.maximum(along[chosen], along[nxt[chosen]])
+        e, v = _band_pairs(along, poly_of, count, chosen, band_lo, band_hi)
+        t = across[v]
+        near = (t >= lo[e]) & (t <= hi[e])
+        groups.append((e[near], v[near]))
+    edge = np.concatenate([g[0] for g in groups])
+    vertex = np.concatenate([g[1] for g in groups])
+    a, b = edge, nxt[edge]
     px, py = wx[vertex], wy[vertex]
     in_box = (px >= x0[edge]) & (px <= x1[edge]) & (py >= y0[edge]) & (py <= y1[edge])
-    edge, vertex, px, py = edge[in_box], vertex[in_box], px[in_box], py[in_box]
-    a, b = edge, nxt[edge]
+    in_box &= (vertex != a) & (vertex != b)
+    edge, vertex, px, py, a, b = (
+        edge[in_box],
+        vertex[in_box],
+        px[in_box],
+        py[in_box],
+        a[in_box],
+        b[in_box],
+    )
     ax, ay, bx, by = wx[a], wy[a], wx[b], wy[b]
     at_end = ((px == ax) & (py == ay)) | ((px == bx) & (py == by))
     touching[poly_of[vertex[at_end]]] = True
