@@ -16,7 +16,7 @@ import numpy as np
 
 from .batch_predicates import orient_items, orient_rows, row_bound
 from .batch_rings import _ragged_index
-from .predicates import grid_exact, orient_many, strictly_between
+from .predicates import grid_exact, strictly_between
 
 # test items x sub-polygon vertices per numpy pass (bounds the memory of one round)
 _CHUNK_ELEMENTS = 1 << 21
@@ -35,21 +35,42 @@ class Trees:
     ok: np.ndarray
 
 
+@dataclass
+class Turns:
+    """Per sequence position j: the sign of the turn s_{j-1} s_j s_{j+1} and whether it is a
+    spike (a collinear turn back); index j - 1."""
+
+    turn: np.ndarray
+    spike: np.ndarray
+
+    @classmethod
+    def of(cls, sx: np.ndarray, sy: np.ndarray, exact: bool) -> Turns:
+        px, py, vx, vy, nx, ny = sx[:-2], sy[:-2], sx[1:-1], sy[1:-1], sx[2:], sy[2:]
+        turn = orient_items(px, py, vx, vy, nx, ny, exact)
+        spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
+        return cls(turn, spike)
+
+
 def _apex_angle(
-    sx: np.ndarray, sy: np.ndarray, c: np.ndarray, tx: np.ndarray, ty: np.ndarray, exact: bool
+    sx: np.ndarray,
+    sy: np.ndarray,
+    turns: Turns,
+    c: np.ndarray,
+    tx: np.ndarray,
+    ty: np.ndarray,
+    exact: bool,
 ) -> np.ndarray:
     """``engine`` condition 4 for candidate positions ``c`` towards (tx, ty)."""
     px, py = sx[c - 1], sy[c - 1]
     vx, vy = sx[c], sy[c]
     nx, ny = sx[c + 1], sy[c + 1]
-    turn = orient_items(px, py, vx, vy, nx, ny, exact)
+    turn = turns.turn[c - 1]
     after_next = orient_items(vx, vy, nx, ny, tx, ty, exact) >= 0
     after_prev = orient_items(px, py, vx, vy, tx, ty, exact) >= 0
-    spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
     return np.where(
         turn > 0,
         after_next & after_prev,
-        np.where(turn < 0, after_next | after_prev, after_next | spike),
+        np.where(turn < 0, after_next | after_prev, after_next | turns.spike[c - 1]),
     )
 
 
@@ -65,6 +86,7 @@ def correct_mask(
     c: np.ndarray,
     extent_x: np.ndarray,
     extent_y: np.ndarray,
+    turns: Turns,
     exact: bool,
 ) -> np.ndarray:
     """Per test item: candidate position ``c`` forms a correct triangle on the base of the
@@ -78,8 +100,8 @@ def correct_mask(
     idx = np.flatnonzero(ok)
     if len(idx) == 0:
         return ok
-    ok[idx] = _apex_angle(sx, sy, c[idx], ax[idx], ay[idx], exact) & _apex_angle(
-        sx, sy, c[idx], bx[idx], by[idx], exact
+    ok[idx] = _apex_angle(sx, sy, turns, c[idx], ax[idx], ay[idx], exact) & _apex_angle(
+        sx, sy, turns, c[idx], bx[idx], by[idx], exact
     )
     idx = idx[ok[idx]]
     if len(idx) == 0:
@@ -157,29 +179,33 @@ def _bad_rows(
     if len(flat):
         k, r = np.divmod(flat, n)
         ex0, ey0, ex1, ey1 = px[k, r], py[k, r], px[k + 1, r], py[k + 1, r]
-        g_a = orient_many(ex0, ey0, ex1, ey1, ax[r], ay[r], exact)
-        g_b = orient_many(ex0, ey0, ex1, ey1, bx[r], by[r], exact)
-        g_c = orient_many(ex0, ey0, ex1, ey1, cx[r], cy[r], exact)
-        lowest = np.minimum(np.minimum(g_a, g_b), g_c)
-        highest = np.maximum(np.maximum(g_a, g_b), g_c)
+        m = len(r)
+        g = orient_items(
+            np.tile(ex0, 3), np.tile(ey0, 3), np.tile(ex1, 3), np.tile(ey1, 3),
+            np.concatenate([ax[r], bx[r], cx[r]]), np.concatenate([ay[r], by[r], cy[r]]),
+            exact,
+        ).reshape(3, m)  # fmt: skip
+        lowest, highest = g.min(axis=0), g.max(axis=0)
         degenerate = (ex0 == ex1) & (ey0 == ey1)
         bad[r[((lowest < 0) & (highest > 0)) | degenerate]] = True
     return bad
 
 
-def _chunked_correct(sx, sy, lo, hi, c, ext_x, ext_y, exact) -> np.ndarray:
+def _chunked_correct(sx, sy, lo, hi, c, ext_x, ext_y, turns, exact) -> np.ndarray:
     """:func:`correct_mask` in passes of bounded size."""
     n = len(c)
     if n == 0:
         return np.zeros(0, dtype=bool)
     work = np.cumsum(hi - lo + 1)
     if work[-1] <= _CHUNK_ELEMENTS:
-        return correct_mask(sx, sy, lo, hi, c, ext_x, ext_y, exact)
+        return correct_mask(sx, sy, lo, hi, c, ext_x, ext_y, turns, exact)
     out = np.empty(n, dtype=bool)
     cuts = np.searchsorted(work, np.arange(_CHUNK_ELEMENTS, work[-1], _CHUNK_ELEMENTS))
     bounds = np.unique(np.concatenate([[0], cuts, [n]]))
     for s, t in zip(bounds[:-1], bounds[1:]):
-        out[s:t] = correct_mask(sx, sy, lo[s:t], hi[s:t], c[s:t], ext_x[s:t], ext_y[s:t], exact)
+        out[s:t] = correct_mask(
+            sx, sy, lo[s:t], hi[s:t], c[s:t], ext_x[s:t], ext_y[s:t], turns, exact
+        )
     return out
 
 
@@ -233,6 +259,7 @@ def build_trees(
     # a sample that is not grid-exact rules out the whole (cheap for float data)
     exact = grid_exact(sx[:1024], sy[:1024]) and grid_exact(sx, sy)
     extent_x, extent_y = _extents(sx, sy, seq_start, seq_len + 1)
+    turns = Turns.of(sx, sy, exact)
     m = seq_len
     tri_count = np.maximum(m - 2, 0)
     tri_start = np.cumsum(tri_count) - tri_count
@@ -259,7 +286,7 @@ def build_trees(
             c = np.repeat(hi - 1, span) - _ragged_index(np.zeros(len(poly), np.int64), span)
             po = poly[owner]
             good = _chunked_correct(
-                sx, sy, lo[owner], hi[owner], c, extent_x[po], extent_y[po], exact
+                sx, sy, lo[owner], hi[owner], c, extent_x[po], extent_y[po], turns, exact
             )
             found = np.bincount(owner[good], minlength=len(poly)) > 0
             apex = np.full(len(poly), -1, dtype=np.int64)
@@ -269,7 +296,9 @@ def build_trees(
                 apex[found] = _choose_elevation(sz, owner[good], c[good], v1, v2)
             failed = ~found
         else:
-            good = _chunked_correct(sx, sy, lo, hi, cand, extent_x[poly], extent_y[poly], exact)
+            good = _chunked_correct(
+                sx, sy, lo, hi, cand, extent_x[poly], extent_y[poly], turns, exact
+            )
             found = good
             apex = cand
             failed = ~good & (cand - 1 <= lo)
