@@ -70,23 +70,25 @@ def _parse(polygons: Sequence[Sequence[object]]) -> tuple[list[np.ndarray], list
     """Input rings as float arrays; the ring count per polygon (-1: not handled)."""
     arrays: list[np.ndarray] = []
     counts: list[int] = []
+    widths: list[int] = []
+    ndarray, float64 = np.ndarray, np.float64
     for rings in polygons:
-        if isinstance(rings, np.ndarray) and rings.ndim == 2:
+        if isinstance(rings, ndarray) and rings.ndim == 2:
             rings = [rings]
+        before = len(arrays)
         try:
-            parsed = [np.asarray(ring, dtype=np.float64) for ring in rings]
+            for ring in rings:
+                if type(ring) is not ndarray or ring.dtype != float64:
+                    ring = np.asarray(ring, dtype=float64)
+                shape = ring.shape
+                if len(shape) != 2 or shape[1] not in (2, 3, 4) or shape[0] == 0:
+                    raise ValueError("unusual ring")
+                arrays.append(ring)
+                widths.append(shape[1])
         except (TypeError, ValueError):
-            counts.append(-1)
-            continue
-        if not parsed or any(
-            a.ndim != 2 or a.shape[1] not in (2, 3, 4) or a.shape[0] == 0 for a in parsed
-        ):
-            counts.append(-1)
-            continue
-        arrays.extend(parsed)
-        counts.append(len(parsed))
-    widths = np.array([a.shape[1] for a in arrays], dtype=np.int64)
-    return arrays, counts, widths
+            del arrays[before:], widths[before:]
+        counts.append(len(arrays) - before or -1)
+    return arrays, counts, np.array(widths, dtype=np.int64)
 
 
 def _stack(arrays: list[np.ndarray], widths: np.ndarray) -> np.ndarray:
@@ -160,6 +162,7 @@ def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> Fl
             finite = np.isfinite(raw).all(axis=1)
             ring_finite = np.logical_and.reduceat(finite, raw_start)
             handled[ring_poly[~ring_finite]] = False
+        if len(raw) and raw[:, 2].any():
             outer_rings = poly_ring0[poly_rings > 0]
             outer_len = raw_len[outer_rings]
             outer_points = raw[_ragged_index(raw_start[outer_rings], outer_len)]
@@ -204,8 +207,7 @@ def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> Fl
         mirrored = outer_sign < 0
         ring_sign = signs * np.where(mirrored[ring_poly], -1, 1)
         ring_reversed = is_island & (ring_sign > 0)
-        poly_vcount = np.zeros(count, dtype=np.int64)
-        np.add.at(poly_vcount, ring_poly, ring_len)
+        poly_vcount = np.bincount(ring_poly, weights=ring_len, minlength=count).astype(np.int64)
         poly_vstart = np.cumsum(poly_vcount) - poly_vcount
         handled[poly_vcount > max_vertices] = False
         empty &= handled
