@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .batch_predicates import orient_items
 from .batch_rings import FlatRings, _ragged_index
-from .predicates import orient_many, strictly_between
+from .predicates import strictly_between
 
 # relative margin within which two squared distances count as a tie (left to the engine)
 _TIE = 1e-12
@@ -52,10 +53,10 @@ def _inside_angle(
 ) -> np.ndarray:
     """``bridges._Bridger._inside_angle`` for arrays of (previous, vertex, next) occurrences."""
     px, py, vx, vy, nx, ny = wx[p], wy[p], wx[v], wy[v], wx[n], wy[n]
-    turn = orient_many(px, py, vx, vy, nx, ny)
-    on_next = orient_many(vx, vy, nx, ny, tx, ty)
+    turn = orient_items(px, py, vx, vy, nx, ny)
+    on_next = orient_items(vx, vy, nx, ny, tx, ty)
     left_next = on_next > 0
-    left_prev = orient_many(px, py, vx, vy, tx, ty) > 0
+    left_prev = orient_items(px, py, vx, vy, tx, ty) > 0
     straight = (nx - vx) * (px - vx) + (ny - vy) * (py - vy) < 0
     on_ray = (on_next == 0) & ((tx - vx) * (nx - vx) + (ty - vy) * (ny - vy) > 0)
     collinear = np.where(straight, left_next, ~on_ray)
@@ -80,16 +81,16 @@ def _segment_clear(
     a, b = edge_a[e], edge_b[e]
     ux, uy, vx, vy = wx[u][item], wy[u][item], wx[w][item], wy[w][item]
     ax, ay, bx, by = wx[a], wy[a], wx[b], wy[b]
-    o1 = orient_many(ux, uy, vx, vy, ax, ay)
-    o2 = orient_many(ux, uy, vx, vy, bx, by)
+    o1 = orient_items(ux, uy, vx, vy, ax, ay)
+    o2 = orient_items(ux, uy, vx, vy, bx, by)
     blocked = ((o1 == 0) & strictly_between(ax, ay, ux, uy, vx, vy)) | (
         (o2 == 0) & strictly_between(bx, by, ux, uy, vx, vy)
     )
     straddle = np.flatnonzero((o1.astype(np.int16) * o2) < 0)
     if len(straddle):
         s = straddle
-        o3 = orient_many(ax[s], ay[s], bx[s], by[s], ux[s], uy[s])
-        o4 = orient_many(ax[s], ay[s], bx[s], by[s], vx[s], vy[s])
+        o3 = orient_items(ax[s], ay[s], bx[s], by[s], ux[s], uy[s])
+        o4 = orient_items(ax[s], ay[s], bx[s], by[s], vx[s], vy[s])
         blocked[s[(o3.astype(np.int16) * o4) < 0]] = True
     return np.bincount(item[blocked], minlength=len(u)) == 0
 
