@@ -25,7 +25,7 @@ import numpy as np
 
 from .batch_bridges import bridge_sequences
 from .batch_bsp import build_trees
-from .batch_rings import _ragged_index, flatten_rings, touching_polygons
+from .batch_rings import flatten_rings, ragged_index, touching_polygons
 from .triangulation import Triangulation
 
 # Larger polygons go to the engine (its grid index beats the all-edges tests there).
@@ -68,14 +68,11 @@ def _triangulate(
     seq_start, seq_len = seq_start[bridged], seq_len[bridged]
     # each sequence with its closing repeat of position 0
     ext_len = seq_len + 1
-    pos = _ragged_index(seq_start, seq_len)
-    owner = np.repeat(np.arange(len(polys_ok), dtype=np.int64), seq_len)
     ext_start = np.cumsum(ext_len) - ext_len
     ext = np.empty(int(ext_len.sum()), dtype=np.int64)
-    ext[_ragged_index(ext_start, seq_len)] = seq[pos]
+    ext[ragged_index(ext_start, seq_len)] = seq[ragged_index(seq_start, seq_len)]
     ext[ext_start + seq_len] = seq[seq_start]
     ext_owner = np.repeat(np.arange(len(polys_ok), dtype=np.int64), ext_len)
-    del owner
     local = ext - flat.poly_vstart[polys_ok][ext_owner]
     trees = build_trees(
         local,

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .batch_predicates import orient_items
-from .batch_rings import FlatRings, _ragged_index
+from .batch_rings import FlatRings, ragged_index
 from .predicates import strictly_between
 
 # relative margin within which two squared distances count as a tie (left to the engine)
@@ -26,7 +26,7 @@ def traversal_ids(flat: FlatRings) -> np.ndarray:
     ids = np.arange(nv, dtype=np.int64)
     rev = np.flatnonzero(flat.ring_reversed)
     if len(rev):
-        pos = _ragged_index(flat.ring_start[rev], flat.ring_len[rev])
+        pos = ragged_index(flat.ring_start[rev], flat.ring_len[rev])
         ring_of = np.repeat(rev, flat.ring_len[rev])
         first = flat.ring_start[ring_of]
         ids[pos] = first + flat.ring_len[ring_of] - 1 - (pos - first)
@@ -38,7 +38,7 @@ def _segments(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Gather of ``src`` segments (rows of ``starts``/``lengths`` concatenated per row)."""
     flat_len = lengths.reshape(-1)
-    out = src[_ragged_index(starts.reshape(-1), flat_len)]
+    out = src[ragged_index(starts.reshape(-1), flat_len)]
     return out, lengths.sum(axis=1)
 
 
@@ -77,7 +77,7 @@ def _segment_clear(
 ) -> np.ndarray:
     """Per test i: no edge of its range meets the open segment u_i w_i, no vertex lies on it."""
     item = np.repeat(np.arange(len(u), dtype=np.int64), edge_count)
-    e = _ragged_index(edge_start, edge_count)
+    e = ragged_index(edge_start, edge_count)
     a, b = edge_a[e], edge_b[e]
     ux, uy, vx, vy = wx[u][item], wy[u][item], wx[w][item], wy[w][item]
     ax, ay, bx, by = wx[a], wy[a], wx[b], wy[b]
@@ -113,10 +113,10 @@ def bridge_sequences(
     if not (islands > 0).any():
         return seq, seq_start, seq_len, ok
     # islands of each polygon in the order of their leftmost vertex (x, then y)
-    island_rings = _ragged_index(ring0 + 1, islands)
+    island_rings = ragged_index(ring0 + 1, islands)
     island_poly = np.repeat(np.arange(len(polys), dtype=np.int64), islands)
     rlen = flat.ring_len[island_rings]
-    pos = _ragged_index(flat.ring_start[island_rings], rlen)
+    pos = ragged_index(flat.ring_start[island_rings], rlen)
     ring_item = np.repeat(np.arange(len(island_rings), dtype=np.int64), rlen)
     vid = trav[pos]
     order = np.lexsort((wy[vid], wx[vid], ring_item))
@@ -147,7 +147,7 @@ def bridge_sequences(
         # edges: ring edges plus the bridges so far, grouped per active polygon
         vstart = flat.poly_vstart[polys[active]]
         vcount = flat.poly_vcount[polys[active]]
-        ea = _ragged_index(vstart, vcount)
+        ea = ragged_index(vstart, vcount)
         eb = nxt[ea]
         e_owner = np.repeat(np.arange(len(active), dtype=np.int64), vcount)
         if bridge_p:
@@ -165,7 +165,7 @@ def bridge_sequences(
         # candidates: every occurrence of the current sequences
         c_len = seq_len[active]
         c_start = np.cumsum(c_len) - c_len
-        c_pos = _ragged_index(seq_start[active], c_len)
+        c_pos = ragged_index(seq_start[active], c_len)
         c_owner = np.repeat(np.arange(len(active), dtype=np.int64), c_len)
         c_id = seq[c_pos]
         c_x, c_y = wx[c_id], wy[c_id]

@@ -15,7 +15,7 @@ from fractions import Fraction
 import numpy as np
 
 from .batch_predicates import orient_items, orient_rows, row_bound
-from .batch_rings import _ragged_index
+from .batch_rings import ragged_index
 from .predicates import grid_exact, strictly_between
 
 # test items x sub-polygon vertices per numpy pass (bounds the memory of one round)
@@ -283,7 +283,7 @@ def build_trees(
         if exhaustive:
             span = hi - lo - 1
             owner = np.repeat(np.arange(len(poly), dtype=np.int64), span)
-            c = np.repeat(hi - 1, span) - _ragged_index(np.zeros(len(poly), np.int64), span)
+            c = np.repeat(hi - 1, span) - ragged_index(np.zeros(len(poly), np.int64), span)
             po = poly[owner]
             good = _chunked_correct(
                 sx, sy, lo[owner], hi[owner], c, extent_x[po], extent_y[po], turns, exact

@@ -51,7 +51,7 @@ class FlatRings:
     ring_reversed: np.ndarray
 
 
-def _ragged_index(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+def ragged_index(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     """Concatenation of ``arange(s, s + c)`` for every (s, c)."""
     keep = counts > 0
     starts, counts = starts[keep], counts[keep]
@@ -165,7 +165,7 @@ def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> Fl
         if len(raw) and raw[:, 2].any():
             outer_rings = poly_ring0[poly_rings > 0]
             outer_len = raw_len[outer_rings]
-            outer_points = raw[_ragged_index(raw_start[outer_rings], outer_len)]
+            outer_points = raw[ragged_index(raw_start[outer_rings], outer_len)]
             plane = _xy_is_working_plane(outer_points, np.cumsum(outer_len) - outer_len, outer_len)
             handled[ring_poly[outer_rings[~plane]]] = False
         # clean: consecutive duplicates in XY, then a closing point equal to the first
@@ -262,7 +262,7 @@ def _band_pairs(
     start += ~tied[start]
     stop -= ~tied[stop - 1]
     counts = np.maximum(stop - start, 0)
-    return np.repeat(edges, counts), order[_ragged_index(start, counts)]
+    return np.repeat(edges, counts), order[ragged_index(start, counts)]
 
 
 def touching_polygons(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
