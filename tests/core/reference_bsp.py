@@ -5,13 +5,9 @@ compared with it triangle by triangle. Every predicate is exact: coordinates are
 Python integers by one common power-of-two scale, which changes no sign of any determinant.
 The cost is O(n^3) per polygon, fine for the small polygons the tests feed it.
 
-Scope: rings in the XY working plane (a ring with Z whose Newell normal is dominated by x or y
-raises ``NotImplementedError``), planar tolerance 0. Touching rings: edges are split at the other
-rings' vertices on them, and islands sharing a point with the sequence are joined there first
-(see ``bridge``); docs/algorithm.md section 2 only has the leftmost-vertex rule, which for an
-island touching at another vertex gives a sequence that crosses itself at the touching point.
-Likewise a correct triangle needs a fourth condition besides section 4's three (see
-``is_correct_triangle``) to tell duplicate occurrences of a point apart.
+Scope: an outer ring whose working plane is XY (a ring with Z whose Newell normal is dominated
+by x or y raises ``NotImplementedError``), planar tolerance 0. Touching rings, shared-edge
+spikes and the apex-angle condition follow docs/algorithm.md sections 2 and 4.
 """
 
 from __future__ import annotations
@@ -166,7 +162,7 @@ def _integer_scale(values: Sequence[float]) -> int:
 
 
 def split_touching(rings: list[list[int]], pts: list[Point]) -> list[list[int]]:
-    """Split every ring edge at the vertices of the other rings lying in its relative interior.
+    """Split every ring edge at the vertices (of any ring) lying in its relative interior.
 
     One vertex per distinct point is inserted (the lowest index), ordered from the edge's start.
     """
@@ -174,21 +170,33 @@ def split_touching(rings: list[list[int]], pts: list[Point]) -> list[list[int]]:
     for ring in rings:
         for v in ring:
             first_index.setdefault(pts[v], v)
-    owners: dict[Point, set[int]] = {}
-    for number, ring in enumerate(rings):
-        for v in ring:
-            owners.setdefault(pts[v], set()).add(number)
     out = []
-    for number, ring in enumerate(rings):
+    for ring in rings:
         split: list[int] = []
         for i, v in enumerate(ring):
             a, b = pts[v], pts[ring[(i + 1) % len(ring)]]
             split.append(v)
-            inside = [p for p, rs in owners.items() if rs - {number} and on_open_segment(p, a, b)]
+            inside = [p for p in first_index if on_open_segment(p, a, b)]
             inside.sort(key=lambda p: (p[0] - a[0]) ** 2 + (p[1] - a[1]) ** 2)
             split.extend(first_index[p] for p in inside)
         out.append(split)
     return out
+
+
+def cancel_spikes(seq: list[int], pts: list[Point]) -> list[int]:
+    """Cancel every edge walked straight back (p, s, p -> p), repeatedly and cyclically."""
+    seq = list(seq)
+    changed = True
+    while changed and len(seq) >= 2:
+        changed = False
+        n = len(seq)
+        for i in range(n):
+            if pts[seq[i - 1]] == pts[seq[(i + 1) % n]]:
+                drop = {i, (i + 1) % n}
+                seq = [v for k, v in enumerate(seq) if k not in drop]
+                changed = True
+                break
+    return seq
 
 
 def _bridge_is_valid(
@@ -233,8 +241,8 @@ def bridge(outer: list[int], islands: list[list[int]], pts: list[Point]) -> list
     Order: while some island shares a point with S, the one with the smallest leftmost vertex
     among them is joined at its smallest shared point; otherwise the next island in leftmost
     order is joined from its leftmost vertex. The bridge goes to the nearest valid occurrence
-    (a shared point is at distance 0 and valid where the island's edges at h leave into the
-    interior angle of that occurrence), ties to the smallest k.
+    (a shared point is at distance 0 and valid where the closed interior angle of that
+    occurrence holds both island edges at h), ties to the smallest k.
     """
     seq = list(outer)
     rank = sorted(range(len(islands)), key=lambda i: (min(pts[v] for v in islands[i]), i))
@@ -262,10 +270,8 @@ def bridge(outer: list[int], islands: list[list[int]], pts: list[Point]) -> list
         for k in range(len(seq)):
             p = pts[seq[k]]
             prev, nxt = pts[seq[k - 1]], pts[seq[(k + 1) % len(seq)]]
-            if p == q:
-                valid = any(
-                    inside_interior_angle(prev, p, nxt, pts[t]) for t in (loop[1], loop[-1])
-                )
+            if p == q:  # the occurrence must hold the island's corner at h
+                valid = all(within_closed_angle(prev, p, nxt, pts[t]) for t in (loop[1], loop[-1]))
             else:
                 valid = _bridge_is_valid(seq, k, h, edges, points, pts)
             dist = (p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2
@@ -365,9 +371,8 @@ def reference_triangulate(
     vertices = [p for ring in normalised for p in ring]
     if not normalised or len(normalised[0]) < 3:
         return ReferenceResult(vertices=vertices)
-    for ring in normalised:
-        if len(ring) >= 3 and not xy_is_working_plane(ring):
-            raise NotImplementedError("walls (non-XY working plane) are out of the oracle's scope")
+    if not xy_is_working_plane(normalised[0]):  # the outer ring decides for all rings
+        raise NotImplementedError("walls (non-XY working plane) are out of the oracle's scope")
     scale = _integer_scale([c for ring in normalised for p in ring for c in p[:2]])
     pts = [(int(Fraction(p[0]) * scale), int(Fraction(p[1]) * scale)) for p in vertices]
     index_rings: list[list[int]] = []
@@ -390,7 +395,9 @@ def reference_triangulate(
     oriented = split_touching(oriented, pts)
     islands = oriented[1:]
 
-    seq = bridge(oriented[0], islands, pts)
+    seq = cancel_spikes(bridge(oriented[0], islands, pts), pts)
+    if len(seq) < 3:  # everything cancelled: the islands cover the outer ring
+        return ReferenceResult(vertices=vertices)
     seq = [*seq, seq[0]]  # s_m = s_0
     seq_pts = [pts[v] for v in seq]
     seq_z = [vertices[v][2] for v in seq]
