@@ -12,7 +12,9 @@ Contract of :func:`triangulate_batch`:
   nearly equal bridge distances, unusual input (empty rings, non-finite or malformed points),
   rules other than "first" and "elevation", and polygons the engine would reject (its error
   message comes from the engine).
-- The result's ``vertices`` may be a view into an array shared by the batch.
+- The result arrays are slices of arrays shared by the batch (disjoint per polygon).
+- Speed comes from many polygons per call: every round of the tree costs a fixed number of
+  numpy calls, so calls of a few polygons gain little; thousands per call is the intent.
 
 Pipeline: ``batch_rings`` (normalisation), ``batch_bridges`` (islands), ``batch_bsp`` (tree).
 """
