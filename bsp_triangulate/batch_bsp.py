@@ -191,7 +191,17 @@ def _bad_rows(
     return bad
 
 
-def _chunked_correct(sx, sy, lo, hi, c, ext_x, ext_y, turns, exact) -> np.ndarray:
+def _chunked_correct(
+    sx: np.ndarray,
+    sy: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    ext_x: np.ndarray,
+    ext_y: np.ndarray,
+    turns: Turns,
+    exact: bool,
+) -> np.ndarray:
     """:func:`correct_mask` in passes of bounded size."""
     n = len(c)
     if n == 0:
@@ -236,7 +246,7 @@ def _choose_elevation(
     return chosen
 
 
-def _extents(sx, sy, starts, lengths) -> tuple[np.ndarray, np.ndarray]:
+def _extents(sx: np.ndarray, sy: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per sequence: max - min of x and of y (bounds every coordinate difference in it)."""
     extent_x = np.maximum.reduceat(sx, starts) - np.minimum.reduceat(sx, starts)
     extent_y = np.maximum.reduceat(sy, starts) - np.minimum.reduceat(sy, starts)
@@ -258,7 +268,7 @@ def build_trees(
     count = len(seq_start)
     # a sample that is not grid-exact rules out the whole (cheap for float data)
     exact = grid_exact(sx[:1024], sy[:1024]) and grid_exact(sx, sy)
-    extent_x, extent_y = _extents(sx, sy, seq_start, seq_len + 1)
+    extent_x, extent_y = _extents(sx, sy, seq_start)
     turns = Turns.of(sx, sy, exact)
     m = seq_len
     tri_count = np.maximum(m - 2, 0)
