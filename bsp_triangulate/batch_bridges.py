@@ -83,9 +83,11 @@ def _segment_clear(
     ax, ay, bx, by = wx[a], wy[a], wx[b], wy[b]
     o1 = orient_items(ux, uy, vx, vy, ax, ay)
     o2 = orient_items(ux, uy, vx, vy, bx, by)
-    blocked = ((o1 == 0) & strictly_between(ax, ay, ux, uy, vx, vy)) | (
-        (o2 == 0) & strictly_between(bx, by, ux, uy, vx, vy)
-    )
+    blocked = np.zeros(len(e), dtype=bool)
+    # an end point on the segment's line (mostly the segment's own ends) inside the segment
+    for o, px, py in ((o1, ax, ay), (o2, bx, by)):
+        z = np.flatnonzero(o == 0)
+        blocked[z[strictly_between(px[z], py[z], ux[z], uy[z], vx[z], vy[z])]] = True
     straddle = np.flatnonzero((o1.astype(np.int16) * o2) < 0)
     if len(straddle):
         s = straddle
