@@ -38,6 +38,7 @@ def report(quick: bool, only: list[str], budget: float, count: int | None = None
         "",
         f"Set: {describe_set(quick, count)}; a measurement is stopped after {budget:.0f} s.",
     ]
+    print("\n".join(sections), flush=True)
     for key in only:
         title, run = BENCHMARKS[key]
         print(f"running {key} ...", flush=True)
@@ -47,8 +48,9 @@ def report(quick: bool, only: list[str], budget: float, count: int | None = None
         except Exception:  # one broken benchmark must not hide the others' figures
             body = "Failed:\n\n```\n" + traceback.format_exc(limit=4) + "```"
         elapsed = time.perf_counter() - start
-        sections += ["", f"## {title}", "", body, "", f"({elapsed:.0f} s to run)"]
-        print(f"{key} done in {elapsed:.0f} s", flush=True)
+        section = ["", f"## {title}", "", body, "", f"({elapsed:.0f} s to run)"]
+        sections += section
+        print("\n".join(section), flush=True)  # each table as soon as it is measured
     return "\n".join(sections) + "\n"
 
 
@@ -73,8 +75,7 @@ def main() -> None:
     BUILD.mkdir(parents=True, exist_ok=True)
     results = BUILD / "results.md"
     results.write_text(text, encoding="utf-8")
-    print(text)
-    print(f"written to {results}")
+    print(f"\nThe whole report is in {results}")
 
 
 if __name__ == "__main__":
