@@ -74,6 +74,8 @@ def _apex_angle(
     )
 
 
+# below this many table entries a round uses one table for all items
+_ONE_TABLE = 1 << 16
 # padded row widths of the sub-polygon vertex tables (rows pad with the position hi)
 _WIDTHS = np.array([4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024])
 
@@ -110,6 +112,8 @@ def correct_mask(
     idx = idx[hi[idx] - lo[idx] > 2]
     size = hi[idx] - lo[idx] + 1
     widths = np.minimum(np.searchsorted(_WIDTHS, size), len(_WIDTHS) - 1)
+    if 0 < len(idx) * int(size.max(initial=0)) <= _ONE_TABLE:
+        widths[:] = widths.max()  # few items: one table, fewer numpy calls
     for k in np.unique(widths).tolist():
         rows = idx[widths == k]
         width = max(int(_WIDTHS[k]), int(size[widths == k].max()))
