@@ -47,6 +47,22 @@ def triangulate_batch(
         return _triangulate(polygons, _RULES[rule], max_vertices, results)
 
 
+def _twins(ext: np.ndarray, ext_start: np.ndarray) -> np.ndarray:
+    """Per position: the other position of the same vertex in its sequence (bridge ends), or
+    -1; position 0 of each sequence (never inside a sub-polygon) and triples are left out."""
+    ids = ext.copy()
+    ids[ext_start] = -1
+    valid = ids >= 0
+    counts = np.bincount(ids[valid], minlength=int(ext.max(initial=0)) + 1)
+    twin = np.full(len(ext), -1, dtype=np.int64)
+    paired = np.flatnonzero(valid & (counts[np.maximum(ids, 0)] == 2))
+    paired = paired[np.argsort(ids[paired], kind="stable")]
+    first, second = paired[0::2], paired[1::2]
+    twin[first] = second
+    twin[second] = first
+    return twin
+
+
 def _triangulate(
     polygons: Sequence[Sequence[object]],
     exhaustive: bool,
@@ -78,6 +94,7 @@ def _triangulate(
     local = ext - flat.poly_vstart[polys_ok][ext_owner]
     trees = build_trees(
         local,
+        _twins(ext, ext_start),
         wx[ext],
         wy[ext],
         flat.vz[ext],

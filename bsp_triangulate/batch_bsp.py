@@ -38,17 +38,19 @@ class Trees:
 @dataclass
 class Turns:
     """Per sequence position j: the sign of the turn s_{j-1} s_j s_{j+1} and whether it is a
-    spike (a collinear turn back); index j - 1."""
+    spike (a collinear turn back), at index j - 1; and ``twin[j]``, the other position of the
+    same vertex (bridge ends) or -1."""
 
     turn: np.ndarray
     spike: np.ndarray
+    twin: np.ndarray
 
     @classmethod
-    def of(cls, sx: np.ndarray, sy: np.ndarray, exact: bool) -> Turns:
+    def of(cls, sx: np.ndarray, sy: np.ndarray, twin: np.ndarray, exact: bool) -> Turns:
         px, py, vx, vy, nx, ny = sx[:-2], sy[:-2], sx[1:-1], sy[1:-1], sx[2:], sy[2:]
         turn = orient_items(px, py, vx, vy, nx, ny, exact)
         spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
-        return cls(turn, spike)
+        return cls(turn, spike, twin)
 
 
 def _apex_angle(
@@ -118,8 +120,9 @@ def correct_mask(
         rows = idx[widths == k]
         width = max(int(_WIDTHS[k]), int(size[widths == k].max()))
         bad = _bad_rows(
-            sx, sy, lo[rows], hi[rows], c[rows], extent_x[rows], extent_y[rows], width, exact
-        )
+            sx, sy, lo[rows], hi[rows], c[rows], extent_x[rows], extent_y[rows], turns.twin,
+            width, exact,
+        )  # fmt: skip
         ok[rows[bad]] = False
     return ok
 
@@ -132,6 +135,7 @@ def _bad_rows(
     c: np.ndarray,
     extent_x: np.ndarray,
     extent_y: np.ndarray,
+    twin: np.ndarray,
     width: int,
     exact: bool,
 ) -> np.ndarray:
@@ -151,21 +155,29 @@ def _bad_rows(
     def bound(ux: np.ndarray, uy: np.ndarray) -> np.ndarray | None:
         return None if exact else row_bound(ux, uy, extent_x, extent_y)
 
-    # entries known to be exactly zero: p at position lo (b), hi and the padding (a), c
+    # entries known to be exactly zero: p at position lo (b), hi and the padding (a), c, and
+    # the other occurrence (twin) of a corner inside the range: p is then a or b itself
     pad_count = int((width - last).sum())
+
+    def twin_col(position: np.ndarray) -> np.ndarray:
+        t = twin[position]
+        return np.where((t > lo) & (t < hi), t - lo, -1)
+
+    ta, tb, tc = twin_col(hi), twin_col(lo), twin_col(c)
+    n_ta, n_tb, n_tc = int((ta >= 0).sum()), int((tb >= 0).sum()), int((tc >= 0).sum())
     dxa, dya = px - ax, py - ay
     pos_ab, _, _ = orient_rows(
-        ax, ay, bx, by, px, py, dxa, dya, bound(bx - ax, by - ay), n + pad_count,
-        lambda k, r: (k == 0) | (k >= last[r]),
+        ax, ay, bx, by, px, py, dxa, dya, bound(bx - ax, by - ay), n + pad_count + n_ta + n_tb,
+        lambda k, r: (k == 0) | (k >= last[r]) | (k == ta[r]) | (k == tb[r]),
     )  # fmt: skip
     # orient(a, c, p) = -orient(c, a, p), sharing p - a with the line a -> b
     _, pos_ca, zero_ca = orient_rows(
-        ax, ay, cx, cy, px, py, dxa, dya, bound(cx - ax, cy - ay), n + pad_count,
-        lambda k, r: (k == ccol[r]) | (k >= last[r]),
+        ax, ay, cx, cy, px, py, dxa, dya, bound(cx - ax, cy - ay), n + pad_count + n_ta + n_tc,
+        lambda k, r: (k == ccol[r]) | (k >= last[r]) | (k == ta[r]) | (k == tc[r]),
     )  # fmt: skip
     pos_bc, _, zero_bc = orient_rows(
-        bx, by, cx, cy, px, py, px - bx, py - by, bound(cx - bx, cy - by), 2 * n,
-        lambda k, r: (k == 0) | (k == ccol[r]),
+        bx, by, cx, cy, px, py, px - bx, py - by, bound(cx - bx, cy - by), 2 * n + n_tb + n_tc,
+        lambda k, r: (k == 0) | (k == ccol[r]) | (k == tb[r]) | (k == tc[r]),
     )  # fmt: skip
     bad = np.zeros(n, dtype=bool)
     # condition 3: a vertex in the relative interior of a new side (the known zeros are the
@@ -259,6 +271,7 @@ def _extents(sx: np.ndarray, sy: np.ndarray, starts: np.ndarray) -> tuple[np.nda
 
 def build_trees(
     ids: np.ndarray,
+    twin: np.ndarray,
     sx: np.ndarray,
     sy: np.ndarray,
     sz: np.ndarray,
@@ -268,12 +281,13 @@ def build_trees(
     exhaustive: bool,
 ) -> Trees:
     """BSP trees of sequences laid out with their closing repeat (length ``seq_len + 1``) at
-    ``seq_start``; ``ids`` are the output vertex indices of every position."""
+    ``seq_start``; ``ids`` are the output vertex indices of every position, ``twin`` the other
+    position of the same vertex or -1."""
     count = len(seq_start)
     # a sample that is not grid-exact rules out the whole (cheap for float data)
     exact = grid_exact(sx[:1024], sy[:1024]) and grid_exact(sx, sy)
     extent_x, extent_y = _extents(sx, sy, seq_start)
-    turns = Turns.of(sx, sy, exact)
+    turns = Turns.of(sx, sy, twin, exact)
     m = seq_len
     tri_count = np.maximum(m - 2, 0)
     tri_start = np.cumsum(tri_count) - tri_count
