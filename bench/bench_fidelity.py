@@ -343,10 +343,10 @@ def run_table(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> tup
     rows = []
     for label, method, f in results:
         if isinstance(f, str):
-            rows.append(Row(label, f"{method}: RMS |surface - DEM|", f))
+            rows.append(Row(label, f"{method}: RMS of surface - DEM", f))
             continue
-        note = f"max {f.maximum:.1f} m over {f.evaluated:,} DEM cells"
-        rows.append(Row(label, f"{method}: RMS |surface - DEM|", f.rms, "m", note))
+        note = f"max {f.maximum:.1f} m over {f.evaluated:,} DEM cells, {f.uncovered:,} uncovered"
+        rows.append(Row(label, f"{method}: RMS of surface - DEM", f.rms, "m", note))
     return table, rows
 
 

@@ -18,7 +18,7 @@ from common import BUILD, Row, machine_info, markdown_table, rows_table
 BENCHMARKS: dict[str, tuple[str, Callable[[bool, float, int | None], list[Row]]]] = {
     "core": ("Core triangulation speed (in one process)", bench_core.run),
     "end_to_end": ("End to end through qgis_process", bench_end_to_end.run),
-    "fidelity": ("Terrain fidelity (|surface - DEM| at DEM cell centres)", bench_fidelity.run),
+    "fidelity": ("Terrain fidelity (surface - DEM at DEM cell centres)", bench_fidelity.run),
 }
 
 
