@@ -250,12 +250,18 @@ class _Bridger:
 
 
 def bridge_islands(
-    x: np.ndarray, y: np.ndarray, rings: list[np.ndarray], ring_numbers: list[int]
+    x: np.ndarray,
+    y: np.ndarray,
+    rings: list[np.ndarray],
+    ring_numbers: list[int],
+    relaxed: bool = False,
 ) -> np.ndarray:
     """The single vertex sequence of the outer ring with every island joined by a bridge.
 
     Islands that share a point with the sequence are joined there (zero-length bridge) before
-    any other island is bridged, so that touching rings never enclose an extra face.
+    any other island is bridged, so that touching rings never enclose an extra face. An island
+    with no valid bridge (outside the outer ring, crossing a ring) raises, unless ``relaxed``:
+    then it is joined to the nearest occurrence of the sequence, crossing or not.
     """
     if len(rings) == 1:
         return rings[0]
@@ -295,6 +301,8 @@ def bridge_islands(
                 break
             slot, h_index = item[2], item[3]
         target = bridger.find_bridge(rings[slot], h_index)
+        if target is None and relaxed:
+            target = _nearest_occurrence(x, y, bridger.seq, int(rings[slot][h_index]))
         if target is None:
             raise TriangulationError(
                 f"{ring_label(ring_numbers[slot])}: no bridge to the outer ring found "
@@ -304,6 +312,13 @@ def bridge_islands(
         joined[slot] = True
         mark_touching(rings[slot])
     return bridger.seq
+
+
+def _nearest_occurrence(x: np.ndarray, y: np.ndarray, seq: np.ndarray, h: int) -> tuple[int, int]:
+    """(k, vertex id) of the occurrence in ``seq`` nearest to vertex ``h`` (first on ties)."""
+    d2 = (x[seq] - x[h]) ** 2 + (y[seq] - y[h]) ** 2
+    k = int(np.argmin(d2))
+    return k, int(seq[k])
 
 
 def _touch_index(x: np.ndarray, y: np.ndarray, ring: np.ndarray, bridger: _Bridger) -> int:

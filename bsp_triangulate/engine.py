@@ -11,12 +11,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from .bridges import bridge_islands, remove_spikes, split_touching
-from .predicates import grid_exact, orient_many, strictly_between
+from .predicates import grid_exact, orient, orient_many, strictly_between
 from .rings import PreparedRings, normalise_rings, prepare, ring_label
 from .rules import ApexRule, get_rule
 from .spatial_index import SegmentGrid
 from .triangulation import Triangulation, TriangulationError
 
+INVALID_MODES = ("fail", "as_given")
 # Sub-polygons up to this many vertices test their candidates against all their edges at once;
 # larger sequences use a grid over the edges.
 SMALL_SEQUENCE = 64
@@ -193,9 +194,17 @@ class _Tree:
     """BSP construction over one bridged sequence."""
 
     def __init__(
-        self, prepared: PreparedRings, sequence: np.ndarray, z: np.ndarray, rule: ApexRule
+        self,
+        prepared: PreparedRings,
+        sequence: np.ndarray,
+        z: np.ndarray,
+        rule: ApexRule,
+        as_given: bool = False,
     ) -> None:
         self.prepared = prepared
+        self.as_given = as_given
+        self._prefix: np.ndarray | None = None
+        self.lost_area = False  # a fallback triangle of invalid input was clockwise
         self.ids = np.concatenate([sequence, sequence[:1]])
         self.sx = prepared.x[self.ids]
         self.sy = prepared.y[self.ids]
@@ -299,6 +308,8 @@ class _Tree:
                 raise TriangulationError(self._label(lo) + ": the BSP tree does not close")
             v1, v2 = (hi, lo) if v1_at_hi else (lo, hi)
             apex = self._apex(lo, hi, v1, v2)
+            if apex < 0 and self.as_given:
+                apex = self._fallback_apex(lo, hi)
             if apex < 0:
                 raise TriangulationError(
                     f"{self._label(v1)}: no correct triangle on the edge between vertices "
@@ -307,10 +318,11 @@ class _Tree:
                 )
             node = count
             # counter-clockwise in the working plane before mirroring
-            if mirrored:
-                triangles[node] = (ids[lo], ids[hi], ids[apex])
-            else:
-                triangles[node] = (ids[hi], ids[lo], ids[apex])
+            first, second = (lo, hi) if mirrored else (hi, lo)
+            if self.as_given and self._clockwise(first, second, apex):
+                first, second = second, first  # a fallback triangle of invalid input
+                self.lost_area = True
+            triangles[node] = (ids[first], ids[second], ids[apex])
             parent[node] = par
             depth[node] = dep
             side[node] = sd
@@ -329,6 +341,35 @@ class _Tree:
             side=side[:count],
         )
 
+    def _fallback_apex(self, lo: int, hi: int) -> int:
+        """Apex for a base of an invalid polygon that has no correct triangle (``as_given``).
+
+        Triangle areas always add up to the sequence's signed area, so the total area stays the
+        polygon's as long as no triangle is clockwise. Hence the preference, each the first in
+        the paper's order: an apex whose two child sub-polygons both keep a non-negative signed
+        area, zero-area triangles (they drop a zero-width spike or a pinch) before triangles on
+        the interior side; then any zero-area or interior-side triangle; then the first.
+        """
+        sx, sy = self.sx, self.sy
+        chunk = np.arange(hi - 1, lo, -1)
+        facing = orient_many(sx[hi], sy[hi], sx[lo], sy[lo], sx[chunk], sy[chunk])
+        if self._prefix is None:
+            cross = sx[:-1] * sy[1:] - sx[1:] * sy[:-1]
+            self._prefix = np.concatenate([[0.0], np.cumsum(cross)])
+        prefix = self._prefix
+        lower = prefix[chunk] - prefix[lo] + sx[chunk] * sy[lo] - sx[lo] * sy[chunk]
+        upper = prefix[hi] - prefix[chunk] + sx[hi] * sy[chunk] - sx[chunk] * sy[hi]
+        balanced = (lower >= 0) & (upper >= 0)
+        for wanted in (balanced & (facing == 0), balanced & (facing > 0), facing == 0, facing > 0):
+            if wanted.any():
+                return int(chunk[np.argmax(wanted)])
+        return int(chunk[0])
+
+    def _clockwise(self, a: int, b: int, c: int) -> bool:
+        """Triangle of positions (a, b, c) is clockwise in the output's XY."""
+        v = self.prepared.vertices[self.ids[[a, b, c]]]
+        return orient(v[0, 0], v[0, 1], v[1, 0], v[1, 1], v[2, 0], v[2, 1]) < 0
+
     def _label(self, position: int) -> str:
         vid = int(self.ids[position])
         return ring_label(int(self.prepared.ring_of[vid]))
@@ -340,34 +381,142 @@ def _snap(clean: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
     return [np.asarray(r, dtype=np.float64) for r in snap_to_plane(clean, tolerance)]
 
 
-def _triangulate(rings: Sequence[object], *, rule: str, planar_tolerance: float) -> Triangulation:
+def _triangulate(
+    rings: Sequence[object], *, rule: str, planar_tolerance: float, invalid: str
+) -> Triangulation:
     apex_rule = get_rule(rule)
+    as_given = _as_given(invalid)
     clean, axes = normalise_rings(rings)
     if planar_tolerance > 0 and clean:
         clean = _snap(clean, planar_tolerance)
     prepared = prepare(clean, axes)
-    if prepared.is_degenerate:
+    if prepared.is_degenerate or negligible_area(prepared):
         return Triangulation(vertices=prepared.vertices)
     ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
-    sequence = bridge_islands(prepared.x, prepared.y, ring_ids, prepared.ring_numbers)
+    sequence = bridge_islands(
+        prepared.x, prepared.y, ring_ids, prepared.ring_numbers, relaxed=as_given
+    )
     sequence = remove_spikes(prepared.x, prepared.y, sequence)
     if len(sequence) < 3:
         return Triangulation(vertices=prepared.vertices)
-    tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule)
-    return tree.build()
+    tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given)
+    result = tree.build()
+    if tree.lost_area:
+        # crossing rings: a triangulation of the rings as given cannot keep the area
+        repaired = _repaired(clean, rule=rule)
+        if repaired is not None:
+            return repaired
+    return result
+
+
+def _repaired(clean: list[np.ndarray], *, rule: str) -> Triangulation | None:
+    """Triangulation of the rings made valid (shapely's make_valid, "structure" method).
+
+    The parts are triangulated one by one and merged (one root per part); points where the
+    input rings cross become vertices. None when shapely is not available or repair fails.
+    """
+    try:
+        import shapely
+    except ImportError:  # pragma: no cover - shapely is optional at run time
+        return None
+    try:
+        polygon = shapely.Polygon(clean[0], clean[1:])
+        fixed = shapely.make_valid(polygon, method="structure", keep_collapsed=False)
+    except (ValueError, shapely.errors.GEOSException):
+        return None
+    parts = [g for g in getattr(fixed, "geoms", [fixed]) if g.geom_type == "Polygon"]
+    parts = [p for g in parts for p in getattr(g, "geoms", [g]) if not p.is_empty]
+    known = np.concatenate(clean)
+    pieces = []
+    for part in parts:
+        rings = [np.asarray(r.coords) for r in (part.exterior, *part.interiors)]
+        rings = [_with_z(r, known) for r in rings]
+        try:
+            pieces.append(_triangulate(rings, rule=rule, planar_tolerance=0.0, invalid="fail"))
+        except TriangulationError:
+            return None
+    return merge_triangulations(pieces)
+
+
+def _with_z(ring: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """(n, 3) ring; a point without z (a crossing point) takes the z of the nearest input vertex."""
+    out = np.zeros((len(ring), 3))
+    out[:, : min(ring.shape[1], 3)] = ring[:, :3]
+    missing = ring.shape[1] < 3 or ~np.isfinite(out[:, 2])
+    missing = np.broadcast_to(missing, (len(ring),)).copy()
+    if missing.any():
+        d2 = ((out[missing, None, :2] - known[None, :, :2]) ** 2).sum(axis=2)
+        out[missing, 2] = known[np.argmin(d2, axis=1), 2]
+    return out
+
+
+def merge_triangulations(pieces: list[Triangulation]) -> Triangulation:
+    """One Triangulation of several parts: vertices concatenated, one tree root per part."""
+    if not pieces:
+        return Triangulation()
+    offsets = np.cumsum([0] + [len(p.vertices) for p in pieces[:-1]])
+    starts = np.cumsum([0] + [len(p.triangles) for p in pieces[:-1]])
+    parent = [np.where(p.parent < 0, -1, p.parent + s) for p, s in zip(pieces, starts)]
+    return Triangulation(
+        vertices=np.concatenate([p.vertices for p in pieces]),
+        triangles=np.concatenate([p.triangles + o for p, o in zip(pieces, offsets)]),
+        parent=np.concatenate(parent).astype(np.int64),
+        depth=np.concatenate([p.depth for p in pieces]),
+        side=np.concatenate([p.side for p in pieces]),
+    )
+
+
+def _as_given(invalid: str) -> bool:
+    if invalid not in INVALID_MODES:
+        raise ValueError(f"invalid must be one of {INVALID_MODES}, not {invalid!r}")
+    return invalid == "as_given"
+
+
+def negligible_area(prepared: PreparedRings) -> bool:
+    """The polygon's area (outer ring less islands) is zero to within double rounding.
+
+    Measured relative to the magnitudes of the shoelace terms (taken from the outer ring's
+    first vertex, so an offset does not matter): such a polygon is a degenerate sliver, e.g.
+    an island that repeats the outer ring up to 1e-28, and gives no triangles.
+    """
+    x0, y0 = prepared.x[prepared.rings[0][0]], prepared.y[prepared.rings[0][0]]
+    spans = [np.abs(prepared.x[r] - x0).max() for r in prepared.rings]
+    spans += [np.abs(prepared.y[r] - y0).max() for r in prepared.rings]
+    # a power-of-two scale (exact) keeps the products away from underflow and overflow
+    scale = np.ldexp(1.0, -int(np.frexp(max(spans))[1])) if max(spans) > 0 else 1.0
+    net = 0.0
+    magnitude = 0.0
+    for ring in prepared.rings:
+        x = (prepared.x[ring] - x0) * scale
+        y = (prepared.y[ring] - y0) * scale
+        xn, yn = np.roll(x, -1), np.roll(y, -1)
+        net += float(np.sum(x * yn - xn * y))
+        magnitude += float(np.sum(np.abs(x * yn)) + np.sum(np.abs(xn * y)))
+    return abs(net) <= 8 * np.finfo(np.float64).eps * magnitude
 
 
 def triangulate(
-    rings: Sequence[object], *, rule: str = "first", planar_tolerance: float = 0.0
+    rings: Sequence[object],
+    *,
+    rule: str = "first",
+    planar_tolerance: float = 0.0,
+    invalid: str = "fail",
 ) -> Triangulation:
     """Triangulate one polygon given as ``[outer ring, island, ...]`` (points (x, y[, z])).
 
-    Degenerate input (zero area, fewer than 3 distinct points) gives an empty result; input
-    that cannot be triangulated raises :class:`TriangulationError` naming the ring.
+    Degenerate input (zero area, fewer than 3 distinct points, or an area that is zero to
+    within double rounding) gives an empty result. A polygon that has no correct triangle on
+    some base (a self-intersecting ring, crossing rings) raises :class:`TriangulationError`
+    naming the ring with ``invalid="fail"``. With ``invalid="as_given"`` it is triangulated
+    anyway, as earcut does with such input: where no correct triangle exists the apex is
+    chosen so that the triangles' areas still add up to the polygon's (zero-area triangles
+    drop pinches and zero-width spikes; triangles may overlap); where crossing rings make that
+    impossible, the polygon is repaired (shapely's make_valid) and its valid parts are
+    triangulated, the crossing points becoming vertices.
     """
     # overflow in float filters only routes values to the exact path
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        return _triangulate(rings, rule=rule, planar_tolerance=planar_tolerance)
+        return _triangulate(rings, rule=rule, planar_tolerance=planar_tolerance, invalid=invalid)
 
 
 def triangulate_many(
@@ -376,6 +525,7 @@ def triangulate_many(
     rule: str = "first",
     planar_tolerance: float = 0.0,
     on_error: str = "raise",
+    invalid: str = "fail",
 ) -> list:
     """Triangulate many polygons; results in input order, equal to :func:`triangulate`'s.
 
@@ -386,6 +536,7 @@ def triangulate_many(
     if on_error not in ("raise", "return"):
         raise ValueError(f"on_error must be 'raise' or 'return', not {on_error!r}")
     get_rule(rule)
+    _as_given(invalid)
     polygons = list(polygons)
     results: list = [None] * len(polygons)
     if planar_tolerance <= 0 and len(polygons) > 1:
@@ -394,10 +545,15 @@ def triangulate_many(
 
         results = list(triangulate_batch(polygons, rule))
     for index, rings in enumerate(polygons):
-        if results[index] is not None:
+        done = results[index]
+        if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
+            if isinstance(done, TriangulationError) and on_error == "raise":
+                raise done
             continue
         try:
-            results[index] = triangulate(rings, rule=rule, planar_tolerance=planar_tolerance)
+            results[index] = triangulate(
+                rings, rule=rule, planar_tolerance=planar_tolerance, invalid=invalid
+            )
         except TriangulationError as exc:
             if on_error == "raise":
                 raise

@@ -187,8 +187,14 @@ def deviation(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndarray
 # --- individual checks ---------------------------------------------------------------------------
 
 
-def check_vertices(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndarray) -> None:
-    """Every triangle corner is an input vertex (x, y, and z, 0 where the input has none)."""
+def check_vertices(
+    rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndarray, crossings: bool = False
+) -> None:
+    """Every triangle corner is an input vertex (x, y, and z, 0 where the input has none).
+
+    With ``crossings`` (invalid input that was repaired) a corner may also be a point where
+    two input edges cross: it must lie on at least two of them (to 1e-9 of their length).
+    """
     allowed = set()
     for ring in rings:
         for point in ring:
@@ -200,16 +206,42 @@ def check_vertices(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.nd
     assert triangles.min() >= 0 and triangles.max() < len(vertices), "index out of range"
     used = np.unique(triangles.ravel())
     bad = [tuple(vertices[i]) for i in used if tuple(float(c) for c in vertices[i]) not in allowed]
+    if crossings and bad:
+        bad = [p for p in bad if _edges_through(rings, p[:2]) < 2]
     assert not bad, f"{len(bad)} triangle corners are not input vertices, e.g. {bad[:3]}"
 
 
-def check_ccw(vertices: np.ndarray, triangles: np.ndarray) -> None:
-    """Every triangle has non-zero area and is counter-clockwise in XY (exact)."""
+def _edges_through(rings: Sequence[Ring], point: tuple[float, float]) -> int:
+    """How many input edges pass within 1e-9 of their length of ``point``."""
+    count = 0
+    px, py = point
+    for ring in rings:
+        pts = np.asarray([(float(q[0]), float(q[1])) for q in ring])
+        if len(pts) < 2:
+            continue
+        a, b = pts, np.roll(pts, -1, axis=0)
+        ab = b - a
+        length2 = (ab**2).sum(axis=1)
+        ok = length2 > 0
+        t = np.clip(
+            ((px - a[:, 0]) * ab[:, 0] + (py - a[:, 1]) * ab[:, 1]) / np.where(ok, length2, 1), 0, 1
+        )
+        dist = np.hypot(a[:, 0] + t * ab[:, 0] - px, a[:, 1] + t * ab[:, 1] - py)
+        count += int(np.sum(ok & (dist <= 1e-9 * np.sqrt(np.where(ok, length2, 1)))))
+    return count
+
+
+def check_ccw(vertices: np.ndarray, triangles: np.ndarray, allow_zero_area: bool = False) -> None:
+    """Every triangle is counter-clockwise in XY (exact), with non-zero area unless allowed.
+
+    Zero-area triangles are allowed for invalid input triangulated as given, where they drop
+    zero-width spikes and pinches; a clockwise triangle is never allowed.
+    """
     if len(triangles) == 0:
         return
     xy = vertices[:, :2]
     signs = orient_signs(xy[triangles[:, 0]], xy[triangles[:, 1]], xy[triangles[:, 2]])
-    bad = np.flatnonzero(signs <= 0)
+    bad = np.flatnonzero(signs < 0 if allow_zero_area else signs <= 0)
     assert len(bad) == 0, (
         f"{len(bad)} triangles degenerate or clockwise, e.g. #{bad[:5].tolist()}: "
         f"{[vertices[triangles[i]][:, :2].tolist() for i in bad[:2]]}"
@@ -325,8 +357,26 @@ def check_tiling(rings: Sequence[Ring], vertices: np.ndarray, triangles: np.ndar
     raise AssertionError(f"triangles do not tile the polygon; unmatched segments {residual[:6]}")
 
 
-def check_tree(
+def check_forest(
     triangles: np.ndarray, parent: np.ndarray, depth: np.ndarray, side: np.ndarray
+) -> None:
+    """Several BSP trees one after another (the parts of a repaired polygon), each consistent
+    and in pre-order; the base convention at the root is not checked (parts come re-ordered).
+    """
+    roots = [*np.flatnonzero(np.asarray(parent) < 0).tolist(), len(triangles)]
+    assert len(triangles) == 0 or roots[0] == 0, "first triangle is not a root"
+    for start, stop in zip(roots[:-1], roots[1:]):
+        sub = slice(start, stop)
+        rebased = np.where(parent[sub] < 0, -1, parent[sub] - start)
+        check_tree(triangles[sub], rebased, depth[sub], side[sub], check_bases=False)
+
+
+def check_tree(
+    triangles: np.ndarray,
+    parent: np.ndarray,
+    depth: np.ndarray,
+    side: np.ndarray,
+    check_bases: bool = True,
 ) -> None:
     """The BSP tree is consistent and listed in pre-order.
 
@@ -358,6 +408,8 @@ def check_tree(
         children[p][s] = i
         children[i] = {}
         path.append(i)
+    if not check_bases:
+        return
     a, b = tris[0][:2]
     first = _base_mismatch(tris, parent, side, (b, a) if b == 0 else (a, b))
     if first is not None and 0 not in (a, b) and _base_mismatch(tris, parent, side, (b, a)) is None:
@@ -394,11 +446,13 @@ def check_triangulation(
     """
     vertices = np.asarray(result.vertices, dtype=float)
     triangles = np.asarray(result.triangles, dtype=np.int64).reshape(-1, 3)
-    check_vertices(rings, vertices, triangles)
-    check_ccw(vertices, triangles)
-    check_tree(
-        triangles, np.asarray(result.parent), np.asarray(result.depth), np.asarray(result.side)
-    )
+    check_vertices(rings, vertices, triangles, crossings=not valid)
+    check_ccw(vertices, triangles, allow_zero_area=not valid)
+    tree = (np.asarray(result.parent), np.asarray(result.depth), np.asarray(result.side))
+    if valid:
+        check_tree(triangles, *tree)
+    else:
+        check_forest(triangles, *tree)
     if not valid:
         return None
     check_tiling(rings, vertices, triangles)
