@@ -35,7 +35,7 @@ from qgis.PyQt.QtGui import QIcon
 from ..bsp_triangulate import triangulate_many
 from ..bsp_triangulate.densify import densify_ring
 from . import elevation
-from .geometry_io import FeatureRings, feature_batches
+from .geometry_io import INVALID_AS_GIVEN, FeatureRings, feature_batches
 from .outputs import (
     MESH_EXTENSIONS,
     BatchMesh,
@@ -438,6 +438,8 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         z_scale = self.parameterAsDouble(parameters, self.Z_SCALE, context)
         z_offset = self.parameterAsDouble(parameters, self.Z_OFFSET, context)
         invalid_policy = self.parameterAsEnum(parameters, self.INVALID_POLYGONS, context)
+        # rings kept as given: the engine triangulates them even where no correct triangle exists
+        self._engine_invalid = "as_given" if invalid_policy == INVALID_AS_GIVEN else "fail"
 
         total = source.featureCount()
         step = 100.0 / total if total > 0 else 0.0
@@ -570,7 +572,11 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         polygons = [part for item in items for part in item.parts]
         try:
             outcome = triangulate_many(
-                polygons, rule=rule, planar_tolerance=tolerance, on_error="return"
+                polygons,
+                rule=rule,
+                planar_tolerance=tolerance,
+                on_error="return",
+                invalid=getattr(self, "_engine_invalid", "fail"),
             )
         except Exception as error:  # isolate the feature that breaks the call
             if len(items) == 1:

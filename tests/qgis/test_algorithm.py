@@ -232,6 +232,19 @@ def test_bow_tie_with_fail_policy_fails_only_that_feature_with_its_id():
     assert_counts_add_up(result, 2)
 
 
+def test_self_touching_ring_triangulated_as_given_keeps_its_vertices_and_area():
+    # a figure-eight ring touching itself at (7, 15): invalid, but both lobes are real area
+    ring = "POLYGON((7 18, 7 15, 5 15, 7 13, 7 15, 17 17, 7 18))"
+    feedback = RecordingFeedback()
+    result = run({"INPUT": polygon_layer([ring]), "INVALID_POLYGONS": 2}, feedback)
+    assert (result["FAILED_COUNT"], feedback.errors) == (0, [])
+    rows = triangle_rows(result)
+    inputs = {(7.0, 18.0), (7.0, 15.0), (5.0, 15.0), (7.0, 13.0), (17.0, 17.0)}
+    for row in rows:
+        assert {(x, y) for x, y, _z in corners(row)} <= inputs
+    assert sum(r["area_2d"] for r in rows) == pytest.approx(17.0)
+
+
 def test_bow_tie_triangulated_as_given_adds_no_vertex_or_fails_cleanly():
     feedback = RecordingFeedback()
     result = run({"INPUT": polygon_layer([BOW_TIE]), "INVALID_POLYGONS": 2}, feedback)
