@@ -18,8 +18,8 @@ from .batch_predicates import orient_items, orient_rows, row_bound
 from .batch_rings import ragged_index
 from .predicates import grid_exact, strictly_between
 
-# test items x sub-polygon vertices per numpy pass (bounds the memory of one round)
-_CHUNK_ELEMENTS = 1 << 21
+# test items x sub-polygon vertices per numpy pass: tables of about 1 MB stay in the cache
+_CHUNK_ELEMENTS = 1 << 17
 
 
 @dataclass
