@@ -33,6 +33,8 @@ from .triangulation import Triangulation
 # Larger polygons go to the engine (its grid index beats the all-edges tests there).
 MAX_VERTICES = 256
 _RULES = {"first": False, "elevation": True}
+# polygons per internal group
+_GROUP = 10_000
 
 
 def triangulate_batch(
@@ -41,10 +43,16 @@ def triangulate_batch(
     """Triangulations of ``polygons`` (each ``[outer ring, island, ...]``); None where the
     polygon is left to the engine (see the module docstring)."""
     results: list[Triangulation | None] = [None] * len(polygons)
-    if rule not in _RULES or not len(polygons):
+    if rule not in _RULES:
         return results
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        return _triangulate(polygons, _RULES[rule], max_vertices, results)
+        # groups of moderate size keep the working arrays in the cache
+        for first in range(0, len(polygons), _GROUP):
+            group = polygons[first : first + _GROUP]
+            results[first : first + len(group)] = _triangulate(
+                group, _RULES[rule], max_vertices, [None] * len(group)
+            )
+    return results
 
 
 def _twins(ext: np.ndarray, ext_start: np.ndarray) -> np.ndarray:
