@@ -8,7 +8,8 @@ Contract of :func:`triangulate_batch`:
 - None is returned for anything the batch path does not decide exactly like the engine:
   polygons with more than ``max_vertices`` vertices, rings that touch each other or
   themselves (shared points, a vertex on an edge), islands with fewer than 3 points or zero
-  area, outer rings of zero or near-zero area, steep faces (working plane other than XY),
+  area, outer rings of zero or near-zero area, polygons whose net area may be negligible
+  (``engine.negligible_area``), steep faces (working plane other than XY),
   nearly equal bridge distances, unusual input (empty rings, non-finite or malformed points),
   rules other than "first" and "elevation", and polygons the engine would reject (its error
   message comes from the engine).
@@ -27,7 +28,7 @@ import numpy as np
 
 from .batch_bridges import bridge_sequences
 from .batch_bsp import build_trees
-from .batch_rings import flatten_rings, ragged_index, touching_polygons
+from .batch_rings import clear_area, flatten_rings, ragged_index, touching_polygons
 from .triangulation import Triangulation
 
 # Larger polygons go to the engine (its grid index beats the all-edges tests there).
@@ -83,6 +84,8 @@ def _triangulate(
     vertices = flat.vertices
     handled = flat.handled.copy()
     handled &= ~touching_polygons(flat, wx) | flat.empty
+    # the engine gives slivers of negligible net area no triangles: left to it
+    handled &= clear_area(flat, wx) | flat.empty
     for p in np.flatnonzero(handled & flat.empty).tolist():
         s = int(flat.poly_vstart[p])
         results[p] = Triangulation(vertices=vertices[s : s + int(flat.poly_vcount[p])])

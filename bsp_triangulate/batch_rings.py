@@ -316,3 +316,32 @@ def touching_polygons(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
         on_line = orient_many(ax[i], ay[i], bx[i], by[i], px[i], py[i]) == 0
         touching[poly_of[vertex[i[on_line]]]] = True
     return touching
+
+
+def clear_area(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
+    """Per polygon: its net area (outer ring less islands) is surely not negligible in the
+    engine's sense (``engine.negligible_area``: within 8 eps of the shoelace magnitudes);
+    False also where that is too close to call here."""
+    count = len(flat.handled)
+    clear = np.zeros(count, dtype=bool)
+    nv = len(wx)
+    if nv == 0:
+        return clear
+    wy = flat.vy
+    poly_of = np.repeat(flat.ring_poly, flat.ring_len)
+    first = flat.ring_start[flat.poly_ring0[flat.poly_rings > 0]]
+    x0 = np.zeros(count)
+    y0 = np.zeros(count)
+    has = flat.poly_rings > 0
+    x0[has], y0[has] = wx[first], wy[first]
+    nxt = np.arange(nv, dtype=np.int64) + 1
+    nxt[flat.ring_start + flat.ring_len - 1] = flat.ring_start
+    x, y = wx - x0[poly_of], wy - y0[poly_of]
+    left, right = x * y[nxt], x[nxt] * y
+    # traversal order: reversed islands count with the opposite sign
+    flip = np.repeat(np.where(flat.ring_reversed, -1.0, 1.0), flat.ring_len)
+    net = np.bincount(poly_of, weights=flip * (left - right), minlength=count)
+    magnitude = np.bincount(poly_of, weights=np.abs(left) + np.abs(right), minlength=count)
+    # both sums are rounded (here and in the engine): a margin for any summation order
+    margin = (8.0 + 8.0 * (flat.poly_vcount + 8)) * np.finfo(np.float64).eps * magnitude
+    return np.isfinite(net) & np.isfinite(magnitude) & (np.abs(net) > margin)

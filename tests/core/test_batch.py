@@ -146,6 +146,19 @@ def test_batch_gives_empty_results_for_degenerate_outer_rings() -> None:
     assert mismatches(polygons)[0] == []
 
 
+def test_batch_leaves_a_sliver_between_outer_ring_and_island_to_the_engine() -> None:
+    """An island 1e-15 inside a square: net area negligible, the engine gives no triangles."""
+    t = 1e-15
+    outer = [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)]
+    island = [(t, t), (t, 4.0 - t), (4.0 - t, 4.0 - t), (4.0 - t, t)]
+    square_with_hole = [outer, [(1.0, 1.0), (1.0, 2.0), (2.0, 2.0), (2.0, 1.0)]]
+    results = triangulate_batch([[outer, island], square_with_hole])
+    assert triangulate([outer, island]).is_empty
+    assert results[0] is None
+    assert results[1] is not None and len(results[1]) == 8
+    assert mismatches([square_with_hole])[0] == []
+
+
 def test_batch_leaves_unknown_rules_and_large_polygons_to_the_engine() -> None:
     square = [[(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]]
     assert triangulate_batch([square], "no-such-rule") == [None]
