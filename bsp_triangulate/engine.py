@@ -204,7 +204,7 @@ class _Tree:
         self.prepared = prepared
         self.as_given = as_given
         self._prefix: np.ndarray | None = None
-        self.lost_area = False  # a fallback triangle of invalid input was clockwise
+        self.used_fallback = False  # some base of invalid input had no correct triangle
         self.ids = np.concatenate([sequence, sequence[:1]])
         self.sx = prepared.x[self.ids]
         self.sy = prepared.y[self.ids]
@@ -310,6 +310,7 @@ class _Tree:
             apex = self._apex(lo, hi, v1, v2)
             if apex < 0 and self.as_given:
                 apex = self._fallback_apex(lo, hi)
+                self.used_fallback = True
             if apex < 0:
                 raise TriangulationError(
                     f"{self._label(v1)}: no correct triangle on the edge between vertices "
@@ -321,7 +322,6 @@ class _Tree:
             first, second = (lo, hi) if mirrored else (hi, lo)
             if self.as_given and self._clockwise(first, second, apex):
                 first, second = second, first  # a fallback triangle of invalid input
-                self.lost_area = True
             triangles[node] = (ids[first], ids[second], ids[apex])
             parent[node] = par
             depth[node] = dep
@@ -382,7 +382,12 @@ def _snap(clean: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
 
 
 def _triangulate(
-    rings: Sequence[object], *, rule: str, planar_tolerance: float, invalid: str
+    rings: Sequence[object],
+    *,
+    rule: str,
+    planar_tolerance: float,
+    invalid: str,
+    repair: bool = True,
 ) -> Triangulation:
     apex_rule = get_rule(rule)
     as_given = _as_given(invalid)
@@ -401,12 +406,38 @@ def _triangulate(
         return Triangulation(vertices=prepared.vertices)
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given)
     result = tree.build()
-    if tree.lost_area:
-        # crossing rings: a triangulation of the rings as given cannot keep the area
-        repaired = _repaired(clean, rule=rule)
-        if repaired is not None:
-            return repaired
+    if tree.used_fallback and repair:
+        lost = _area_loss(prepared, result, axes)
+        if lost > _AREA_KEPT:
+            # crossing rings: a triangulation of the rings as given cannot keep the area
+            repaired = _repaired(clean, rule=rule)
+            if repaired is not None and _area_loss(prepared, repaired, axes) < lost:
+                return repaired
     return result
+
+
+# Relative area difference below which a triangulation counts as keeping the polygon's area.
+_AREA_KEPT = 1e-12
+
+
+def _area_loss(prepared: PreparedRings, result: Triangulation, axes: tuple[int, int]) -> float:
+    """|sum of triangle areas - (outer ring area - island areas)| relative to the latter."""
+    x, y = prepared.x, prepared.y
+    rings = [abs(_ring_area2(x[r], y[r])) for r in prepared.rings]
+    polygon = rings[0] - sum(rings[1:])
+    t = result.triangles
+    if len(t) == 0 or polygon <= 0:
+        return 0.0 if len(t) == 0 and polygon <= 0 else float("inf")
+    v = result.vertices[:, axes]
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    return float(abs(np.abs(cross).sum() - polygon) / polygon)
+
+
+def _ring_area2(x: np.ndarray, y: np.ndarray) -> float:
+    """Twice the signed shoelace area of a ring, taken from its first vertex."""
+    x, y = x - x[0], y - y[0]
+    return float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
 def _repaired(clean: list[np.ndarray], *, rule: str) -> Triangulation | None:
@@ -420,7 +451,8 @@ def _repaired(clean: list[np.ndarray], *, rule: str) -> Triangulation | None:
     except ImportError:  # pragma: no cover - shapely is optional at run time
         return None
     try:
-        polygon = shapely.Polygon(clean[0], clean[1:])
+        holes = [ring for ring in clean[1:] if len(ring) >= 3]
+        polygon = shapely.Polygon(clean[0], holes)
         fixed = shapely.make_valid(polygon, method="structure", keep_collapsed=False)
     except (ValueError, shapely.errors.GEOSException):
         return None
@@ -431,10 +463,10 @@ def _repaired(clean: list[np.ndarray], *, rule: str) -> Triangulation | None:
     for part in parts:
         rings = [np.asarray(r.coords) for r in (part.exterior, *part.interiors)]
         rings = [_with_z(r, known) for r in rings]
-        try:
-            pieces.append(_triangulate(rings, rule=rule, planar_tolerance=0.0, invalid="fail"))
-        except TriangulationError:
-            return None
+        # a repaired part can still fail where it touches itself: as given, without repair
+        pieces.append(
+            _triangulate(rings, rule=rule, planar_tolerance=0.0, invalid="as_given", repair=False)
+        )
     return merge_triangulations(pieces)
 
 
