@@ -249,9 +249,9 @@ def surface_at_cells(meshes: list[Mesh], dem: Dem) -> tuple[np.ndarray, np.ndarr
             wb = ((px - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (py - a[:, 1])) / det
             wc = ((b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (px - a[:, 0]) * (b[:, 1] - a[:, 1])) / det
             wa = 1.0 - wb - wc
+            z = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
         tolerance = -1e-9
         hit = (det != 0) & (wa >= tolerance) & (wb >= tolerance) & (wc >= tolerance)
-        z = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
         all_keys.append(owner[triangle[hit]] * cells + row[hit] * columns + col[hit])
         all_z.append(z[hit])
         batch_start = batch_end
