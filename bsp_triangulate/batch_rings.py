@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .predicates import orient_many
+from .rings import WALL_RATIO
 
 _EPS = 2.0**-53
 _UNDERFLOW_SLACK = 1e-300
@@ -130,7 +131,9 @@ def _xy_is_working_plane(p: np.ndarray, starts: np.ndarray, counts: np.ndarray) 
     ny, by = _sum_with_bound((z - zn) * (x + xn), starts, counts)
     nz, bz = _sum_with_bound((x - xn) * (y + yn), starts, counts)
     # the engine compares its own rounded sums: leave room for both errors
-    clear = np.abs(nz) - 2 * bz > np.maximum(np.abs(nx) + 2 * bx, np.abs(ny) + 2 * by)
+    clear = (np.abs(nz) - 2 * bz) * WALL_RATIO > np.maximum(
+        np.abs(nx) + 2 * bx, np.abs(ny) + 2 * by
+    )
     return flat | (clear & np.isfinite(nz))
 
 

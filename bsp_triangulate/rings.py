@@ -66,6 +66,10 @@ def _as_points(ring: object, ring_number: int) -> np.ndarray:
     return np.ascontiguousarray(points[:, :3])
 
 
+# A ring is a wall when the Newell normal's horizontal part exceeds this multiple of its z.
+WALL_RATIO = 10.0
+
+
 def working_axes(outer: np.ndarray) -> tuple[int, int]:
     """The two coordinates the engine works on: XY unless the outer ring is a steep face."""
     if len(outer) < 3:
@@ -82,7 +86,10 @@ def working_axes(outer: np.ndarray) -> tuple[int, int]:
         ]
     )
     magnitude = np.abs(normal)
-    if magnitude[2] >= magnitude[0] and magnitude[2] >= magnitude[1]:
+    # Any face that is not close to vertical projects to XY as an affine image of itself, so XY
+    # gives the same triangles; only near-vertical faces (steeper than about 84 degrees, whose
+    # XY shadow degenerates) are worked on the plane of their dominant normal components.
+    if magnitude[2] * WALL_RATIO >= max(magnitude[0], magnitude[1]):
         return 0, 1
     if magnitude[0] >= magnitude[1]:
         return 1, 2
