@@ -7,6 +7,8 @@
 #   make test-host  the suite on this machine's QGIS only, plus ruff (fast, for development)
 #   make test-340   the suite on QGIS 3.40 in the chroot only
 #   make package    dist/bsptriangulate-<version>.zip for the QGIS plugin manager
+#   make bench      benchmarks against earcut, GEOS and QGIS (minutes)
+#   make fuzz       the property tests with many more examples (minutes)
 SHELL := /bin/bash
 VENV ?= .venv
 PY := $(VENV)/bin/python
@@ -18,7 +20,7 @@ APT_PACKAGES := python3-qgis qgis python3-venv
 
 export QT_QPA_PLATFORM := offscreen
 
-.PHONY: demo test test-host test-340 pytest lint qgis venv package bench clean
+.PHONY: demo test test-host test-340 pytest lint qgis venv package bench fuzz clean
 
 demo: venv
 	$(PY) scripts/demo.py
@@ -64,6 +66,10 @@ package:
 
 bench: venv
 	$(PY) bench/run_all.py
+
+# Property tests with many more examples (minutes; not part of `make test`).
+fuzz: venv
+	HYPOTHESIS_PROFILE=fuzz $(PY) -m pytest -q tests/core/test_properties.py
 
 clean:
 	rm -rf dist build .pytest_cache .ruff_cache .hypothesis
