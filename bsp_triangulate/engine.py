@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .bridges import bridge_islands, remove_spikes, split_touching
-from .predicates import grid_exact, orient, orient_many, strictly_between
+from .predicates import grid_exact, orient, orient_many, ring_area_sign, strictly_between
 from .rings import PreparedRings, normalise_rings, prepare, ring_label
 from .rules import ApexRule, get_rule
 from .spatial_index import SegmentGrid
@@ -395,6 +395,17 @@ def _triangulate(
     if planar_tolerance > 0 and clean:
         clean = _snap(clean, planar_tolerance)
     prepared = prepare(clean, axes)
+    if prepared.is_degenerate and _crosses_with_zero_area(clean, axes):
+        # a bow-tie whose lobes cancel: not degenerate, it has area on both sides
+        if not as_given:
+            raise TriangulationError(
+                f"{ring_label(0)}: the ring crosses itself and its signed area is zero "
+                "(invalid polygon: self-intersection)"
+            )
+        if repair:
+            repaired = _repaired(clean, rule=rule)
+            if repaired is not None:
+                return repaired
     if prepared.is_degenerate or negligible_area(prepared):
         return Triangulation(vertices=prepared.vertices)
     ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
@@ -414,6 +425,24 @@ def _triangulate(
             if repaired is not None and _area_loss(prepared, repaired, axes) < lost:
                 return repaired
     return result
+
+
+def _crosses_with_zero_area(clean: list[np.ndarray], axes: tuple[int, int]) -> bool:
+    """The outer ring has zero signed area although its points are not all collinear.
+
+    A ring that is not a line and encloses no net area must cross or touch itself (a simple
+    ring of non-collinear points has non-zero area).
+    """
+    if not clean or len(clean[0]) < 3:
+        return False
+    x, y = clean[0][:, axes[0]], clean[0][:, axes[1]]
+    if ring_area_sign(x, y) != 0:
+        return False
+    far = np.flatnonzero((x != x[0]) | (y != y[0]))
+    if len(far) == 0:
+        return False
+    b = far[0]
+    return bool(np.any(orient_many(x[0], y[0], x[b], y[b], x, y) != 0))
 
 
 # Relative area difference below which a triangulation counts as keeping the polygon's area.
@@ -575,7 +604,12 @@ def triangulate_many(
         # many small polygons in lock-step; it leaves (None) what it does not decide exactly
         from .batch import triangulate_batch
 
-        results = list(triangulate_batch(polygons, rule))
+        try:
+            results = list(triangulate_batch(polygons, rule))
+        except (ArithmeticError, ValueError, TypeError):
+            # malformed or non-finite input broke the lock-step path: batch only the polygons
+            # that normalise, the engine names the ring of the others
+            results = _batch_well_formed(polygons, rule, triangulate_batch)
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
@@ -590,4 +624,19 @@ def triangulate_many(
             if on_error == "raise":
                 raise
             results[index] = exc
+    return results
+
+
+def _batch_well_formed(polygons: list, rule: str, batch) -> list:
+    """Batch results for the polygons whose rings normalise; None (engine) for the others."""
+    good = []
+    for index, rings in enumerate(polygons):
+        try:
+            normalise_rings(rings)
+        except TriangulationError:
+            continue
+        good.append(index)
+    results: list = [None] * len(polygons)
+    for index, result in zip(good, batch([polygons[i] for i in good], rule)):
+        results[index] = result
     return results
