@@ -128,14 +128,17 @@ def test_cancelling_at_the_first_progress_report_leaves_partial_but_consistent_o
     tmp_path: Path,
 ):
     import processing
+    from bsptriangulate.processing_provider.triangulate_algorithm import TriangulateAlgorithm
 
+    # more features than one engine call takes, so the run has a later chunk to cancel
+    count = 2 * max(TriangulateAlgorithm.CHUNK_FEATURES, TriangulateAlgorithm.BATCH_FEATURES)
     feedback = QgsProcessingFeedback()
     feedback.progressChanged.connect(lambda _progress: feedback.cancel())
-    source = write_gpkg(tmp_path / "many.gpkg", small_triangles(4500))
+    source = write_gpkg(tmp_path / "many.gpkg", small_triangles(count))
     result = processing.run(
         ALG, {"INPUT": str(source), "OUTPUT_TRIANGLES": "memory:"}, feedback=feedback
     )
     assert feedback.isCanceled()
-    assert 0 < result["FEATURE_COUNT"] < 4500
+    assert 0 < result["FEATURE_COUNT"] < count
     assert result["TRIANGLE_COUNT"] == result["OUTPUT_TRIANGLES"].featureCount()
     assert result["TRIANGLE_COUNT"] == result["FEATURE_COUNT"]  # one triangle per feature
