@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,12 +29,14 @@ from qgis.PyQt.QtCore import QMetaType, QVariant
 from ..bsp_triangulate import metrics
 from ..bsp_triangulate.mesh import merge_meshes, write_2dm, write_ply
 from ..bsp_triangulate.triangulation import Triangulation
-from ..bsp_triangulate.wkb import triangles_to_wkb
+from ..bsp_triangulate.wkb import triangles_to_multipolygon_wkb
 from .geometry_io import FeatureRings
 
 STYLE_PATH = Path(__file__).resolve().parent / "styles" / "triangles.qml"
 MESH_EXTENSIONS = ("2dm", "ply")
 SOURCE_PREFIX = "src_"
+# Features built and written at a time: bounded memory, few sink calls.
+FEATURE_CHUNK = 20_000
 
 TRIANGLE_FIELDS = (
     ("part", "Int"),
@@ -56,6 +58,8 @@ TREE_FIELDS = (
     ("side", "Int"),
 )
 
+# Byte order, type and part count of a WKB MultiPolygon.
+_MULTI_HEADER = 9
 # One little-endian ISO LineStringZ (type 1002) with two points: 57 bytes, no padding.
 _LINE_DTYPE = np.dtype(
     [("order", "u1"), ("type", "<u4"), ("count", "<u4"), ("points", "<f8", (2, 3))]
@@ -166,38 +170,73 @@ def _column(values: np.ndarray) -> list:
     return values.tolist()
 
 
-def triangle_features(mesh: BatchMesh, fields: QgsFields) -> list[QgsFeature]:
-    """One PolygonZ feature per triangle, geometry from numpy-built WKB."""
+def triangle_feature_chunks(
+    mesh: BatchMesh, fields: QgsFields, size: int = FEATURE_CHUNK
+) -> Iterator[list[QgsFeature]]:
+    """One PolygonZ feature per triangle (geometry from numpy-built WKB), ``size`` at a time.
+
+    Attributes and WKB are computed for the whole batch in numpy; the QgsFeature objects exist
+    only for one chunk, so memory stays bounded however large the batch is.
+    """
     if not len(mesh):
-        return []
+        return
     values = metrics.triangle_metrics(mesh.vertices, mesh.triangles)
-    attributes = [item.feature.attributes() for item in mesh.items]
-    columns = zip(
-        mesh.fid.tolist(),
-        mesh.item.tolist(),
-        mesh.part.tolist(),
-        mesh.order.tolist(),
-        mesh.parent.tolist(),
-        mesh.depth.tolist(),
-        mesh.side.tolist(),
-        *(_column(values[name]) for name in ("area_2d", "area_3d", "min_angle", "slope", "aspect")),
+    # feature_id and the source attributes: one list per source feature, shared by its triangles
+    heads = [[item.fid, *item.feature.attributes()] for item in mesh.items]
+    tails = list(
+        zip(
+            mesh.part.tolist(),
+            mesh.order.tolist(),
+            mesh.parent.tolist(),
+            mesh.depth.tolist(),
+            mesh.side.tolist(),
+            *(
+                _column(values[name])
+                for name in ("area_2d", "area_3d", "min_angle", "slope", "aspect")
+            ),
+        )
     )
+    rows = mesh.item.tolist()
+    # one MultiPolygonZ WKB: after its header, each triangle's PolygonZ WKB follows the last
+    buffer = triangles_to_multipolygon_wkb(mesh.vertices, mesh.triangles)
+    polygon_size = (len(buffer) - _MULTI_HEADER) // len(mesh)
+    for start in range(0, len(mesh), size):
+        stop = min(start + size, len(mesh))
+        wkbs = [
+            buffer[offset : offset + polygon_size]
+            for offset in range(
+                _MULTI_HEADER + start * polygon_size,
+                _MULTI_HEADER + stop * polygon_size,
+                polygon_size,
+            )
+        ]
+        yield _features(fields, wkbs, [heads[row] for row in rows[start:stop]], tails[start:stop])
+
+
+def _features(
+    fields: QgsFields, wkbs: list[bytes], heads: list[list], tails: list[tuple]
+) -> list[QgsFeature]:
+    """Features of WKB geometries with the attributes ``head + tail`` (lists of equal length)."""
+    new_feature, new_geometry = QgsFeature, QgsGeometry
     features = []
-    for wkb, (fid, row, *rest) in zip(triangles_to_wkb(mesh.vertices, mesh.triangles), columns):
-        feature = QgsFeature(fields)
-        geometry = QgsGeometry()
+    append = features.append
+    for wkb, head, tail in zip(wkbs, heads, tails):
+        feature = new_feature(fields)
+        geometry = new_geometry()
         geometry.fromWkb(wkb)
         feature.setGeometry(geometry)
-        feature.setAttributes([fid, *attributes[row], *rest])
-        features.append(feature)
+        feature.setAttributes(head + list(tail))
+        append(feature)
     return features
 
 
-def tree_features(mesh: BatchMesh, fields: QgsFields) -> list[QgsFeature]:
-    """One LineStringZ per tree edge, from the parent's centroid to the child's centroid."""
+def tree_feature_chunks(
+    mesh: BatchMesh, fields: QgsFields, size: int = FEATURE_CHUNK
+) -> Iterator[list[QgsFeature]]:
+    """One LineStringZ per tree edge, from the parent's centroid to the child's, in chunks."""
     children = np.flatnonzero(mesh.parent >= 0)
     if not len(children):
-        return []
+        return
     centroids = metrics.centroid(mesh.vertices, mesh.triangles)
     records = np.zeros(len(children), dtype=_LINE_DTYPE)
     records["order"] = 1
@@ -206,23 +245,28 @@ def tree_features(mesh: BatchMesh, fields: QgsFields) -> list[QgsFeature]:
     records["points"][:, 0] = centroids[mesh.parent_index()[children]]
     records["points"][:, 1] = centroids[children]
     buffer = records.tobytes()
-    size = _LINE_DTYPE.itemsize
-    columns = zip(
-        mesh.fid[children].tolist(),
-        mesh.part[children].tolist(),
-        mesh.parent[children].tolist(),
-        mesh.order[children].tolist(),
-        mesh.side[children].tolist(),
+    line_size = _LINE_DTYPE.itemsize
+    wkbs = [buffer[start : start + line_size] for start in range(0, len(buffer), line_size)]
+    tails = list(
+        zip(
+            mesh.fid[children].tolist(),
+            mesh.part[children].tolist(),
+            mesh.parent[children].tolist(),
+            mesh.order[children].tolist(),
+            mesh.side[children].tolist(),
+        )
     )
-    features = []
-    for start, attributes in zip(range(0, len(buffer), size), columns):
-        feature = QgsFeature(fields)
-        geometry = QgsGeometry()
-        geometry.fromWkb(buffer[start : start + size])
-        feature.setGeometry(geometry)
-        feature.setAttributes(list(attributes))
-        features.append(feature)
-    return features
+    for start in range(0, len(children), size):
+        stop = min(start + size, len(children))
+        yield _features(fields, wkbs[start:stop], [[]] * (stop - start), tails[start:stop])
+
+
+def write_features(sink: QgsFeatureSink | None, chunks: Iterable[list[QgsFeature]]) -> None:
+    """Add every chunk of features to ``sink``; nothing is built when there is no sink."""
+    if sink is None:
+        return
+    for features in chunks:
+        add_features(sink, features)
 
 
 def add_features(sink: QgsFeatureSink | None, features: list[QgsFeature]) -> None:
@@ -235,30 +279,42 @@ def add_features(sink: QgsFeatureSink | None, features: list[QgsFeature]) -> Non
 
 
 class MeshAccumulator:
-    """Collects the triangles of all batches for one mesh file (identical vertices merged)."""
+    """Collects the triangles of all batches for one mesh file (identical vertices merged).
+
+    Keeps only numpy arrays: float64 vertices, int32 faces (int64 past 2**31 vertices) and the
+    face values.
+    """
 
     def __init__(self) -> None:
         self.vertices: list[np.ndarray] = []
         self.faces: list[np.ndarray] = []
         self.fids: list[np.ndarray] = []
         self.depths: list[np.ndarray] = []
+        self.vertex_count = 0
 
     def add(self, mesh: BatchMesh) -> None:
-        if len(mesh):
-            self.vertices.append(mesh.vertices)
-            self.faces.append(mesh.triangles)
-            self.fids.append(mesh.fid)
-            self.depths.append(mesh.depth)
+        if not len(mesh):
+            return
+        faces = mesh.triangles + self.vertex_count
+        self.vertex_count += len(mesh.vertices)
+        self.vertices.append(mesh.vertices)
+        self.faces.append(faces.astype(_index_type(self.vertex_count)))
+        self.fids.append(mesh.fid)
+        self.depths.append(mesh.depth.astype(np.int32))
 
     def write(self, path: str, crs: QgsCoordinateReferenceSystem) -> tuple[int, int, list[str]]:
         """Write .2dm or .ply (by extension) with face values feature_id and depth.
 
         Returns (vertex count, face count, extra dataset files to add to the mesh layer).
         """
-        vertices, faces, _part = merge_meshes(zip(self.vertices, self.faces))
+        dtype = _index_type(self.vertex_count)
+        vertices = _joined(self.vertices, (0, 3), np.float64)
+        faces = np.concatenate([f.astype(dtype, copy=False) for f in self.faces] or [_NO_FACES])
+        self.vertices, self.faces = [], []
+        vertices, faces = merge_identical_vertices(vertices, faces)
         datasets = {
-            "feature_id": _joined(self.fids),
-            "depth": _joined(self.depths),
+            "feature_id": _joined(self.fids, (0,), np.int64),
+            "depth": _joined(self.depths, (0,), np.int32),
         }
         if mesh_format(path) == "ply":
             write_ply(path, vertices, faces, datasets, crs_wkt=crs.toWkt() or None)
@@ -269,8 +325,61 @@ class MeshAccumulator:
         return len(vertices), len(faces), extra
 
 
-def _joined(arrays: list[np.ndarray]) -> np.ndarray:
-    return np.concatenate(arrays) if arrays else np.zeros(0, np.int64)
+_NO_FACES = np.zeros((0, 3), np.int32)
+# Odd 64-bit constants that spread the coordinate bits over the hash.
+_HASH_MULTIPLIERS = (
+    np.uint64(0x9E3779B97F4A7C15),
+    np.uint64(0xC2B2AE3D27D4EB4F),
+    np.uint64(0x165667B19E3779F9),
+)
+
+
+def _index_type(vertex_count: int) -> type:
+    return np.int32 if vertex_count <= np.iinfo(np.int32).max else np.int64
+
+
+def _joined(arrays: list[np.ndarray], shape: tuple[int, ...], dtype: type) -> np.ndarray:
+    return np.concatenate(arrays) if arrays else np.zeros(shape, dtype)
+
+
+def merge_identical_vertices(
+    vertices: np.ndarray, faces: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices with identical x, y and z as one, in order of first appearance.
+
+    The same result as ``bsp_triangulate.mesh.merge_meshes`` (0.0 and -0.0 are equal, other
+    values compare by their bits), found by sorting one 64-bit hash per vertex instead of
+    24-byte rows; every merge is checked on the full coordinates, and a hash collision between
+    different vertices falls back to the exact row sort.
+    """
+    count = len(vertices)
+    if count == 0:
+        return vertices, faces
+    bits = np.ascontiguousarray(vertices + 0.0).view(np.uint64)
+    key = bits[:, 0] * _HASH_MULTIPLIERS[0]
+    key ^= key >> np.uint64(29)
+    key += bits[:, 1] * _HASH_MULTIPLIERS[1]
+    key ^= key >> np.uint64(32)
+    key += bits[:, 2] * _HASH_MULTIPLIERS[2]
+    key ^= key >> np.uint64(29)
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    starts = np.empty(count, dtype=bool)
+    starts[0] = True
+    np.not_equal(sorted_key[1:], sorted_key[:-1], out=starts[1:])
+    # the stable sort puts each group's first appearance first
+    first = order[np.flatnonzero(starts)]
+    representative = np.empty(count, dtype=np.int64)
+    representative[order] = first[np.cumsum(starts) - 1]
+    if len(first) == count:
+        return vertices, faces
+    if not (bits == bits[representative]).all():
+        merged, merged_faces, _part = merge_meshes([(vertices, faces)])
+        return merged, merged_faces
+    kept = np.sort(first)
+    rank = np.empty(count, dtype=faces.dtype)
+    rank[kept] = np.arange(len(kept), dtype=faces.dtype)
+    return vertices[kept], rank[representative][faces]
 
 
 def mesh_format(path: str) -> str:

@@ -41,12 +41,12 @@ from .outputs import (
     BatchMesh,
     MeshAccumulator,
     TriangleStylePostProcessor,
-    add_features,
     load_mesh_on_completion,
-    tree_features,
+    tree_feature_chunks,
     tree_fields,
-    triangle_features,
+    triangle_feature_chunks,
     triangle_fields,
+    write_features,
 )
 
 ICON = Path(__file__).resolve().parent.parent / "icons" / "triangulate.svg"
@@ -482,8 +482,8 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             triangulated += with_triangles
             empty += sum(1 for item in batch if item.error is None) - with_triangles
             triangles += len(batch_mesh)
-            add_features(sink, triangle_features(batch_mesh, fields))
-            add_features(tree_sink, tree_features(batch_mesh, lines))
+            write_features(sink, triangle_feature_chunks(batch_mesh, fields))
+            write_features(tree_sink, tree_feature_chunks(batch_mesh, lines))
             if mesh is not None:
                 mesh.add(batch_mesh)
             report(1.0)
