@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from qgis.core import QgsFeature, QgsFeedback, QgsGeometry, QgsWkbTypes
 
+from ..bsp_triangulate.rings import working_axes
 from ..bsp_triangulate.wkb import polygons_from_wkb
 
 INVALID_REPAIR = 0
@@ -81,7 +82,13 @@ def read_feature(feature: QgsFeature, invalid_policy: int) -> FeatureRings:
     item.has_z = QgsWkbTypes.hasZ(geometry.wkbType())
     if QgsWkbTypes.isCurvedType(geometry.wkbType()):
         geometry = QgsGeometry(geometry.constGet().segmentize())
-    if invalid_policy != INVALID_AS_GIVEN and not geometry.isGeosValid():
+    # GEOS judges validity in XY, where a wall (a near-vertical face) has no area: walls are
+    # left to the engine, which triangulates them in their own plane (and fails bad ones).
+    if (
+        invalid_policy != INVALID_AS_GIVEN
+        and not (item.has_z and _is_wall(geometry))
+        and not geometry.isGeosValid()
+    ):
         if invalid_policy == INVALID_FAIL:
             item.error = f"invalid polygon ({_validity_message(geometry)})"
             return item
@@ -97,6 +104,15 @@ def read_feature(feature: QgsFeature, invalid_policy: int) -> FeatureRings:
     except (ValueError, IndexError) as error:
         item.error = f"unreadable geometry: {error}"
     return item
+
+
+def _is_wall(geometry: QgsGeometry) -> bool:
+    """Some part's outer ring is worked on in a vertical plane by the engine."""
+    try:
+        parts = _polygon_parts(geometry)
+    except (ValueError, IndexError):
+        return False
+    return any(part and working_axes(part[0]) != (0, 1) for part in parts)
 
 
 def _validity_message(geometry: QgsGeometry) -> str:
