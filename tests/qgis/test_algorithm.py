@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from osgeo import gdal, osr
 from qgis.core import (
-    QgsApplication,
     QgsCoordinateReferenceSystem,
     QgsCoordinateTransform,
     QgsFeature,
@@ -26,7 +25,7 @@ from qgis.core import (
     QgsVectorLayer,
 )
 
-from tests.conftest import SHARED_DATA, load_plugin_package
+from tests.conftest import SHARED_DATA
 
 ALG = "bsptriangulate:triangulate"
 UTM = "EPSG:32733"
@@ -38,17 +37,7 @@ CONCAVE_WITH_TWO_ISLANDS = (
 BOW_TIE = "POLYGON((0 0, 10 10, 10 0, 0 10, 0 0))"
 
 
-@pytest.fixture(scope="module", autouse=True)
-def provider(qgis_processing):
-    """The plugin's provider, registered for this module only (other modules test unload)."""
-    load_plugin_package()
-    from bsptriangulate.processing_provider.provider import BspTriangulateProvider
-
-    registry = QgsApplication.processingRegistry()
-    instance = BspTriangulateProvider()
-    assert registry.addProvider(instance)
-    yield instance
-    registry.removeProvider(instance)
+pytestmark = pytest.mark.usefixtures("provider")
 
 
 class RecordingFeedback(QgsProcessingFeedback):

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 from osgeo import gdal, osr
 from qgis.core import (
-    QgsApplication,
     QgsCoordinateReferenceSystem,
     QgsCoordinateTransform,
     QgsGeometry,
@@ -25,7 +24,6 @@ from qgis.core import (
     QgsVectorLayer,
 )
 
-from tests.conftest import load_plugin_package
 from tests.qgis.test_algorithm import (
     CELL,
     COLS,
@@ -49,17 +47,7 @@ REPAIR, FAIL, AS_GIVEN = 0, 1, 2
 SQUARE = "0 0, 10 0, 10 10, 0 10, 0 0"
 
 
-@pytest.fixture(scope="module", autouse=True)
-def provider(qgis_processing):
-    """The plugin's provider, registered for this module only."""
-    load_plugin_package()
-    from bsptriangulate.processing_provider.provider import BspTriangulateProvider
-
-    registry = QgsApplication.processingRegistry()
-    instance = BspTriangulateProvider()
-    assert registry.addProvider(instance)
-    yield instance
-    registry.removeProvider(instance)
+pytestmark = pytest.mark.usefixtures("provider")
 
 
 def outcome(layer: QgsVectorLayer, mode: int, **parameters) -> tuple[dict, list, list[str]]:

@@ -13,22 +13,10 @@ from qgis.core import (
     QgsVectorLayer,
 )
 
-from tests.conftest import load_plugin_package
-
 ALG = "bsptriangulate:triangulate"
 
 
-@pytest.fixture(scope="module", autouse=True)
-def provider(qgis_processing):
-    """The plugin's provider, registered for this module only (other modules test unload)."""
-    load_plugin_package()
-    from bsptriangulate.processing_provider.provider import BspTriangulateProvider
-
-    registry = QgsApplication.processingRegistry()
-    instance = BspTriangulateProvider()
-    assert registry.addProvider(instance)
-    yield instance
-    registry.removeProvider(instance)
+pytestmark = pytest.mark.usefixtures("provider")
 
 
 @pytest.fixture()
