@@ -40,13 +40,13 @@ from .outputs import (
     MESH_EXTENSIONS,
     BatchMesh,
     MeshAccumulator,
+    SinkWriter,
     TriangleStylePostProcessor,
     load_mesh_on_completion,
     tree_feature_chunks,
     tree_fields,
     triangle_feature_chunks,
     triangle_fields,
-    write_features,
 )
 
 ICON = Path(__file__).resolve().parent.parent / "icons" / "triangulate.svg"
@@ -451,42 +451,53 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         read = triangulated = triangles = failed = empty = 0
         repaired: list[int] = []
         reported_warnings: set[str] = set()
-        for batch in feature_batches(
-            features, invalid_policy, self.BATCH_FEATURES, self.BATCH_VERTICES, feedback
-        ):
-            if feedback.isCanceled():
-                break
-            if max_length > 0:
-                _densify(batch, max_length)
-            source_of_z.apply(batch)
-            for warning in set(source_of_z.warnings) - reported_warnings:
-                feedback.pushInfo(self.tr("Elevation: {}").format(warning))
-                reported_warnings.add(warning)
-            elevation.scale_z(batch, z_scale, z_offset)
+        writer = SinkWriter()
+        try:
+            for batch in feature_batches(
+                features, invalid_policy, self.BATCH_FEATURES, self.BATCH_VERTICES, feedback
+            ):
+                if feedback.isCanceled():
+                    break
+                if max_length > 0:
+                    _densify(batch, max_length)
+                source_of_z.apply(batch)
+                for warning in set(source_of_z.warnings) - reported_warnings:
+                    feedback.pushInfo(self.tr("Elevation: {}").format(warning))
+                    reported_warnings.add(warning)
+                elevation.scale_z(batch, z_scale, z_offset)
 
-            def report(fraction: float, start: int = read, size: int = len(batch)) -> None:
-                feedback.setProgress(min((start + fraction * size) * step, 99.0))
+                def report(fraction: float, start: int = read, size: int = len(batch)) -> None:
+                    feedback.setProgress(min((start + fraction * size) * step, 99.0))
 
-            pairs, done = self._triangulate(batch, rule, tolerance, feedback, report)
-            batch = batch[:done]  # a cancel inside the batch drops the features not reached
-            read += len(batch)
-            repaired.extend(item.fid for item in batch if item.repaired)
-            for item in batch:
-                if item.error is not None:
-                    failed += 1
-                    feedback.reportError(
-                        self.tr("Feature {}: {}").format(item.fid, item.error), False
-                    )
-            batch_mesh = BatchMesh.build(pairs)
-            with_triangles = len(set(batch_mesh.item.tolist()))
-            triangulated += with_triangles
-            empty += sum(1 for item in batch if item.error is None) - with_triangles
-            triangles += len(batch_mesh)
-            write_features(sink, triangle_feature_chunks(batch_mesh, fields))
-            write_features(tree_sink, tree_feature_chunks(batch_mesh, lines))
-            if mesh is not None:
-                mesh.add(batch_mesh)
-            report(1.0)
+                pairs, done = self._triangulate(batch, rule, tolerance, feedback, report)
+                batch = batch[:done]  # a cancel inside the batch drops the features not reached
+                read += len(batch)
+                repaired.extend(item.fid for item in batch if item.repaired)
+                for item in batch:
+                    if item.error is not None:
+                        failed += 1
+                        feedback.reportError(
+                            self.tr("Feature {}: {}").format(item.fid, item.error), False
+                        )
+                batch_mesh = BatchMesh.build(pairs)
+                with_triangles = len(set(batch_mesh.item.tolist()))
+                triangulated += with_triangles
+                empty += sum(1 for item in batch if item.error is None) - with_triangles
+                triangles += len(batch_mesh)
+                writer.write(sink, triangle_feature_chunks(batch_mesh, fields))
+                writer.write(tree_sink, tree_feature_chunks(batch_mesh, lines))
+                if mesh is not None:
+                    mesh.add(batch_mesh)
+                report(1.0)
+            has_tree = tree_sink is not None
+            # the writer closes the sinks (a GeoPackage builds its index) while the mesh is written
+            sinks = [sink, tree_sink]
+            sink = tree_sink = None
+            writer.close(sinks)
+            del sinks
+            written = mesh.write(mesh_path, crs) if mesh is not None else None
+        finally:
+            writer.finish()
 
         if repaired:
             self._report_repaired(repaired, feedback)
@@ -497,21 +508,25 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             self.FAILED_COUNT: failed,
             self.EMPTY_COUNT: empty,
         }
-        if tree_sink is not None:
+        if has_tree:
             results[self.OUTPUT_TREE] = tree_id
-        if mesh is not None:
-            vertex_count, face_count, dataset_files = mesh.write(mesh_path, crs)
+        if written is not None:
+            vertex_count, face_count, dataset_files = written
             feedback.pushInfo(
                 self.tr("Mesh {}: {} vertices, {} faces").format(
                     mesh_path, vertex_count, face_count
                 )
             )
             results[self.OUTPUT_MESH] = mesh_path
-            loaded = face_count and load_mesh_on_completion(
-                mesh_path, crs, context, self.OUTPUT_MESH, dataset_files
-            )
-            if face_count and not loaded:
-                feedback.pushWarning(self.tr("The mesh file could not be opened as a mesh layer."))
+            # without a project (qgis_process) nothing would take the layer: do not open it
+            if face_count and context.project() is not None:
+                loaded = load_mesh_on_completion(
+                    mesh_path, crs, context, self.OUTPUT_MESH, dataset_files
+                )
+                if not loaded:
+                    feedback.pushWarning(
+                        self.tr("The mesh file could not be opened as a mesh layer.")
+                    )
         feedback.pushInfo(
             self.tr("{} feature(s): {} triangulated, {} failed, {} empty; {} triangles").format(
                 read, triangulated, failed, empty, triangles
