@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import queue
-import threading
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -264,62 +262,27 @@ def tree_feature_chunks(
 
 
 class SinkWriter:
-    """Adds feature chunks to sinks, then closes the sinks, on one background thread.
+    """Adds feature chunks to sinks in order, then releases the sinks.
 
-    QGIS adds features and closes a sink (a GeoPackage builds its spatial index then) without
-    holding the GIL, so this overlaps with building the next chunk and writing the mesh. The
-    sinks are used by one thread at a time, in the order of the calls. A write error is raised
-    by the next call after it.
+    Everything happens on the algorithm's own thread: QGIS sinks (memory layers, GeoPackage
+    writers) are not meant to be shared with another thread, and a crash inside QGIS desktop
+    costs a user far more than the seconds an overlapped write would save.
     """
 
-    QUEUED_CHUNKS = 2
-
-    def __init__(self) -> None:
-        self._queue: queue.Queue = queue.Queue(self.QUEUED_CHUNKS)
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, name="bsptriangulate-sink", daemon=True)
-        self._thread.start()
-
     def write(self, sink: QgsFeatureSink | None, chunks: Iterable[list[QgsFeature]]) -> None:
-        """Queue every chunk for ``sink``; nothing is built when there is no sink."""
+        """Write every chunk to ``sink``; nothing is built when there is no sink."""
         if sink is None:
             return
         for features in chunks:
-            self._raise_error()
-            self._queue.put((sink, features))
+            add_features(sink, features)
 
     def close(self, sinks: list) -> None:
-        """Release the sinks on the thread: pass the only references left, in a list."""
-        self._queue.put((None, sinks))
+        """Drop the last references to the sinks, which closes them (a GeoPackage builds its
+        spatial index then)."""
+        sinks.clear()
 
     def finish(self) -> None:
-        """Wait until everything queued is written and closed; raise a write error."""
-        if self._thread.is_alive():
-            self._queue.put(None)
-            self._thread.join()
-        self._raise_error()
-
-    def _raise_error(self) -> None:
-        if self._error is not None:
-            error, self._error = self._error, None
-            raise error
-
-    def _run(self) -> None:
-        while True:
-            task = self._queue.get()
-            if task is None:
-                return
-            sink, features = task
-            del task
-            if sink is None:
-                features.clear()  # the last references: the sinks close here
-                continue
-            if self._error is None:
-                try:
-                    add_features(sink, features)
-                except BaseException as error:  # re-raised on the caller's thread
-                    self._error = error
-            del sink, features
+        """Nothing is pending: writes are synchronous."""
 
 
 def add_features(sink: QgsFeatureSink | None, features: list[QgsFeature]) -> None:
