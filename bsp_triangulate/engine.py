@@ -6,12 +6,20 @@ build the BSP tree over the bridged vertex sequence with an explicit work list.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from .bridges import bridge_islands, remove_spikes, split_touching
-from .predicates import grid_exact, orient, orient_many, ring_area_sign, strictly_between
+from .predicates import (
+    grid_exact,
+    orient,
+    orient_float,
+    orient_many,
+    ring_area_sign,
+    strictly_between,
+    strictly_between_one,
+)
 from .rings import PreparedRings, normalise_rings, prepare, ring_label
 from .rules import ApexRule, get_rule
 from .spatial_index import SegmentGrid
@@ -26,6 +34,13 @@ _FIRST_CHUNK = 1
 _MAX_CHUNK = 64
 # Edges remembered per base as likely blockers of its next candidates.
 _MAX_BLOCKERS = 256
+_MAX_RECENT_BLOCKERS = 8
+# Grid queries over at most this many cells are gathered as Python lists.
+_LIST_CELLS = 64
+# Candidates per base tested one by one before the facing test switches to chunks.
+_SCALAR_CANDIDATES = 8
+# Up to this many edges per candidate are tested with the scalar predicates.
+_SCALAR_EDGES = 200
 
 
 def _rows(length: int, *rows: np.ndarray | float) -> np.ndarray:
@@ -75,6 +90,29 @@ def facing_candidates(
         np.where(turn < 0, after_next | after_prev, after_next | spike),
     )
     return (signs[0] > 0) & inside[0] & inside[1]
+
+
+def facing_one(xs: list[float], ys: list[float], lo: int, hi: int, c: int) -> bool:
+    """Scalar :func:`facing_candidates` for the one candidate position ``c`` (Python lists)."""
+    ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
+    cx, cy = xs[c], ys[c]
+    if orient(ax, ay, bx, by, cx, cy) <= 0:
+        return False
+    px, py, nx, ny = xs[c - 1], ys[c - 1], xs[c + 1], ys[c + 1]
+    turn = orient(px, py, cx, cy, nx, ny)
+    spike = turn == 0 and (nx - cx) * (px - cx) + (ny - cy) * (py - cy) > 0
+    for tx, ty in ((ax, ay), (bx, by)):
+        after_next = orient(cx, cy, nx, ny, tx, ty) >= 0
+        after_prev = orient(px, py, cx, cy, tx, ty) >= 0
+        if turn > 0:
+            inside = after_next and after_prev
+        elif turn < 0:
+            inside = after_next or after_prev
+        else:
+            inside = after_next or spike
+        if not inside:
+            return False
+    return True
 
 
 def correct_candidates(
@@ -190,6 +228,75 @@ def pairs_failing(
     return np.flatnonzero(bad), np.concatenate(blockers)
 
 
+def pair_fails(
+    corners: tuple[float, float, float, float, float, float],
+    px: float,
+    py: float,
+    qx: float,
+    qy: float,
+    sign: Callable[[float, float, float, float, float, float], int] = orient,
+) -> bool:
+    """Scalar :func:`pairs_failing` for one triangle ``corners`` = (ax, ay, bx, by, cx, cy)
+    (base a -> b, apex c, counter-clockwise) and one edge p-q: the edge breaks condition 2
+    or 3. ``sign`` is :func:`orient`, or :func:`orient_float` for grid-exact coordinates."""
+    ax, ay, bx, by, cx, cy = corners
+    fp1, fq1 = sign(bx, by, cx, cy, px, py), sign(bx, by, cx, cy, qx, qy)
+    # both ends strictly outside side b-c: neither on a new side nor inside (T is ccw)
+    if fp1 < 0 and fq1 < 0:
+        return False
+    fp2, fq2 = sign(cx, cy, ax, ay, px, py), sign(cx, cy, ax, ay, qx, qy)
+    if fp2 < 0 and fq2 < 0:
+        return False
+    # condition 3: a vertex in the relative interior of a new side
+    for f1, f2, ux, uy in ((fp1, fp2, px, py), (fq1, fq2, qx, qy)):
+        if f1 == 0 and strictly_between_one(ux, uy, bx, by, cx, cy):
+            return True
+        if f2 == 0 and strictly_between_one(ux, uy, ax, ay, cx, cy):
+            return True
+    # condition 2: separating-axis test
+    if max(fp1, fq1) <= 0 or max(fp2, fq2) <= 0:
+        return False
+    if sign(ax, ay, bx, by, px, py) <= 0 and sign(ax, ay, bx, by, qx, qy) <= 0:
+        return False
+    if px == qx and py == qy:
+        return True
+    g = (
+        sign(px, py, qx, qy, ax, ay),
+        sign(px, py, qx, qy, bx, by),
+        sign(px, py, qx, qy, cx, cy),
+    )
+    return min(g) < 0 < max(g)
+
+
+def _edge_blocks(
+    corners: tuple[float, float, float, float, float, float],
+    xmin: float,
+    ymin: float,
+    xmax: float,
+    ymax: float,
+    xs: list[float],
+    ys: list[float],
+    e: int,
+    sign: Callable[[float, float, float, float, float, float], int],
+) -> bool:
+    """Edge (e, e + 1) breaks condition 2 or 3 for the triangle ``corners`` (whose bounding
+    box is given: an edge whose box misses it cannot touch the triangle)."""
+    px, py, qx, qy = xs[e], ys[e], xs[e + 1], ys[e + 1]
+    if (px < xmin and qx < xmin) or (px > xmax and qx > xmax):
+        return False
+    if (py < ymin and qy < ymin) or (py > ymax and qy > ymax):
+        return False
+    return pair_fails(corners, px, py, qx, qy, sign)
+
+
+def _remember(blockers: list[int], edge: int) -> None:
+    """Put ``edge`` first in the short list of recent blockers."""
+    if edge in blockers:
+        blockers.remove(edge)
+    blockers.insert(0, edge)
+    del blockers[_MAX_RECENT_BLOCKERS:]
+
+
 class _Tree:
     """BSP construction over one bridged sequence."""
 
@@ -209,9 +316,11 @@ class _Tree:
         self.sx = prepared.x[self.ids]
         self.sy = prepared.y[self.ids]
         self.sz = z[self.ids]
+        self.xs, self.ys = self.sx.tolist(), self.sy.tolist()  # for the scalar tests
         self.rule = rule
         self.m = len(sequence)
         self.exact = grid_exact(self.sx, self.sy)
+        self.sign = orient_float if self.exact else orient
         self.grid = None
         if self.m > SMALL_SEQUENCE:
             starts = np.arange(self.m)
@@ -222,6 +331,9 @@ class _Tree:
     def _apex(self, lo: int, hi: int, v1: int, v2: int) -> int:
         """Position of the apex on the base (v1, v2) of sub-polygon [lo, hi], or -1."""
         rule = self.rule
+        if not rule.exhaustive:
+            apex = self._first_apex(lo, hi)
+            return -1 if apex < 0 else rule.choose(np.array([apex]), v1, v2, self.sz)
         sx, sy = self.sx, self.sy
         small = self.grid is None or hi - lo <= SMALL_SEQUENCE
         found: list[np.ndarray] = []
@@ -249,6 +361,68 @@ class _Tree:
         if not found:
             return -1
         return rule.choose(np.concatenate(found), v1, v2, self.sz)
+
+    def _first_apex(self, lo: int, hi: int) -> int:
+        """The first candidate of sub-polygon [lo, hi] forming a correct triangle, or -1.
+
+        Candidates are tested one by one with the scalar tests; edges that blocked earlier
+        candidates of this base often block the next ones too and are tried first.
+        """
+        xs, ys = self.xs, self.ys
+        blockers: list[int] = []
+        start = max(hi - 1 - _SCALAR_CANDIDATES, lo)
+        for c in range(hi - 1, start, -1):
+            if facing_one(xs, ys, lo, hi, c) and not self._blocked(lo, hi, c, blockers):
+                return c
+        # long runs of candidates that do not face the base: filter them in chunks
+        size = _SCALAR_CANDIDATES
+        while start > lo:
+            stop = max(start - size, lo)
+            chunk = np.arange(start, stop, -1)
+            start, size = stop, min(size * 2, _MAX_CHUNK)
+            for c in chunk[facing_candidates(self.sx, self.sy, lo, hi, chunk, self.exact)].tolist():
+                if not self._blocked(lo, hi, c, blockers):
+                    return c
+        return -1
+
+    def _blocked(self, lo: int, hi: int, c: int, blockers: list[int]) -> bool:
+        """Some edge of sub-polygon [lo, hi] breaks condition 2 or 3 for the triangle on
+        the base (hi, lo) with apex ``c``; a blocking edge is put first in ``blockers``."""
+        xs, ys, sign = self.xs, self.ys, self.sign
+        corners = (xs[hi], ys[hi], xs[lo], ys[lo], xs[c], ys[c])
+        xmin, xmax = min(corners[0::2]), max(corners[0::2])
+        ymin, ymax = min(corners[1::2]), max(corners[1::2])
+        for e in blockers:
+            if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
+                return True
+        if self.grid is None or hi - lo <= SMALL_SEQUENCE:
+            edges: list[int] | range = range(lo, hi)
+        else:
+            found = self.grid.query_box_list(xmin, ymin, xmax, ymax, _LIST_CELLS)
+            if found is None:
+                found = self.grid.query_triangle(
+                    np.array(corners[0::2]), np.array(corners[1::2])
+                ).tolist()
+            edges = [e for e in set(found) if lo <= e < hi]
+            if len(edges) > _SCALAR_EDGES:
+                return self._blocked_many(lo, hi, c, np.array(edges), blockers)
+        for e in edges:
+            if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
+                _remember(blockers, e)
+                return True
+        return False
+
+    def _blocked_many(
+        self, lo: int, hi: int, c: int, edges: np.ndarray, blockers: list[int]
+    ) -> bool:
+        """:meth:`_blocked` for many edges at once (vectorised)."""
+        rows = np.zeros(len(edges), dtype=np.int64)
+        failing, blocking = pairs_failing(
+            self.sx, self.sy, lo, hi, np.array([c]), rows, edges, self.exact
+        )
+        if len(failing):
+            _remember(blockers, int(blocking[0]))
+        return len(failing) > 0
 
     def _grid_correct(
         self, lo: int, hi: int, chunk: np.ndarray, exhaustive: bool, blockers: list[np.ndarray]

@@ -77,7 +77,15 @@ def orient(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> 
         return 1
     if -det > bound:
         return -1
+    if (ax == cx or by == cy) and (ay == cy or bx == cx):
+        return 0  # both products are exactly zero
     return orient_exact(ax, ay, bx, by, cx, cy)
+
+
+def orient_float(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> int:
+    """:func:`orient` for coordinates where :func:`grid_exact` holds (the float is exact)."""
+    det = (ax - cx) * (by - cy) - (ay - cy) * (bx - cx)
+    return (det > 0) - (det < 0)
 
 
 def grid_exact(*coordinates: np.ndarray) -> bool:
@@ -155,6 +163,16 @@ def strictly_between(
     at_a = (px == ax) & (py == ay)
     at_b = (px == bx) & (py == by)
     return inside_box & ~at_a & ~at_b
+
+
+def strictly_between_one(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> bool:
+    """Scalar :func:`strictly_between` (p collinear with a and b)."""
+    return (
+        min(ax, bx) <= px <= max(ax, bx)
+        and min(ay, by) <= py <= max(ay, by)
+        and not (px == ax and py == ay)
+        and not (px == bx and py == by)
+    )
 
 
 def exact_sq_distance(ax: float, ay: float, bx: float, by: float) -> Fraction:

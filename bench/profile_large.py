@@ -1,0 +1,86 @@
+"""Where the time of the engine goes on large polygons (earcut water-huge3, generated islands).
+
+Times the engine on each case and, with ``--profile``, runs it under cProfile (bridging and
+tree building then show up separately). ``--save`` stores the triangulations and ``--check``
+compares a run with a saved one field by field (the speed work must not change results).
+
+Usage: python bench/profile_large.py [--cases water,islands_10000] [--profile] [--top 25]
+       [--save DIR | --check DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import time
+from pathlib import Path
+
+import numpy as np
+from bench_core import WATER_HUGE3, earcut_fixture
+from common import BUILD
+from generate import ensure_islands, read_rings
+
+from bsp_triangulate import Triangulation, triangulate
+
+FIELDS = ("vertices", "triangles", "parent", "depth", "side")
+
+
+def load_case(name: str) -> list[np.ndarray]:
+    """Rings of one named case: ``water`` or ``islands_<vertices>``."""
+    if name == "water":
+        return earcut_fixture(WATER_HUGE3)
+    if name.startswith("islands_"):
+        return read_rings(ensure_islands(int(name.split("_", 1)[1])))[0]
+    raise ValueError(f"unknown case {name!r}")
+
+
+def save(result: Triangulation, path: Path) -> None:
+    np.savez(path, **{field: getattr(result, field) for field in FIELDS})
+
+
+def same(result: Triangulation, path: Path) -> bool:
+    """True if ``result`` equals the saved triangulation in every field."""
+    saved = np.load(path)
+    return all(np.array_equal(getattr(result, field), saved[field]) for field in FIELDS)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", default="water,islands_10000")
+    parser.add_argument("--profile", action="store_true", help="run under cProfile")
+    parser.add_argument("--top", type=int, default=25, help="functions to list")
+    parser.add_argument("--save", type=Path, help="directory to store the results in")
+    parser.add_argument("--check", type=Path, help="directory of results to compare with")
+    arguments = parser.parse_args()
+    for name in arguments.cases.split(","):
+        rings = load_case(name)
+        vertices = sum(len(ring) for ring in rings)
+        profiler = cProfile.Profile() if arguments.profile else None
+        start = time.perf_counter()
+        if profiler:
+            profiler.enable()
+        result = triangulate(rings)
+        if profiler:
+            profiler.disable()
+        seconds = time.perf_counter() - start
+        print(
+            f"{name}: {vertices:,} vertices, {len(rings) - 1:,} islands -> "
+            f"{len(result):,} triangles in {seconds:.2f} s"
+        )
+        if arguments.save:
+            arguments.save.mkdir(parents=True, exist_ok=True)
+            save(result, arguments.save / f"{name}.npz")
+        if arguments.check:
+            reference = arguments.check / f"{name}.npz"
+            print(f"  same as {reference}: {same(result, reference)}")
+        if profiler:
+            output = BUILD / f"profile_large_{name}.prof"
+            profiler.dump_stats(str(output))
+            statistics = pstats.Stats(profiler).strip_dirs()
+            statistics.sort_stats("tottime").print_stats(arguments.top)
+            statistics.sort_stats("cumulative").print_stats(arguments.top)
+
+
+if __name__ == "__main__":
+    main()
