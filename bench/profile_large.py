@@ -57,16 +57,16 @@ def main() -> None:
         rings = load_case(name)
         vertices = sum(len(ring) for ring in rings)
         profiler = cProfile.Profile() if arguments.profile else None
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         if profiler:
             profiler.enable()
         result = triangulate(rings)
         if profiler:
             profiler.disable()
-        seconds = time.perf_counter() - start
+        seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
         print(
             f"{name}: {vertices:,} vertices, {len(rings) - 1:,} islands -> "
-            f"{len(result):,} triangles in {seconds:.2f} s"
+            f"{len(result):,} triangles in {seconds:.2f} s ({cpu:.2f} s CPU)"
         )
         if arguments.save:
             arguments.save.mkdir(parents=True, exist_ok=True)

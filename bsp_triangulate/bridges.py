@@ -91,7 +91,9 @@ class _Bridger:
         px, py = x[self.point_ids], y[self.point_ids]
         self.points = SegmentGrid(px, py, px, py)
         self.in_seq = np.zeros(len(x), dtype=bool)
-        self.bridges: list[tuple[int, int]] = []
+        # bridges made so far, (start, end) vertex ids: one at most per island
+        self.bridges = np.empty((len(rings), 2), dtype=np.int64)
+        self.bridge_count = 0
         self.seq_points: set[tuple[float, float]] = set()
         self._add_points(self.seq)
         self._seq_changed()
@@ -141,10 +143,19 @@ class _Bridger:
         found = self.edges.query_triangle(np.array([ux, wx]), np.array([uy, wy]))
         a = self.edge_a[found]
         b = self.edge_b[found]
-        if self.bridges:
-            extra = np.asarray(self.bridges, dtype=np.int64)
-            a = np.concatenate([a, extra[:, 0]])
-            b = np.concatenate([b, extra[:, 1]])
+        if self.bridge_count:
+            extra = self.bridges[: self.bridge_count]
+            # only bridges whose bounding box meets the segment's can meet it (exact)
+            bxa, bya, bxb, byb = x[extra[:, 0]], y[extra[:, 0]], x[extra[:, 1]], y[extra[:, 1]]
+            near = (
+                (np.maximum(bxa, bxb) >= min(ux, wx))
+                & (np.minimum(bxa, bxb) <= max(ux, wx))
+                & (np.maximum(bya, byb) >= min(uy, wy))
+                & (np.minimum(bya, byb) <= max(uy, wy))
+            )
+            if near.any():
+                a = np.concatenate([a, extra[near, 0]])
+                b = np.concatenate([b, extra[near, 1]])
         if len(a) == 0:
             return True
         o1 = orient_many(ux, uy, wx, wy, x[a], y[a])
@@ -239,7 +250,8 @@ class _Bridger:
             tail = [seq[: k + 1], loop[1:], loop[:1], seq[k + 1 :]]
             parts = [seq, loop] if k == 0 else tail
         else:
-            self.bridges.append((sk, h))
+            self.bridges[self.bridge_count] = (sk, h)
+            self.bridge_count += 1
             if k == 0:
                 parts = [seq, seq[:1], loop, loop[:1]]
             else:

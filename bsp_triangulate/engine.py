@@ -38,7 +38,7 @@ _MAX_RECENT_BLOCKERS = 8
 # Grid queries over at most this many cells are gathered as Python lists.
 _LIST_CELLS = 64
 # Candidates per base tested one by one before the facing test switches to chunks.
-_SCALAR_CANDIDATES = 8
+_SCALAR_CANDIDATES = 16
 # Up to this many edges per candidate are tested with the scalar predicates.
 _SCALAR_EDGES = 200
 
