@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from qgis.core import (
     Qgis,
     QgsCoordinateReferenceSystem,
+    QgsDataSourceUri,
     QgsFeature,
     QgsFeatureSink,
     QgsField,
@@ -22,6 +26,8 @@ from qgis.core import (
     QgsProcessingFeedback,
     QgsProcessingLayerPostProcessorInterface,
     QgsProcessingUtils,
+    QgsProviderRegistry,
+    QgsVectorFileWriter,
     QgsVectorLayer,
 )
 from qgis.PyQt.QtCore import QMetaType, QVariant
@@ -318,11 +324,9 @@ class MeshAccumulator:
         self.fids.append(mesh.fid)
         self.depths.append(mesh.depth.astype(np.int32))
 
-    def write(self, path: str, crs: QgsCoordinateReferenceSystem) -> tuple[int, int, list[str]]:
-        """Write .2dm or .ply (by extension) with face values feature_id and depth.
-
-        Returns (vertex count, face count, extra dataset files to add to the mesh layer).
-        """
+    def stage(self, path: str, crs: QgsCoordinateReferenceSystem) -> StagedMesh:
+        """Write .2dm or .ply (by extension) with face values feature_id and depth into a
+        hidden folder next to ``path``; nothing is at ``path`` until the result is committed."""
         dtype = _index_type(self.vertex_count)
         vertices = _joined(self.vertices, (0, 3), np.float64)
         faces = np.concatenate([f.astype(dtype, copy=False) for f in self.faces] or [_NO_FACES])
@@ -332,13 +336,131 @@ class MeshAccumulator:
             "feature_id": _joined(self.fids, (0,), np.int64),
             "depth": _joined(self.depths, (0,), np.int32),
         }
-        if mesh_format(path) == "ply":
-            write_ply(path, vertices, faces, datasets, crs_wkt=crs.toWkt() or None)
-            extra: list[str] = []
-        else:
-            written = write_2dm(path, vertices, faces, datasets if len(faces) else None)
-            extra = [str(file) for file in written[1:]]
-        return len(vertices), len(faces), extra
+        target = Path(path).absolute()
+        folder = Path(
+            tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=target.parent)
+        )
+        staged = StagedMesh(target, folder, len(vertices), len(faces))
+        try:
+            if mesh_format(path) == "ply":
+                write_ply(
+                    folder / target.name, vertices, faces, datasets, crs_wkt=crs.toWkt() or None
+                )
+            else:
+                written = write_2dm(
+                    folder / target.name, vertices, faces, datasets if len(faces) else None
+                )
+                staged.companions = [file.name for file in written[1:]]
+        except BaseException:
+            staged.discard()
+            raise
+        return staged
+
+
+@dataclass
+class StagedMesh:
+    """A mesh file (and its 2DM companion) written to a hidden folder beside its destination.
+
+    ``commit`` moves it into place, replacing an earlier file of the same name only then, so a
+    cancelled or failed run leaves the destination as it was; ``discard`` removes it.
+    """
+
+    target: Path
+    folder: Path
+    vertex_count: int
+    face_count: int
+    companions: list[str] = field(default_factory=list)
+
+    def commit(self) -> tuple[int, int, list[str]]:
+        """Rename into place, companions first; returns (vertices, faces, dataset files)."""
+        try:
+            for name in self.companions:
+                os.replace(self.folder / name, self.target.with_name(name))
+            if mesh_format(str(self.target)) == "2dm" and not self.companions:
+                # a face value file left by an earlier run would not match the new mesh
+                self.target.with_name(self.target.stem + "_els.dat").unlink(missing_ok=True)
+            os.replace(self.folder / self.target.name, self.target)
+        finally:
+            self.discard()
+        extra = [str(self.target.with_name(name)) for name in self.companions]
+        return self.vertex_count, self.face_count, extra
+
+    def discard(self) -> None:
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+class SinkCleanup:
+    """Removes what a cancelled or failed run wrote to its feature sinks.
+
+    File outputs the run created are deleted; a layer the run added to a GeoPackage that
+    existed before is dropped from it. Memory layers are taken out of the context's layers to
+    load. Database destinations other than files are left as they are.
+    """
+
+    def __init__(self, context: QgsProcessingContext) -> None:
+        self.context = context
+        self.existed: dict[str, bool] = {}
+        self.destinations: list[str] = []
+
+    def note(self, destination: str) -> None:
+        """Before any sink is created: whether the destination's file exists already."""
+        path = _destination_file(destination)
+        if path:
+            self.existed.setdefault(os.path.abspath(path), os.path.exists(path))
+
+    def track(self, destination_id: str | None) -> None:
+        """A sink was created with this destination (layer id or file URI)."""
+        if destination_id:
+            self.destinations.append(destination_id)
+
+    def remove(self) -> None:
+        """Call once the sinks are released (no reference to them is left)."""
+        to_load = self.context.layersToLoadOnCompletion()
+        for destination in self.destinations:
+            to_load.pop(destination, None)
+            store = self.context.temporaryLayerStore()
+            if store.mapLayer(destination) is not None:
+                store.removeMapLayer(destination)
+                continue
+            parts = QgsProviderRegistry.instance().decodeUri("ogr", destination)
+            path, layer = parts.get("path") or "", parts.get("layerName")
+            if not path or not os.path.isfile(path):
+                continue
+            if layer and self.existed.get(os.path.abspath(path), True):
+                _drop_layer(path, layer)
+            else:
+                _delete_vector_file(path)
+        self.context.setLayersToLoadOnCompletion(to_load)
+
+
+def _destination_file(destination: str) -> str:
+    """The file of a sink destination string as the user gave it ('' when not a file)."""
+    if destination.startswith("ogr:"):
+        return QgsDataSourceUri(destination[len("ogr:") :]).database()
+    if ":" in destination.split("/")[0] and not os.path.isabs(destination):
+        return ""  # memory:, postgres: and other providers
+    return destination.split("|")[0]
+
+
+def _drop_layer(path: str, layer: str) -> None:
+    from osgeo import ogr
+
+    dataset = ogr.Open(path, 1)
+    if dataset is None:
+        return
+    for index in range(dataset.GetLayerCount()):
+        if dataset.GetLayerByIndex(index).GetName() == layer:
+            dataset.DeleteLayer(index)
+            break
+    dataset = None
+
+
+def _delete_vector_file(path: str) -> None:
+    if Path(path).suffix.lower() == ".shp":
+        QgsVectorFileWriter.deleteShapeFile(path)
+        return
+    for name in (path, path + "-wal", path + "-shm", path + "-journal"):
+        Path(name).unlink(missing_ok=True)
 
 
 _NO_FACES = np.zeros((0, 3), np.int32)

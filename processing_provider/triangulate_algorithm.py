@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import traceback
 from pathlib import Path
 from typing import Any, Callable
 
@@ -9,6 +10,7 @@ from qgis.core import (
     QgsCoordinateTransform,
     QgsExpression,
     QgsFeatureRequest,
+    QgsFields,
     QgsProcessing,
     QgsProcessingAlgorithm,
     QgsProcessingContext,
@@ -40,6 +42,7 @@ from .outputs import (
     MESH_EXTENSIONS,
     BatchMesh,
     MeshAccumulator,
+    SinkCleanup,
     SinkWriter,
     TriangleStylePostProcessor,
     load_mesh_on_completion,
@@ -412,26 +415,64 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         context: QgsProcessingContext,
         feedback: QgsProcessingFeedback,
     ) -> dict[str, Any]:
+        """Triangulate the layer; a cancelled or failed run raises and leaves no outputs."""
         source = self.parameterAsSource(parameters, self.INPUT, context)
         if source is None:
             raise QgsProcessingException(self.invalidSourceError(parameters, self.INPUT))
         crs = source.sourceCrs()
         fields = triangle_fields(source.fields())
+        cleanup = SinkCleanup(context)
+        for name in (self.OUTPUT_TRIANGLES, self.OUTPUT_TREE):
+            cleanup.note(self.parameterAsOutputLayer(parameters, name, context))
         sink, triangles_id = self.parameterAsSink(
             parameters, self.OUTPUT_TRIANGLES, context, fields, QgsWkbTypes.PolygonZ, crs
         )
         if sink is None:
             raise QgsProcessingException(self.invalidSinkError(parameters, self.OUTPUT_TRIANGLES))
-        lines = tree_fields()
+        cleanup.track(triangles_id)
         tree_sink, tree_id = self.parameterAsSink(
-            parameters, self.OUTPUT_TREE, context, lines, QgsWkbTypes.LineStringZ, crs
+            parameters, self.OUTPUT_TREE, context, tree_fields(), QgsWkbTypes.LineStringZ, crs
         )
-        mesh_path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
+        has_tree = tree_sink is not None
+        if has_tree:
+            cleanup.track(tree_id)
+        # the only long-lived references to the sinks: cleared, they close (and can be removed)
+        sinks = [sink, tree_sink]
+        del sink, tree_sink
+        try:
+            results = self._process(parameters, context, feedback, source, sinks, fields)
+        except BaseException as error:
+            sinks.clear()
+            # frames of the traceback may still hold a sink, which would keep its file open
+            traceback.clear_frames(error.__traceback__)
+            cleanup.remove()
+            raise
+        results[self.OUTPUT_TRIANGLES] = triangles_id
+        if has_tree:
+            results[self.OUTPUT_TREE] = tree_id
         if context.willLoadLayerOnCompletion(triangles_id):
             context.layerToLoadOnCompletionDetails(triangles_id).setPostProcessor(
                 TriangleStylePostProcessor.create()
             )
+        return results
 
+    def _cancelled(self) -> QgsProcessingException:
+        return QgsProcessingException(self.tr("Cancelled: no output was written."))
+
+    def _process(
+        self,
+        parameters: dict[str, Any],
+        context: QgsProcessingContext,
+        feedback: QgsProcessingFeedback,
+        source: QgsProcessingFeatureSource,
+        sinks: list,
+        fields: QgsFields,
+    ) -> dict[str, Any]:
+        """Triangulate into ``sinks`` (triangles, tree or None) and the mesh file; closes the
+        sinks by clearing the list. Raises when cancelled."""
+        crs = source.sourceCrs()
+        lines = tree_fields()
+        mesh_path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
         source_of_z = self._elevation_source(parameters, context, source)
         rule = APEX_RULES[self.parameterAsEnum(parameters, self.APEX_RULE, context)]
         tolerance = self.parameterAsDouble(parameters, self.PLANAR_TOLERANCE, context)
@@ -469,8 +510,9 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 def report(fraction: float, start: int = read, size: int = len(batch)) -> None:
                     feedback.setProgress(min((start + fraction * size) * step, 99.0))
 
-                pairs, done = self._triangulate(batch, rule, tolerance, feedback, report)
-                batch = batch[:done]  # a cancel inside the batch drops the features not reached
+                pairs, _done = self._triangulate(batch, rule, tolerance, feedback, report)
+                if feedback.isCanceled():
+                    break
                 read += len(batch)
                 repaired.extend(item.fid for item in batch if item.repaired)
                 for item in batch:
@@ -484,32 +526,30 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 triangulated += with_triangles
                 empty += sum(1 for item in batch if item.error is None) - with_triangles
                 triangles += len(batch_mesh)
-                writer.write(sink, triangle_feature_chunks(batch_mesh, fields))
-                writer.write(tree_sink, tree_feature_chunks(batch_mesh, lines))
+                writer.write(sinks[0], triangle_feature_chunks(batch_mesh, fields))
+                writer.write(sinks[1], tree_feature_chunks(batch_mesh, lines))
                 if mesh is not None:
                     mesh.add(batch_mesh)
                 report(1.0)
-            has_tree = tree_sink is not None
-            # the writer closes the sinks (a GeoPackage builds its index) while the mesh is written
-            sinks = [sink, tree_sink]
-            sink = tree_sink = None
-            writer.close(sinks)
-            del sinks
-            written = mesh.write(mesh_path, crs) if mesh is not None else None
+            writer.close(sinks)  # a GeoPackage builds its spatial index here
+            if feedback.isCanceled():
+                raise self._cancelled()
+            staged = mesh.stage(mesh_path, crs) if mesh is not None else None
+            if staged is not None and feedback.isCanceled():
+                staged.discard()
+                raise self._cancelled()
+            written = staged.commit() if staged is not None else None
         finally:
             writer.finish()
 
         if repaired:
             self._report_repaired(repaired, feedback)
         results: dict[str, Any] = {
-            self.OUTPUT_TRIANGLES: triangles_id,
             self.FEATURE_COUNT: read,
             self.TRIANGLE_COUNT: triangles,
             self.FAILED_COUNT: failed,
             self.EMPTY_COUNT: empty,
         }
-        if has_tree:
-            results[self.OUTPUT_TREE] = tree_id
         if written is not None:
             vertex_count, face_count, dataset_files = written
             feedback.pushInfo(

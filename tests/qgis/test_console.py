@@ -1,5 +1,6 @@
 """bsptriangulate:triangulate as typed in the QGIS Python console: help text, file paths in and
-out, selected features only, a bare field name as Z expression, and cancelling mid-run."""
+out, selected features only, a bare field name as Z expression, and cancelling mid-run
+(which raises and leaves no output behind)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ import pytest
 from osgeo import ogr, osr
 from qgis.core import (
     QgsApplication,
+    QgsProcessingContext,
+    QgsProcessingException,
     QgsProcessingFeatureSourceDefinition,
     QgsProcessingFeedback,
     QgsProject,
@@ -112,21 +115,126 @@ def test_a_bare_field_name_is_a_z_expression(tmp_path: Path):
         assert {ring.zAt(i) for i in range(4)} == {row["height"]}
 
 
-def test_cancelling_at_the_first_progress_report_leaves_partial_but_consistent_outputs(
+def cancel_at_first_progress() -> QgsProcessingFeedback:
+    feedback = QgsProcessingFeedback()
+    feedback.progressChanged.connect(lambda _progress: feedback.cancel())
+    return feedback
+
+
+@pytest.fixture(scope="module")
+def many_polygons(tmp_path_factory) -> Path:
+    """More small triangles than one engine call or batch takes: a cancel has work to cut."""
+    from bsptriangulate.processing_provider.triangulate_algorithm import TriangulateAlgorithm
+
+    count = 2 * max(TriangulateAlgorithm.CHUNK_FEATURES, TriangulateAlgorithm.BATCH_FEATURES)
+    return write_gpkg(tmp_path_factory.mktemp("source") / "many.gpkg", small_triangles(count))
+
+
+def test_cancelling_at_the_first_progress_report_raises_and_leaves_no_output_files(
+    tmp_path: Path, many_polygons: Path
+):
+    import processing
+
+    feedback = cancel_at_first_progress()
+    context = QgsProcessingContext()
+    context.setProject(QgsProject.instance())
+    with pytest.raises(QgsProcessingException, match="Cancelled"):
+        processing.run(
+            ALG,
+            {
+                "INPUT": str(many_polygons),
+                "OUTPUT_MESH": str(tmp_path / "many.2dm"),
+                "OUTPUT_TRIANGLES": str(tmp_path / "triangles.gpkg"),
+                "OUTPUT_TREE": str(tmp_path / "tree.shp"),
+            },
+            feedback=feedback,
+            context=context,
+        )
+    assert feedback.isCanceled()
+    assert not QgsVectorLayer(str(tmp_path / "triangles.gpkg"), "triangles", "ogr").isValid()
+    # no mesh, no companion, no staging folder, no shapefile parts
+    assert list(tmp_path.iterdir()) == []
+    assert context.layersToLoadOnCompletion() == {}
+
+
+def test_cancelling_a_run_into_memory_layers_leaves_nothing_to_load(many_polygons: Path):
+    import processing
+
+    context = QgsProcessingContext()
+    context.setProject(QgsProject.instance())
+    with pytest.raises(QgsProcessingException):
+        processing.run(
+            ALG,
+            {"INPUT": str(many_polygons), "OUTPUT_TRIANGLES": "memory:", "OUTPUT_TREE": "memory:"},
+            feedback=cancel_at_first_progress(),
+            context=context,
+        )
+    assert context.layersToLoadOnCompletion() == {}
+    # only the input, loaded from its path, is left in the run's layer store
+    layers = context.temporaryLayerStore().mapLayers().values()
+    assert [layer.providerType() for layer in layers] == ["ogr"]
+
+
+def test_cancelling_keeps_an_earlier_mesh_and_the_other_layers_of_an_existing_geopackage(
+    tmp_path: Path, many_polygons: Path
+):
+    import processing
+
+    mesh = tmp_path / "earlier.2dm"
+    results = write_gpkg(tmp_path / "results.gpkg", [SQUARE_WITH_HOLE])
+    earlier = processing.run(
+        ALG,
+        {
+            "INPUT": str(write_gpkg(tmp_path / "earlier.gpkg", [SQUARE_WITH_HOLE])),
+            "OUTPUT_MESH": str(mesh),
+            "OUTPUT_TRIANGLES": f"ogr:dbname='{results}' table=\"triangles\"",
+        },
+    )
+    assert earlier["TRIANGLE_COUNT"] == 4 + 3 + 2 * 1 - 2
+    mesh_bytes = mesh.read_bytes()
+    with pytest.raises(QgsProcessingException):
+        processing.run(
+            ALG,
+            {
+                "INPUT": str(many_polygons),
+                "OUTPUT_MESH": str(mesh),
+                "OUTPUT_TRIANGLES": f"ogr:dbname='{results}' table=\"many\"",
+            },
+            feedback=cancel_at_first_progress(),
+        )
+    assert mesh.read_bytes() == mesh_bytes
+    layers = {layer.GetName() for layer in ogr.Open(str(results))}
+    assert layers == {"parcels", "triangles"}
+    assert sorted(path.name for path in tmp_path.iterdir()) == [
+        "earlier.2dm",
+        "earlier.gpkg",
+        "earlier_els.dat",
+        "results.gpkg",
+    ]
+
+
+def test_a_complete_run_replaces_an_earlier_mesh_file_and_leaves_no_staging_folder(
     tmp_path: Path,
 ):
     import processing
-    from bsptriangulate.processing_provider.triangulate_algorithm import TriangulateAlgorithm
 
-    # more features than one engine call takes, so the run has a later chunk to cancel
-    count = 2 * max(TriangulateAlgorithm.CHUNK_FEATURES, TriangulateAlgorithm.BATCH_FEATURES)
-    feedback = QgsProcessingFeedback()
-    feedback.progressChanged.connect(lambda _progress: feedback.cancel())
-    source = write_gpkg(tmp_path / "many.gpkg", small_triangles(count))
+    mesh = tmp_path / "parcels.2dm"
+    mesh.write_text("not a mesh\n")
     result = processing.run(
-        ALG, {"INPUT": str(source), "OUTPUT_TRIANGLES": "memory:"}, feedback=feedback
+        ALG,
+        {
+            "INPUT": str(write_gpkg(tmp_path / "parcels.gpkg", small_triangles(3))),
+            "OUTPUT_MESH": str(mesh),
+            "OUTPUT_TRIANGLES": "memory:",
+        },
     )
-    assert feedback.isCanceled()
-    assert 0 < result["FEATURE_COUNT"] < count
-    assert result["TRIANGLE_COUNT"] == result["OUTPUT_TRIANGLES"].featureCount()
-    assert result["TRIANGLE_COUNT"] == result["FEATURE_COUNT"]  # one triangle per feature
+    assert result["TRIANGLE_COUNT"] == result["FEATURE_COUNT"] == 3
+    assert result["OUTPUT_TRIANGLES"].featureCount() == 3
+    lines = mesh.read_text().splitlines()
+    assert lines[0] == "MESH2D"
+    assert sum(line.startswith("E3T ") for line in lines) == 3
+    assert sorted(path.name for path in tmp_path.iterdir()) == [
+        "parcels.2dm",
+        "parcels.gpkg",
+        "parcels_els.dat",
+    ]
