@@ -162,6 +162,8 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "<p>A feature that cannot be triangulated is reported with its id and reason and "
             "counted in FAILED_COUNT; null and empty geometries in EMPTY_COUNT. "
             "FEATURE_COUNT = triangulated + FAILED_COUNT + EMPTY_COUNT.</p>"
+            "<p>A cancelled run writes no mesh file and deletes the triangle and tree outputs "
+            "it created.</p>"
         )
 
     def initAlgorithm(self, config: dict[str, Any] | None = None) -> None:  # noqa: N802
