@@ -11,7 +11,7 @@ import numpy as np
 
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
-from .spatial_index import SegmentGrid
+from .spatial_index import PointColumns, SegmentGrid
 from .triangulation import TriangulationError
 
 # relative margin within which float squared distances are re-compared exactly
@@ -27,21 +27,7 @@ def _ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 def split_touching(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> list[np.ndarray]:
     """Split every ring edge at the vertices (of any ring) lying in its relative interior."""
     starts, ends = _ring_edges(rings)
-    grid = SegmentGrid(x[starts], y[starts], x[ends], y[ends])
-    vertex_ids = np.unique(starts)
-    cells = grid._row(y[vertex_ids]) * grid.nx + grid._col(x[vertex_ids])
-    counts = grid.starts[cells + 1] - grid.starts[cells]
-    total = int(counts.sum())
-    offsets = np.arange(total, dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
-    edge = grid.items[np.repeat(grid.starts[cells], counts) + offsets]
-    vertex = np.repeat(vertex_ids, counts)
-    a, b = starts[edge], ends[edge]
-    px, py = x[vertex], y[vertex]
-    # cheap exact pre-filter: the vertex must be in the edge's bounding box
-    near = strictly_between(px, py, x[a], y[a], x[b], y[b])
-    edge, vertex, a, b = edge[near], vertex[near], a[near], b[near]
-    on_line = orient_many(x[a], y[a], x[b], y[b], x[vertex], y[vertex]) == 0
-    edge, vertex = edge[on_line], vertex[on_line]
+    edge, vertex = _touching_pairs(x, y, starts, ends)
     if len(edge) == 0:
         return rings
     hits: dict[int, list[int]] = {}
@@ -62,6 +48,47 @@ def split_touching(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> lis
                 out.extend(_order_along(x, y, vid, int(ring[(t + 1) % len(ring)]), inside))
         result.append(np.asarray(out, dtype=np.int64))
     return result
+
+
+# candidate (edge, vertex) pairs tested at once: bounds the memory of the vectorised tests
+_PAIR_CHUNK = 1 << 20
+
+
+def _touching_pairs(
+    x: np.ndarray, y: np.ndarray, starts: np.ndarray, ends: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(edge, vertex) pairs, ordered by edge, of the vertices in the relative interior of edges."""
+    vertex_ids = np.unique(starts)
+    points = PointColumns(x[vertex_ids], y[vertex_ids])
+    segment, first, last = points.segment_columns(x[starts], y[starts], x[ends], y[ends])
+    counts = last - first
+    keep = counts > 0
+    segment, first, counts = segment[keep], first[keep], counts[keep]
+    # split the (segment, column) ranges into chunks of about _PAIR_CHUNK pairs
+    cumulative = np.cumsum(counts)
+    bounds = np.searchsorted(
+        cumulative,
+        np.arange(_PAIR_CHUNK, int(cumulative[-1]) if len(cumulative) else 0, _PAIR_CHUNK),
+    )
+    edges_found, vertices_found = [], []
+    for lo, hi in zip([0, *bounds.tolist()], [*bounds.tolist(), len(counts)]):
+        part = counts[lo:hi]
+        total = int(part.sum())
+        if total == 0:
+            continue
+        offsets = np.arange(total, dtype=np.int64) - np.repeat(np.cumsum(part) - part, part)
+        edge = np.repeat(segment[lo:hi], part)
+        vertex = vertex_ids[points.order[np.repeat(first[lo:hi], part) + offsets]]
+        a, b = starts[edge], ends[edge]
+        # cheap exact pre-filter: the vertex must be in the edge's bounding box
+        near = strictly_between(x[vertex], y[vertex], x[a], y[a], x[b], y[b])
+        edge, vertex, a, b = edge[near], vertex[near], a[near], b[near]
+        on_line = orient_many(x[a], y[a], x[b], y[b], x[vertex], y[vertex]) == 0
+        edges_found.append(edge[on_line])
+        vertices_found.append(vertex[on_line])
+    if not edges_found:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    return np.concatenate(edges_found), np.concatenate(vertices_found)
 
 
 def _order_along(x: np.ndarray, y: np.ndarray, a: int, b: int, inside: list[int]) -> list[int]:

@@ -158,3 +158,67 @@ class SegmentGrid:
         present = lo_x <= hi_x
         rows, lo_x, hi_x = rows[present], lo_x[present], hi_x[present]
         return self._gather(rows, self._col(lo_x, -self.pad), self._col(hi_x, self.pad))
+
+
+class PointColumns:
+    """Points bucketed into a uniform grid stored column by column, so that the points of one
+    column within a range of rows are contiguous: finds the points near segments quickly even
+    where long segments pass many dense clusters of points."""
+
+    def __init__(self, px: np.ndarray, py: np.ndarray, per_point: float = 8.0) -> None:
+        count = len(px)
+        self.x0 = float(px.min()) if count else 0.0
+        self.y0 = float(py.min()) if count else 0.0
+        width = (float(px.max()) - self.x0) if count else 1.0
+        height = (float(py.max()) - self.y0) if count else 1.0
+        extent = max(width, height, 1e-300)
+        width = max(width, extent * 1e-6)
+        height = max(height, extent * 1e-6)
+        size = float(np.sqrt(width) * np.sqrt(height) / np.sqrt(max(1.0, count * per_point)))
+        if not size > 0:
+            size = extent
+        self.nx = int(min(max(1, np.ceil(width / size)), 8192))
+        self.ny = int(min(max(1, np.ceil(height / size)), 8192))
+        self.size_x = width / self.nx
+        self.size_y = height / self.ny
+        # slack against rounding in the cell arithmetic (coordinates may be large)
+        self.pad = 1e-9 * max(abs(self.x0), abs(self.y0), extent) + 1e-300
+        cell = self._col(px) * self.ny + self._row(py)
+        self.order = np.argsort(cell, kind="stable")
+        self.starts = np.searchsorted(cell[self.order], np.arange(self.nx * self.ny + 1))
+
+    def _col(self, x: np.ndarray) -> np.ndarray:
+        return np.clip(np.floor((x - self.x0) / self.size_x), 0, self.nx - 1).astype(np.int64)
+
+    def _row(self, y: np.ndarray) -> np.ndarray:
+        return np.clip(np.floor((y - self.y0) / self.size_y), 0, self.ny - 1).astype(np.int64)
+
+    def segment_columns(
+        self, ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For every column a segment crosses: (segment, first, last) where points
+        ``order[first:last]`` are those of that column in the rows the segment meets there
+        (conservative: a point on the closed segment is never left out)."""
+        pad = self.pad
+        xmin, xmax = np.minimum(ax, bx), np.maximum(ax, bx)
+        ymin, ymax = np.minimum(ay, by), np.maximum(ay, by)
+        c0, c1 = self._col(xmin - pad), self._col(xmax + pad)
+        spans = c1 - c0 + 1
+        segment = np.repeat(np.arange(len(ax), dtype=np.int64), spans)
+        col = np.arange(len(segment), dtype=np.int64) - np.repeat(np.cumsum(spans) - spans, spans)
+        col += c0[segment]
+        # the segment's x-range within the column's band, and its y-range over that
+        lo = np.maximum(self.x0 + col * self.size_x - pad, xmin[segment])
+        hi = np.minimum(self.x0 + (col + 1) * self.size_x + pad, xmax[segment])
+        sax, say, sbx, sby = ax[segment], ay[segment], bx[segment], by[segment]
+        # segments narrower than a column use their whole y-range (no steep or infinite slope)
+        upright = np.abs(sbx - sax) < self.size_x
+        slope = (sby - say) / np.where(upright, 1.0, sbx - sax)
+        y_lo = np.where(upright, ymin[segment], say + (lo - sax) * slope)
+        y_hi = np.where(upright, ymax[segment], say + (hi - sax) * slope)
+        bottom = np.maximum(np.minimum(y_lo, y_hi) - pad, ymin[segment] - pad)
+        top = np.minimum(np.maximum(y_lo, y_hi) + pad, ymax[segment] + pad)
+        base = col * self.ny
+        first = self.starts[base + self._row(bottom)]
+        last = self.starts[base + self._row(top) + 1]
+        return segment, first, last
