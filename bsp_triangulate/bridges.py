@@ -57,38 +57,47 @@ _PAIR_CHUNK = 1 << 20
 def _touching_pairs(
     x: np.ndarray, y: np.ndarray, starts: np.ndarray, ends: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(edge, vertex) pairs, ordered by edge, of the vertices in the relative interior of edges."""
+    """(edge, vertex) pairs of the vertices in the relative interior of edges (exact)."""
     vertex_ids = np.unique(starts)
     points = PointColumns(x[vertex_ids], y[vertex_ids])
-    segment, first, last = points.segment_columns(x[starts], y[starts], x[ends], y[ends])
-    counts = last - first
-    keep = counts > 0
-    segment, first, counts = segment[keep], first[keep], counts[keep]
-    # split the (segment, column) ranges into chunks of about _PAIR_CHUNK pairs
-    cumulative = np.cumsum(counts)
-    bounds = np.searchsorted(
-        cumulative,
-        np.arange(_PAIR_CHUNK, int(cumulative[-1]) if len(cumulative) else 0, _PAIR_CHUNK),
-    )
+    near_ids = vertex_ids[points.order]  # vertex ids in the order of the points' cells
+    ax, ay, bx, by = x[starts], y[starts], x[ends], y[ends]
     edges_found, vertices_found = [], []
-    for lo, hi in zip([0, *bounds.tolist()], [*bounds.tolist(), len(counts)]):
-        part = counts[lo:hi]
-        total = int(part.sum())
-        if total == 0:
-            continue
-        offsets = np.arange(total, dtype=np.int64) - np.repeat(np.cumsum(part) - part, part)
-        edge = np.repeat(segment[lo:hi], part)
-        vertex = vertex_ids[points.order[np.repeat(first[lo:hi], part) + offsets]]
-        a, b = starts[edge], ends[edge]
-        # cheap exact pre-filter: the vertex must be in the edge's bounding box
-        near = strictly_between(x[vertex], y[vertex], x[a], y[a], x[b], y[b])
-        edge, vertex, a, b = edge[near], vertex[near], a[near], b[near]
-        on_line = orient_many(x[a], y[a], x[b], y[b], x[vertex], y[vertex]) == 0
-        edges_found.append(edge[on_line])
-        vertices_found.append(vertex[on_line])
+    for edge_lo, edge_hi in _chunks(points.column_spans(ax, bx), _PAIR_CHUNK):
+        window = slice(edge_lo, edge_hi)
+        segment, first, last = points.segment_columns(
+            ax[window], ay[window], bx[window], by[window]
+        )
+        counts = last - first
+        keep = counts > 0
+        segment, first, counts = segment[keep] + edge_lo, first[keep], counts[keep]
+        for lo, hi in _chunks(counts, _PAIR_CHUNK):
+            part = counts[lo:hi]
+            offsets = np.arange(int(part.sum()), dtype=np.int64) - np.repeat(
+                np.cumsum(part) - part, part
+            )
+            edge = np.repeat(segment[lo:hi], part)
+            vertex = near_ids[np.repeat(first[lo:hi], part) + offsets]
+            a, b = starts[edge], ends[edge]
+            # cheap exact pre-filter: the vertex must be in the edge's bounding box
+            near = strictly_between(x[vertex], y[vertex], x[a], y[a], x[b], y[b])
+            edge, vertex, a, b = edge[near], vertex[near], a[near], b[near]
+            on_line = orient_many(x[a], y[a], x[b], y[b], x[vertex], y[vertex]) == 0
+            edges_found.append(edge[on_line])
+            vertices_found.append(vertex[on_line])
     if not edges_found:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     return np.concatenate(edges_found), np.concatenate(vertices_found)
+
+
+def _chunks(counts: np.ndarray, size: int) -> list[tuple[int, int]]:
+    """Consecutive index ranges [lo, hi) of ``counts`` summing to about ``size`` each."""
+    if len(counts) == 0:
+        return []
+    cumulative = np.cumsum(counts)
+    cuts = np.searchsorted(cumulative, np.arange(size, int(cumulative[-1]), size)).tolist()
+    bounds = sorted({0, *cuts, len(counts)})
+    return list(zip(bounds[:-1], bounds[1:]))
 
 
 def _order_along(x: np.ndarray, y: np.ndarray, a: int, b: int, inside: list[int]) -> list[int]:

@@ -193,6 +193,11 @@ class PointColumns:
     def _row(self, y: np.ndarray) -> np.ndarray:
         return np.clip(np.floor((y - self.y0) / self.size_y), 0, self.ny - 1).astype(np.int64)
 
+    def column_spans(self, ax: np.ndarray, bx: np.ndarray) -> np.ndarray:
+        """How many columns each segment crosses (the entries of :meth:`segment_columns`)."""
+        xmin, xmax = np.minimum(ax, bx), np.maximum(ax, bx)
+        return self._col(xmax + self.pad) - self._col(xmin - self.pad) + 1
+
     def segment_columns(
         self, ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -202,8 +207,8 @@ class PointColumns:
         pad = self.pad
         xmin, xmax = np.minimum(ax, bx), np.maximum(ax, bx)
         ymin, ymax = np.minimum(ay, by), np.maximum(ay, by)
-        c0, c1 = self._col(xmin - pad), self._col(xmax + pad)
-        spans = c1 - c0 + 1
+        c0 = self._col(xmin - pad)
+        spans = self.column_spans(ax, bx)
         segment = np.repeat(np.arange(len(ax), dtype=np.int64), spans)
         col = np.arange(len(segment), dtype=np.int64) - np.repeat(np.cumsum(spans) - spans, spans)
         col += c0[segment]
