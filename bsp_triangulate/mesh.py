@@ -71,9 +71,21 @@ def _write_rows(handle, row_format: str, rows: np.ndarray) -> None:
         handle.write((row_format * len(block)) % tuple(block.ravel().tolist()))
 
 
+def _write_numbered_rows(handle, row_format: str, rows: np.ndarray, offset: int = 0) -> None:
+    """Write ``row_format % (id, *row + offset)`` for every row (ids from 1), a block of rows
+    per ``%`` operation; blocks are built one at a time, so memory stays flat."""
+    for start in range(0, len(rows), _CHUNK_ROWS):
+        block = rows[start : start + _CHUNK_ROWS]
+        ids = np.arange(start + 1, start + len(block) + 1, dtype=block.dtype)
+        numbered = np.column_stack([ids, block + offset if offset else block])
+        handle.write((row_format * len(block)) % tuple(numbered.ravel().tolist()))
+
+
 def _check_mesh(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    faces = np.asarray(faces).reshape(-1, 3)
+    if not np.issubdtype(faces.dtype, np.integer):
+        faces = faces.astype(np.int64)
     if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
         raise ValueError("a face refers to a vertex index outside the vertex array")
     return vertices, faces
@@ -105,10 +117,8 @@ def write_2dm(
     path = Path(path)
     with open(path, "w", encoding="ascii", newline="\n") as handle:
         handle.write("MESH2D\n")
-        nodes = np.column_stack([np.arange(1, len(vertices) + 1, dtype=np.float64), vertices])
-        _write_rows(handle, "ND %d %r %r %r\n", nodes)
-        elements = np.column_stack([np.arange(1, len(faces) + 1), faces + 1])
-        _write_rows(handle, "E3T %d %d %d %d 1\n", elements)
+        _write_numbered_rows(handle, "ND %d %r %r %r\n", vertices)
+        _write_numbered_rows(handle, "E3T %d %d %d %d 1\n", faces, offset=1)
     written = [path]
     if face_datasets:
         written.append(
