@@ -329,8 +329,7 @@ class MeshAccumulator:
         hidden folder next to ``path``; nothing is at ``path`` until the result is committed."""
         dtype = _index_type(self.vertex_count)
         vertices = _joined(self.vertices, (0, 3), np.float64)
-        faces = np.concatenate([f.astype(dtype, copy=False) for f in self.faces] or [_NO_FACES])
-        self.vertices, self.faces = [], []
+        faces = _joined(self.faces, (0, 3), dtype)
         vertices, faces = merge_identical_vertices(vertices, faces)
         datasets = {
             "feature_id": _joined(self.fids, (0,), np.int64),
@@ -463,7 +462,6 @@ def _delete_vector_file(path: str) -> None:
         Path(name).unlink(missing_ok=True)
 
 
-_NO_FACES = np.zeros((0, 3), np.int32)
 # Odd 64-bit constants that spread the coordinate bits over the hash.
 _HASH_MULTIPLIERS = (
     np.uint64(0x9E3779B97F4A7C15),
@@ -477,7 +475,18 @@ def _index_type(vertex_count: int) -> type:
 
 
 def _joined(arrays: list[np.ndarray], shape: tuple[int, ...], dtype: type) -> np.ndarray:
-    return np.concatenate(arrays) if arrays else np.zeros(shape, dtype)
+    """The arrays one after another; the list is emptied as they are copied, so the parts
+    and the whole are not all held at once."""
+    if not arrays:
+        return np.zeros(shape, dtype)
+    out = np.empty((sum(len(a) for a in arrays), *shape[1:]), dtype)
+    position = 0
+    arrays.reverse()
+    while arrays:
+        part = arrays.pop()
+        out[position : position + len(part)] = part
+        position += len(part)
+    return out
 
 
 def merge_identical_vertices(
@@ -493,7 +502,9 @@ def merge_identical_vertices(
     count = len(vertices)
     if count == 0:
         return vertices, faces
-    bits = np.ascontiguousarray(vertices + 0.0).view(np.uint64)
+    vertices = np.ascontiguousarray(vertices)
+    vertices += 0.0  # -0.0 -> 0.0 in place (the caller's own array): no copy of the mesh
+    bits = vertices.view(np.uint64)
     key = bits[:, 0] * _HASH_MULTIPLIERS[0]
     key ^= key >> np.uint64(29)
     key += bits[:, 1] * _HASH_MULTIPLIERS[1]
@@ -502,22 +513,34 @@ def merge_identical_vertices(
     key ^= key >> np.uint64(29)
     order = np.argsort(key, kind="stable")
     sorted_key = key[order]
+    del key
     starts = np.empty(count, dtype=bool)
     starts[0] = True
     np.not_equal(sorted_key[1:], sorted_key[:-1], out=starts[1:])
+    del sorted_key
     # the stable sort puts each group's first appearance first
     first = order[np.flatnonzero(starts)]
     representative = np.empty(count, dtype=np.int64)
     representative[order] = first[np.cumsum(starts) - 1]
+    del order, starts
     if len(first) == count:
         return vertices, faces
-    if not (bits == bits[representative]).all():
+    if not _same_rows(bits, representative):
         merged, merged_faces, _part = merge_meshes([(vertices, faces)])
         return merged, merged_faces
     kept = np.sort(first)
     rank = np.empty(count, dtype=faces.dtype)
     rank[kept] = np.arange(len(kept), dtype=faces.dtype)
     return vertices[kept], rank[representative][faces]
+
+
+def _same_rows(bits: np.ndarray, representative: np.ndarray, block: int = 1 << 20) -> bool:
+    """Every row equals its representative's row (compared block by block)."""
+    for start in range(0, len(bits), block):
+        rows = slice(start, start + block)
+        if not (bits[rows] == bits[representative[rows]]).all():
+            return False
+    return True
 
 
 def mesh_format(path: str) -> str:
