@@ -497,7 +497,8 @@ def merge_identical_vertices(
     The same result as ``bsp_triangulate.mesh.merge_meshes`` (0.0 and -0.0 are equal, other
     values compare by their bits), found by sorting one 64-bit hash per vertex instead of
     24-byte rows; every merge is checked on the full coordinates, and a hash collision between
-    different vertices falls back to the exact row sort.
+    different vertices falls back to the exact row sort. ``vertices`` (the caller's own
+    array) has its -0.0 turned into 0.0 in place, to save a copy of the whole mesh.
     """
     count = len(vertices)
     if count == 0:
