@@ -11,6 +11,22 @@ import math
 import numpy as np
 
 
+def _frame(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float, float]:
+    """(x0, y0, width, height, extent) of a grid over the points; width and height at least
+    1e-6 of the extent, so that a flat set still gets cells of some size."""
+    if len(x) == 0:
+        return 0.0, 0.0, 1.0, 1.0, 1.0
+    x0, y0 = float(x.min()), float(y.min())
+    width, height = float(x.max()) - x0, float(y.max()) - y0
+    extent = max(width, height, 1e-300)
+    return x0, y0, max(width, extent * 1e-6), max(height, extent * 1e-6), extent
+
+
+def _cell_size(width: float, height: float, cells: float) -> float:
+    """Side of a square cell so that about ``cells`` cover width x height (no underflow)."""
+    return float(np.sqrt(width) * np.sqrt(height) / np.sqrt(cells))
+
+
 class SegmentGrid:
     """Segments ``(ax, ay) - (bx, by)`` bucketed into a uniform grid of about ``cells`` cells."""
 
@@ -24,16 +40,10 @@ class SegmentGrid:
     ) -> None:
         count = len(ax)
         cells = max(1, count if cells is None else cells)
-        allx = np.concatenate([ax, bx])
-        ally = np.concatenate([ay, by])
-        self.x0 = float(allx.min()) if count else 0.0
-        self.y0 = float(ally.min()) if count else 0.0
-        width = (float(allx.max()) - self.x0) if count else 1.0
-        height = (float(ally.max()) - self.y0) if count else 1.0
-        extent = max(width, height, 1e-300)
-        width = max(width, extent * 1e-6)
-        height = max(height, extent * 1e-6)
-        size = float(np.sqrt(width) * np.sqrt(height) / np.sqrt(cells))  # no underflow
+        self.x0, self.y0, width, height, extent = _frame(
+            np.concatenate([ax, bx]), np.concatenate([ay, by])
+        )
+        size = _cell_size(width, height, cells)
         # cells no smaller than a typical segment, so that segments span few cells
         lengths = np.maximum(np.abs(bx - ax), np.abs(by - ay))
         if count:
@@ -167,14 +177,8 @@ class PointColumns:
 
     def __init__(self, px: np.ndarray, py: np.ndarray, per_point: float = 8.0) -> None:
         count = len(px)
-        self.x0 = float(px.min()) if count else 0.0
-        self.y0 = float(py.min()) if count else 0.0
-        width = (float(px.max()) - self.x0) if count else 1.0
-        height = (float(py.max()) - self.y0) if count else 1.0
-        extent = max(width, height, 1e-300)
-        width = max(width, extent * 1e-6)
-        height = max(height, extent * 1e-6)
-        size = float(np.sqrt(width) * np.sqrt(height) / np.sqrt(max(1.0, count * per_point)))
+        self.x0, self.y0, width, height, extent = _frame(px, py)
+        size = _cell_size(width, height, max(1.0, count * per_point))
         if not size > 0:
             size = extent
         self.nx = int(min(max(1, np.ceil(width / size)), 8192))
