@@ -82,11 +82,16 @@ def read_feature(feature: QgsFeature, invalid_policy: int) -> FeatureRings:
     item.has_z = QgsWkbTypes.hasZ(geometry.wkbType())
     if QgsWkbTypes.isCurvedType(geometry.wkbType()):
         geometry = QgsGeometry(geometry.constGet().segmentize())
+    try:
+        parts = _polygon_parts(geometry)
+    except (ValueError, IndexError) as error:
+        item.error = f"unreadable geometry: {error}"
+        return item
     # GEOS judges validity in XY, where a wall (a near-vertical face) has no area: walls are
     # left to the engine, which triangulates them in their own plane (and fails bad ones).
     if (
         invalid_policy != INVALID_AS_GIVEN
-        and not (item.has_z and _is_wall(geometry))
+        and not (item.has_z and _has_wall(parts))
         and not geometry.isGeosValid()
     ):
         if invalid_policy == INVALID_FAIL:
@@ -97,21 +102,18 @@ def read_feature(feature: QgsFeature, invalid_policy: int) -> FeatureRings:
             reason = repaired.lastError() or _validity_message(geometry)
             item.error = f"invalid polygon that could not be repaired ({reason})"
             return item
-        geometry = repaired
         item.repaired = True
-    try:
-        item.parts = _polygon_parts(geometry)
-    except (ValueError, IndexError) as error:
-        item.error = f"unreadable geometry: {error}"
+        try:
+            parts = _polygon_parts(repaired)
+        except (ValueError, IndexError) as error:
+            item.error = f"unreadable geometry: {error}"
+            return item
+    item.parts = parts
     return item
 
 
-def _is_wall(geometry: QgsGeometry) -> bool:
+def _has_wall(parts: list[Polygon]) -> bool:
     """Some part's outer ring is worked on in a vertical plane by the engine."""
-    try:
-        parts = _polygon_parts(geometry)
-    except (ValueError, IndexError):
-        return False
     return any(part and working_axes(part[0]) != (0, 1) for part in parts)
 
 
