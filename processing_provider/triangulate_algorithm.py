@@ -17,6 +17,7 @@ from qgis.core import (
     QgsProcessingException,
     QgsProcessingFeatureSource,
     QgsProcessingFeedback,
+    QgsProcessingOutputLayerDefinition,
     QgsProcessingOutputNumber,
     QgsProcessingParameterBand,
     QgsProcessingParameterDefinition,
@@ -153,7 +154,9 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "<p><b>Mesh</b>: one .2dm (default) or .ply file for the whole layer, vertices "
             "shared where identical, z per vertex, face values feature_id and depth; loaded "
             "as a mesh layer in the input's CRS.</p>"
-            "<p><b>Triangles</b>: one PolygonZ feature per triangle with the source feature id "
+            "<p><b>Triangles</b> (skip it for a faster mesh-only run; at least one of the mesh "
+            "and the triangles is needed): one PolygonZ feature per triangle with the source "
+            "feature id "
             "and attributes (clashing names prefixed with src_), part, order (index in the "
             "BSP tree's pre-order), parent, depth, side (0 root, 1 left, 2 right), area_2d, "
             "area_3d, min_angle, slope and aspect (degrees).</p>"
@@ -290,7 +293,11 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         )
         self.addParameter(
             QgsProcessingParameterFeatureSink(
-                self.OUTPUT_TRIANGLES, self.tr("Triangles"), QgsProcessing.TypeVectorPolygon
+                self.OUTPUT_TRIANGLES,
+                self.tr("Triangles"),
+                QgsProcessing.TypeVectorPolygon,
+                optional=True,
+                createByDefault=True,
             )
         )
         self.addParameter(
@@ -336,7 +343,16 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
         if path and Path(path).suffix.lower().lstrip(".") not in MESH_EXTENSIONS:
             return False, self.tr("The mesh file must end with .2dm or .ply: {}").format(path)
+        if not path and not self._wants_triangles(parameters):
+            return False, self.tr("Nothing to write: choose a mesh file or the triangles output.")
         return True, ""
+
+    def _wants_triangles(self, parameters: dict[str, Any]) -> bool:
+        """Whether the per-triangle output was asked for (skipped when unset or empty)."""
+        value = parameters.get(self.OUTPUT_TRIANGLES)
+        if isinstance(value, QgsProcessingOutputLayerDefinition):
+            value = value.sink.staticValue()
+        return value is not None and str(value) != ""
 
     def _dem_band(self, parameters: dict[str, Any], context: QgsProcessingContext) -> int:
         if parameters.get(self.DEM_BAND) is None:
@@ -429,9 +445,10 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         sink, triangles_id = self.parameterAsSink(
             parameters, self.OUTPUT_TRIANGLES, context, fields, QgsWkbTypes.PolygonZ, crs
         )
-        if sink is None:
+        if sink is None and self._wants_triangles(parameters):
             raise QgsProcessingException(self.invalidSinkError(parameters, self.OUTPUT_TRIANGLES))
-        cleanup.track(triangles_id)
+        if sink is not None:
+            cleanup.track(triangles_id)
         tree_sink, tree_id = self.parameterAsSink(
             parameters, self.OUTPUT_TREE, context, tree_fields(), QgsWkbTypes.LineStringZ, crs
         )
@@ -449,10 +466,11 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             traceback.clear_frames(error.__traceback__)
             cleanup.remove()
             raise
-        results[self.OUTPUT_TRIANGLES] = triangles_id
+        if triangles_id:
+            results[self.OUTPUT_TRIANGLES] = triangles_id
         if has_tree:
             results[self.OUTPUT_TREE] = tree_id
-        if context.willLoadLayerOnCompletion(triangles_id):
+        if triangles_id and context.willLoadLayerOnCompletion(triangles_id):
             context.layerToLoadOnCompletionDetails(triangles_id).setPostProcessor(
                 TriangleStylePostProcessor.create()
             )

@@ -432,6 +432,23 @@ def test_ply_mesh_output_loads_with_its_face_values(tmp_path: Path):
     assert {"feature_id", "depth"} <= names
 
 
+@pytest.mark.parametrize("skipped", [None, ""])
+def test_mesh_only_run_skips_the_triangles_output_and_still_counts(tmp_path: Path, skipped):
+    mesh_path = tmp_path / "only.2dm"
+    layer = polygon_layer([CONCAVE_WITH_TWO_ISLANDS, None])
+    result = run({"INPUT": layer, "OUTPUT_MESH": str(mesh_path), "OUTPUT_TRIANGLES": skipped})
+    assert "OUTPUT_TRIANGLES" not in result
+    assert (result["FEATURE_COUNT"], result["TRIANGLE_COUNT"], result["EMPTY_COUNT"]) == (2, 14, 1)
+    lines = mesh_path.read_text().splitlines()
+    assert sum(line.startswith("E3T ") for line in lines) == 14
+
+
+def test_run_without_mesh_and_without_triangles_is_refused_before_running():
+    layer = polygon_layer([CONCAVE_WITH_TWO_ISLANDS])
+    with pytest.raises(QgsProcessingException):
+        run({"INPUT": layer, "OUTPUT_MESH": None, "OUTPUT_TRIANGLES": None})
+
+
 def test_run_and_load_results_adds_styled_triangles_and_the_mesh_with_the_input_crs(
     tmp_path: Path,
 ):
