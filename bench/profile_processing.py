@@ -4,7 +4,8 @@ Runs the algorithm with ``processing.run`` on the benchmark's star polygons with
 elevation and a .2dm mesh, triangles to memory (default) or to a GeoPackage, and prints the
 functions that take the most time, the wall time and the peak resident memory.
 
-Usage: python bench/profile_processing.py [--count 5000] [--gpkg] [--no-profile] [--top 30]
+Usage: python bench/profile_processing.py [--count 5000] [--gpkg | --mesh-only] [--no-profile]
+       [--top 30]
 """
 
 from __future__ import annotations
@@ -50,7 +51,9 @@ def start_qgis():
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--count", type=int, default=5_000, help="star polygons (set size)")
-    parser.add_argument("--gpkg", action="store_true", help="triangles to a GeoPackage")
+    outputs = parser.add_mutually_exclusive_group()
+    outputs.add_argument("--gpkg", action="store_true", help="triangles to a GeoPackage")
+    outputs.add_argument("--mesh-only", action="store_true", help="no per-triangle output")
     parser.add_argument("--no-profile", action="store_true", help="wall time only")
     parser.add_argument("--top", type=int, default=30, help="functions to list")
     arguments = parser.parse_args()
@@ -69,6 +72,8 @@ def main() -> None:
         "OUTPUT_MESH": str(output / "mesh.2dm"),
         "OUTPUT_TRIANGLES": str(output / "triangles.gpkg") if arguments.gpkg else "memory:",
     }
+    if arguments.mesh_only:
+        parameters["OUTPUT_TRIANGLES"] = None
     context = QgsProcessingContext()
     feedback = QgsProcessingFeedback()
     profiler = None if arguments.no_profile else cProfile.Profile()
@@ -85,7 +90,8 @@ def main() -> None:
     counts = {key: value for key, value in results.items() if key.endswith("_COUNT")}
     print(f"{arguments.count:,} polygons: {seconds:.1f} s, peak RSS {peak:.0f} MiB, {counts}")
     if profiler is not None:
-        name = f"profile_processing_{arguments.count}{'_gpkg' if arguments.gpkg else ''}.prof"
+        suffix = "_gpkg" if arguments.gpkg else "_mesh" if arguments.mesh_only else ""
+        name = f"profile_processing_{arguments.count}{suffix}.prof"
         profiler.dump_stats(str(BUILD / name))
         statistics = pstats.Stats(profiler).strip_dirs()
         statistics.sort_stats("tottime").print_stats(arguments.top)

@@ -7,6 +7,8 @@ M values are dropped. Writing produces little-endian ISO WKB.
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 
 WKB_POLYGON = 3
@@ -38,7 +40,9 @@ class _Reader:
         self.pos = 0
 
     def uint32(self, endian: str) -> int:
-        value = int(np.frombuffer(self.data, dtype=endian + "u4", count=1, offset=self.pos)[0])
+        if self.pos + 4 > len(self.data):
+            raise ValueError("truncated WKB: missing a count")
+        (value,) = struct.unpack_from(endian + "I", self.data, self.pos)
         self.pos += 4
         return value
 
@@ -82,6 +86,9 @@ class _Reader:
 
 
 def _to_xyz(coords: np.ndarray, has_z: bool) -> np.ndarray:
+    """A native-endian (n, 3) copy (the WKB buffer is not kept alive by the rings)."""
+    if has_z and coords.shape[1] == 3:
+        return coords.astype(np.float64)
     out = np.zeros((len(coords), 3), dtype=np.float64)
     out[:, :2] = coords[:, :2]
     if has_z:

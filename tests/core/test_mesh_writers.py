@@ -71,6 +71,7 @@ def test_2dm_face_datasets_go_to_an_els_dat_companion(tmp_path):
     assert text.startswith("DATASET\nOBJTYPE mesh2d\n")
     assert text.count("BEGSCL") == 2 and text.count("ENDDS") == 2
     assert 'NAME "slope"\nTS 0 0\n0.5\n12.25\nENDDS' in text
+    assert 'NAME "feature_id"\nTS 0 0\n4\n4\nENDDS' in text  # whole numbers as integers
     with pytest.raises(ValueError, match="_els"):
         write_face_dat(tmp_path / "plain.dat", 4, 2, {"a": [1, 2]})
     with pytest.raises(ValueError, match="3 values for 2 faces"):
