@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterable, Iterator, Sequence
@@ -393,7 +394,8 @@ class SinkCleanup:
 
     File outputs the run created are deleted; a layer the run added to a GeoPackage that
     existed before is dropped from it. Memory layers are taken out of the context's layers to
-    load. Database destinations other than files are left as they are.
+    load. A database table (``postgis:``, ``spatialite:`` and other provider destinations) is
+    dropped through the provider's connection: the run created it, replacing any earlier one.
     """
 
     def __init__(self, context: QgsProcessingContext) -> None:
@@ -421,6 +423,8 @@ class SinkCleanup:
             if store.mapLayer(destination) is not None:
                 store.removeMapLayer(destination)
                 continue
+            if _drop_database_table(destination):
+                continue
             parts = QgsProviderRegistry.instance().decodeUri("ogr", destination)
             path, layer = parts.get("path") or "", parts.get("layerName")
             if not path or not os.path.isfile(path):
@@ -439,6 +443,33 @@ def _destination_file(destination: str) -> str:
     if ":" in destination.split("/")[0] and not os.path.isabs(destination):
         return ""  # memory:, postgres: and other providers
     return destination.split("|")[0]
+
+
+def _database_table(destination: str) -> tuple[str, QgsDataSourceUri] | None:
+    """(provider key, URI) of a ``provider:uri`` destination naming a database table."""
+    match = re.match(r"^([A-Za-z_]{3,}?):(.*)$", destination.split("|")[0], re.DOTALL)
+    if match is None:
+        return None
+    key = "postgres" if match[1] == "postgis" else match[1]
+    if key in ("memory", "ogr") or key not in QgsProviderRegistry.instance().providerList():
+        return None
+    uri = QgsDataSourceUri(match[2])
+    return (key, uri) if uri.table() else None
+
+
+def _drop_database_table(destination: str) -> bool:
+    """Drop the table of a database destination; False when it is not one (or cannot be)."""
+    found = _database_table(destination)
+    if found is None:
+        return False
+    key, uri = found
+    metadata = QgsProviderRegistry.instance().providerMetadata(key)
+    try:
+        connection = metadata.createConnection(uri.uri(False), {})
+        connection.dropVectorTable(uri.schema(), uri.table())
+    except Exception:  # QgsProviderConnectionException, or a provider without connections
+        return False
+    return True
 
 
 def _drop_layer(path: str, layer: str) -> None:

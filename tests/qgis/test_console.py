@@ -213,6 +213,46 @@ def test_cancelling_keeps_an_earlier_mesh_and_the_other_layers_of_an_existing_ge
     ]
 
 
+def test_cancelling_drops_the_table_it_created_in_a_database_and_keeps_the_others(
+    tmp_path: Path, many_polygons: Path
+):
+    import processing
+    from qgis.core import QgsProviderRegistry
+
+    database = tmp_path / "results.sqlite"
+    dataset = ogr.GetDriverByName("SQLite").CreateDataSource(
+        str(database), options=["SPATIALITE=YES"]
+    )
+    dataset = None
+    destination = f"spatialite:dbname='{database}' table=\"{{}}\" (geom)"
+    metadata = QgsProviderRegistry.instance().providerMetadata("spatialite")
+    connection = metadata.createConnection(f"dbname='{database}'", {})
+    before = {table.tableName() for table in connection.tables()}
+    kept = processing.run(
+        ALG,
+        {
+            "INPUT": str(write_gpkg(tmp_path / "one.gpkg", [SQUARE_WITH_HOLE])),
+            "OUTPUT_MESH": None,
+            "OUTPUT_TRIANGLES": destination.format("kept"),
+        },
+    )
+    assert kept["TRIANGLE_COUNT"] == 7
+    with pytest.raises(QgsProcessingException, match="Cancelled"):
+        processing.run(
+            ALG,
+            {
+                "INPUT": str(many_polygons),
+                "OUTPUT_MESH": None,
+                "OUTPUT_TRIANGLES": destination.format("cancelled"),
+            },
+            feedback=cancel_at_first_progress(),
+        )
+    tables = {table.tableName() for table in connection.tables()}
+    assert tables - before == {"kept"}
+    layer = QgsVectorLayer(f"dbname='{database}' table=\"kept\" (geom)", "kept", "spatialite")
+    assert layer.featureCount() == 7
+
+
 def test_a_complete_run_replaces_an_earlier_mesh_file_and_leaves_no_staging_folder(
     tmp_path: Path,
 ):
