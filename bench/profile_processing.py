@@ -4,7 +4,8 @@ Runs the algorithm with ``processing.run`` on the benchmark's star polygons with
 elevation and a .2dm mesh, triangles to memory (default) or to a GeoPackage, and prints the
 functions that take the most time, the wall time and the peak resident memory.
 
-Usage: python bench/profile_processing.py [--count 5000] [--gpkg | --mesh-only] [--no-profile]
+Usage: python bench/profile_processing.py [--count 5000] [--gpkg | --mesh-only]
+       [--mesh-format 2dm|ply] [--no-profile]
        [--top 30]
 """
 
@@ -54,6 +55,7 @@ def main() -> None:
     outputs = parser.add_mutually_exclusive_group()
     outputs.add_argument("--gpkg", action="store_true", help="triangles to a GeoPackage")
     outputs.add_argument("--mesh-only", action="store_true", help="no per-triangle output")
+    parser.add_argument("--mesh-format", choices=("2dm", "ply"), default="2dm")
     parser.add_argument("--no-profile", action="store_true", help="wall time only")
     parser.add_argument("--top", type=int, default=30, help="functions to list")
     arguments = parser.parse_args()
@@ -69,7 +71,7 @@ def main() -> None:
         "DEM": str(dem),
         "DEM_BAND": 1,
         "APEX_RULE": 0,
-        "OUTPUT_MESH": str(output / "mesh.2dm"),
+        "OUTPUT_MESH": str(output / f"mesh.{arguments.mesh_format}"),
         "OUTPUT_TRIANGLES": str(output / "triangles.gpkg") if arguments.gpkg else "memory:",
     }
     if arguments.mesh_only:
