@@ -16,10 +16,20 @@ import numpy as np
 
 from .batch_predicates import orient_items, orient_rows, row_bound
 from .batch_rings import ragged_index
-from .predicates import grid_exact, strictly_between
+from .predicates import CCW_ERRBOUND, grid_exact, orient_many, strictly_between
 
 # test items x sub-polygon vertices per numpy pass: tables of about 1 MB stay in the cache
 _CHUNK_ELEMENTS = 1 << 17
+
+# columns of the per-position table: coordinates, the edge to the next position, the edge
+# from the previous position, the error bound of the sequence's orientations, the turn
+_X, _Y, _EX, _EY, _PX, _PY, _BOUND, _TURN = range(8)
+# _TURN values: the sign of the turn s_{j-1} s_j s_{j+1}, or _SPIKE for a collinear turn back
+_SPIKE = 2.0
+_EPS = 2.0**-53
+# |fl(q - p)| <= (1 + eps) |q - p|, the extents and the bound itself are rounded: margin
+_BOUND_FACTOR = CCW_ERRBOUND * (1.0 + 32.0 * _EPS)
+_UNDERFLOW_SLACK = 1e-300
 
 
 @dataclass
@@ -36,44 +46,114 @@ class Trees:
 
 
 @dataclass
-class Turns:
-    """Per sequence position j: the sign of the turn s_{j-1} s_j s_{j+1} and whether it is a
-    spike (a collinear turn back), at index j - 1; and ``twin[j]``, the other position of the
-    same vertex (bridge ends) or -1."""
+class Sequences:
+    """Per position of the flat sequences (each with its closing repeat): coordinates (also
+    as (x, y) rows), the other position of the same vertex (``twin``, bridge ends) or -1,
+    the extents of its sequence, and the ``table`` of the columns above; ``exact``: every
+    float orientation is exact (grid coordinates)."""
 
-    turn: np.ndarray
-    spike: np.ndarray
+    sx: np.ndarray
+    sy: np.ndarray
+    xy: np.ndarray
     twin: np.ndarray
+    extent_x: np.ndarray
+    extent_y: np.ndarray
+    table: np.ndarray
+    exact: bool
 
     @classmethod
-    def of(cls, sx: np.ndarray, sy: np.ndarray, twin: np.ndarray, exact: bool) -> Turns:
-        px, py, vx, vy, nx, ny = sx[:-2], sy[:-2], sx[1:-1], sy[1:-1], sx[2:], sy[2:]
-        turn = orient_items(px, py, vx, vy, nx, ny, exact)
-        spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
-        return cls(turn, spike, twin)
+    def of(
+        cls, sx: np.ndarray, sy: np.ndarray, twin: np.ndarray, starts: np.ndarray, exact: bool
+    ) -> Sequences:
+        n = len(sx)
+        lengths = np.diff(np.r_[starts, n])
+        extent_x, extent_y = _extents(sx, sy, starts)
+        table = np.zeros((n, 8))
+        table[:, _X] = sx
+        table[:, _Y] = sy
+        np.subtract(sx[1:], sx[:-1], out=table[:-1, _EX])
+        np.subtract(sy[1:], sy[:-1], out=table[:-1, _EY])
+        table[1:, _PX] = table[:-1, _EX]
+        table[1:, _PY] = table[:-1, _EY]
+        if not exact:
+            # every coordinate difference in a sequence is within its extents
+            bound = _BOUND_FACTOR * 2.0 * extent_x * extent_y + _UNDERFLOW_SLACK
+            table[:, _BOUND] = np.repeat(bound, lengths)
+        if n > 2:
+            px, py, vx, vy, nx, ny = sx[:-2], sy[:-2], sx[1:-1], sy[1:-1], sx[2:], sy[2:]
+            turn = orient_items(px, py, vx, vy, nx, ny, exact).astype(np.float64)
+            spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
+            turn[spike] = _SPIKE
+            table[1:-1, _TURN] = turn
+        extent_x, extent_y = np.repeat(extent_x, lengths), np.repeat(extent_y, lengths)
+        xy = np.ascontiguousarray(table[:, :2])
+        return cls(sx, sy, xy, twin, extent_x, extent_y, table, exact)
 
 
-def _apex_angle(
-    sx: np.ndarray,
-    sy: np.ndarray,
-    turns: Turns,
-    c: np.ndarray,
-    tx: np.ndarray,
-    ty: np.ndarray,
-    exact: bool,
-) -> np.ndarray:
-    """``engine`` condition 4 for candidate positions ``c`` towards (tx, ty)."""
-    px, py = sx[c - 1], sy[c - 1]
-    vx, vy = sx[c], sy[c]
-    nx, ny = sx[c + 1], sy[c + 1]
-    turn = turns.turn[c - 1]
-    after_next = orient_items(vx, vy, nx, ny, tx, ty, exact) >= 0
-    after_prev = orient_items(px, py, vx, vy, tx, ty, exact) >= 0
-    return np.where(
-        turn > 0,
+def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Per candidate position ``c`` on the base of the sub-polygon [lo, hi]: conditions 1 (c
+    strictly left of the chord s_hi -> s_lo) and 4 (the interior angle at c)."""
+    n = len(c)
+    at_c = np.take(seqs.table, c, axis=0)
+    # d[0] = a - c, d[1] = b - c (a = s_hi, b = s_lo), as (x, y) pairs
+    d = np.take(seqs.xy, np.stack([hi, lo]), axis=0)
+    d -= at_c[:, :2]
+    dx, dy = d[:, :, 0], d[:, :, 1]
+    det = np.empty((5, n))
+    # 0: orient(a, b, c) = (a - c) x (b - c); 1, 2: orient(c, c+1, t) = e_c x (t - c);
+    # 3, 4: orient(c-1, c, t) = e_{c-1} x (t - c), t = a, b (each one float orientation with
+    # c as the common point, within the sequence's bound)
+    np.multiply(dx[0], dy[1], out=det[0])
+    det[0] -= dy[0] * dx[1]
+    np.multiply(at_c[:, _EX], dy, out=det[1:3])
+    det[1:3] -= at_c[:, _EY] * dx
+    np.multiply(at_c[:, _PX], dy, out=det[3:5])
+    det[3:5] -= at_c[:, _PY] * dx
+    bound = at_c[:, _BOUND]
+    positive = det > bound
+    negative = det < -bound
+    if not seqs.exact:
+        unsure = ~(positive | negative)
+        # exact zeros: a is c + 1 (the candidate next to hi), b is c - 1
+        unsure[1] &= c + 1 != hi
+        unsure[4] &= c - 1 != lo
+        if unsure.any():
+            rows, items = np.nonzero(unsure)
+            _decide(seqs, lo, hi, c, rows, items, positive, negative)
+    turn = at_c[:, _TURN]
+    after_next = ~negative[1:3]
+    after_prev = ~negative[3:5]
+    angle = np.where(
+        turn == 1.0,
         after_next & after_prev,
-        np.where(turn < 0, after_next | after_prev, after_next | turns.spike[c - 1]),
+        np.where(turn == -1.0, after_next | after_prev, after_next | (turn == _SPIKE)),
     )
+    return positive[0] & angle[0] & angle[1]
+
+
+def _decide(
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    rows: np.ndarray,
+    items: np.ndarray,
+    positive: np.ndarray,
+    negative: np.ndarray,
+) -> None:
+    """Exact signs of the uncertain entries (rows, items) of :func:`_facing`."""
+    line_a = np.stack([hi, c, c, c - 1, c - 1])[rows, items]
+    line_b = np.stack([lo, c + 1, c + 1, c, c])[rows, items]
+    point = np.stack([c, hi, lo, hi, lo])[rows, items]
+    sx, sy = seqs.sx, seqs.sy
+    ax, ay, bx, by, px, py = sx[line_a], sy[line_a], sx[line_b], sy[line_b], sx[point], sy[point]
+    # a point equal to one of the line's points: exactly 0
+    rest = np.flatnonzero(~(((px == ax) & (py == ay)) | ((px == bx) & (py == by))))
+    signs = np.zeros(len(rows), dtype=np.int8)
+    if len(rest):
+        signs[rest] = orient_many(ax[rest], ay[rest], bx[rest], by[rest], px[rest], py[rest])
+    positive[rows, items] = signs > 0
+    negative[rows, items] = signs < 0
 
 
 # below this many table entries a round uses one table for all items
@@ -83,48 +163,63 @@ _WIDTHS = np.array([4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512
 
 
 def correct_mask(
-    sx: np.ndarray,
-    sy: np.ndarray,
+    seqs: Sequences,
     lo: np.ndarray,
     hi: np.ndarray,
     c: np.ndarray,
-    extent_x: np.ndarray,
-    extent_y: np.ndarray,
-    turns: Turns,
-    exact: bool,
-) -> np.ndarray:
+    block: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Per test item: candidate position ``c`` forms a correct triangle on the base of the
     sub-polygon [lo, hi] (the engine's facing and correct-candidate conditions).
 
-    ``extent_x``, ``extent_y``: per item, the extent of its polygon (bounds |p - q|).
+    Also returns per item a position strictly inside the triangle where one was found, else
+    ``block`` (a position of the sub-polygon tested first: one inside rules the item out).
     """
-    ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
-    cx, cy = sx[c], sy[c]
-    ok = orient_items(ax, ay, bx, by, cx, cy, exact) > 0
-    idx = np.flatnonzero(ok)
-    if len(idx) == 0:
-        return ok
-    ok[idx] = _apex_angle(sx, sy, turns, c[idx], ax[idx], ay[idx], exact) & _apex_angle(
-        sx, sy, turns, c[idx], bx[idx], by[idx], exact
-    )
-    idx = idx[ok[idx]]
-    if len(idx) == 0:
-        return ok
+    ok = _facing(seqs, lo, hi, c)
+    blocker = np.full(len(c), -1, dtype=np.int64) if block is None else block.copy()
     # a 3-vertex sub-polygon has only its corners and its own sides: conditions 2 and 3 hold
-    idx = idx[hi[idx] - lo[idx] > 2]
+    idx = np.flatnonzero(ok & (hi - lo > 2))
+    if len(idx) == 0:
+        return ok, blocker
+    sx, sy = seqs.sx, seqs.sy
+    if block is not None:
+        known = idx[block[idx] >= 0]
+        if len(known):
+            inside = _strictly_inside(seqs, hi[known], lo[known], c[known], block[known])
+            ok[known[inside]] = False
+            idx = idx[ok[idx]]
+            if len(idx) == 0:
+                return ok, blocker
     size = hi[idx] - lo[idx] + 1
     widths = np.minimum(np.searchsorted(_WIDTHS, size), len(_WIDTHS) - 1)
-    if 0 < len(idx) * int(size.max(initial=0)) <= _ONE_TABLE:
+    if len(idx) * int(size.max()) <= _ONE_TABLE:
         widths[:] = widths.max()  # few items: one table, fewer numpy calls
     for k in np.unique(widths).tolist():
         rows = idx[widths == k]
         width = max(int(_WIDTHS[k]), int(size[widths == k].max()))
-        bad = _bad_rows(
-            sx, sy, lo[rows], hi[rows], c[rows], extent_x[rows], extent_y[rows], turns.twin,
-            width, exact,
+        bad, found = _bad_rows(
+            sx, sy, lo[rows], hi[rows], c[rows], seqs.extent_x[c[rows]],
+            seqs.extent_y[c[rows]], seqs.twin, width, seqs.exact,
         )  # fmt: skip
         ok[rows[bad]] = False
-    return ok
+        inside = found >= 0
+        blocker[rows[inside]] = found[inside]
+    return ok, blocker
+
+
+def _strictly_inside(
+    seqs: Sequences, a: np.ndarray, b: np.ndarray, c: np.ndarray, p: np.ndarray
+) -> np.ndarray:
+    """Position ``p`` lies strictly inside the counter-clockwise triangle (a, b, c) (exact)."""
+    n = len(p)
+    line_a = np.concatenate([a, b, c])
+    line_b = np.concatenate([b, c, a])
+    point = np.concatenate([p, p, p])
+    sx, sy = seqs.sx, seqs.sy
+    signs = orient_items(
+        sx[line_a], sy[line_a], sx[line_b], sy[line_b], sx[point], sy[point], seqs.exact
+    )
+    return (signs.reshape(3, n) > 0).all(axis=0)
 
 
 def _bad_rows(
@@ -138,8 +233,9 @@ def _bad_rows(
     twin: np.ndarray,
     width: int,
     exact: bool,
-) -> np.ndarray:
-    """Conditions 2 and 3 of the correct triangle for items of one padded width.
+) -> tuple[np.ndarray, np.ndarray]:
+    """Conditions 2 and 3 of the correct triangle for items of one padded width, and per
+    item a position strictly inside the triangle, or -1.
 
     Tables are (width, items): column i holds the positions lo_i .. hi_i, padded with hi_i,
     so that per-item values broadcast along long contiguous rows.
@@ -179,18 +275,26 @@ def _bad_rows(
         bx, by, cx, cy, px, py, px - bx, py - by, bound(cx - bx, cy - by), 2 * n + n_tb + n_tc,
         lambda k, r: (k == 0) | (k == ccol[r]) | (k == tb[r]) | (k == tc[r]),
     )  # fmt: skip
-    bad = np.zeros(n, dtype=bool)
+    # a vertex strictly inside: the edges at it meet the open triangle
+    inside = pos_ab & pos_bc
+    inside &= pos_ca
+    bad = inside.any(axis=0)
+    found = np.full(n, -1, dtype=np.int64)
+    if bad.any():
+        found[bad] = lo[bad] + inside[:, bad].argmax(axis=0)
     # condition 3: a vertex in the relative interior of a new side (the known zeros are the
     # corners themselves)
     for (k, r), ux, uy in ((zero_bc, bx, by), (zero_ca, ax, ay)):
         if len(r):
-            inside = strictly_between(px[k, r], py[k, r], ux[r], uy[r], cx[r], cy[r])
-            bad[r[inside]] = True
-    # condition 2: an edge meets the open triangle (the padding adds only point edges at a,
-    # where f_ab is 0 at both ends: never inward)
+            between = strictly_between(px[k, r], py[k, r], ux[r], uy[r], cx[r], cy[r])
+            bad[r[between]] = True
+    # condition 2 where no vertex is inside: an edge with an end strictly inside every side
+    # that passes no corner outside (the padding adds only point edges at a, where f_ab is 0
+    # at both ends: never inward)
     inward = pos_ab[:-1] | pos_ab[1:]
     inward &= pos_bc[:-1] | pos_bc[1:]
     inward &= pos_ca[:-1] | pos_ca[1:]
+    inward &= ~bad
     flat = np.flatnonzero(inward)
     if len(flat):
         k, r = np.divmod(flat, n)
@@ -204,35 +308,29 @@ def _bad_rows(
         lowest, highest = g.min(axis=0), g.max(axis=0)
         degenerate = (ex0 == ex1) & (ey0 == ey1)
         bad[r[((lowest < 0) & (highest > 0)) | degenerate]] = True
-    return bad
+    return bad, found
 
 
 def _chunked_correct(
-    sx: np.ndarray,
-    sy: np.ndarray,
+    seqs: Sequences,
     lo: np.ndarray,
     hi: np.ndarray,
     c: np.ndarray,
-    ext_x: np.ndarray,
-    ext_y: np.ndarray,
-    turns: Turns,
-    exact: bool,
-) -> np.ndarray:
+    block: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`correct_mask` in passes of bounded size."""
     n = len(c)
-    if n == 0:
-        return np.zeros(0, dtype=bool)
     work = np.cumsum(hi - lo + 1)
-    if work[-1] <= _CHUNK_ELEMENTS:
-        return correct_mask(sx, sy, lo, hi, c, ext_x, ext_y, turns, exact)
-    out = np.empty(n, dtype=bool)
+    if n == 0 or work[-1] <= _CHUNK_ELEMENTS:
+        return correct_mask(seqs, lo, hi, c, block)
+    ok = np.empty(n, dtype=bool)
+    blocker = np.empty(n, dtype=np.int64)
     cuts = np.searchsorted(work, np.arange(_CHUNK_ELEMENTS, work[-1], _CHUNK_ELEMENTS))
     bounds = np.unique(np.concatenate([[0], cuts, [n]]))
     for s, t in zip(bounds[:-1], bounds[1:]):
-        out[s:t] = correct_mask(
-            sx, sy, lo[s:t], hi[s:t], c[s:t], ext_x[s:t], ext_y[s:t], turns, exact
-        )
-    return out
+        part = None if block is None else block[s:t]
+        ok[s:t], blocker[s:t] = correct_mask(seqs, lo[s:t], hi[s:t], c[s:t], part)
+    return ok, blocker
 
 
 def _choose_elevation(
@@ -269,6 +367,47 @@ def _extents(sx: np.ndarray, sy: np.ndarray, starts: np.ndarray) -> tuple[np.nda
     return extent_x, extent_y
 
 
+# columns of the open-node state: sub-polygon [lo, hi], next candidate, output row of the
+# node, output row of its sequence's first triangle, parent (pre-order index), depth, side,
+# V1 at hi (1) or at lo (0), sequence, a position to test first (or -1)
+_LO, _HI, _CAND, _ROW, _FIRST, _PARENT, _DEPTH, _SIDE, _AT_HI, _SEQ, _BLOCK = range(11)
+
+
+def _children(state: np.ndarray, apex: np.ndarray) -> np.ndarray:
+    """Open nodes below the nodes ``state`` (rows) with their ``apex``: the left children
+    (base V1 V3), then the right children (base V2 V3), where they have a triangle.
+
+    With V1 at hi the left child is the upper part [apex, hi], else the lower part [lo, apex];
+    the left subtree comes first in pre-order, the right child's row is after it.
+    """
+    lo, hi, row = state[:, _LO], state[:, _HI], state[:, _ROW]
+    at_hi = state[:, _AT_HI] == 1
+    left_lo = np.where(at_hi, apex, lo)
+    left_hi = np.where(at_hi, hi, apex)
+    right_lo = np.where(at_hi, lo, apex)
+    right_hi = np.where(at_hi, apex, hi)
+    left_size = left_hi - left_lo - 1
+    parent = row - state[:, _FIRST]
+    parts = []
+    for side, new_lo, new_hi, new_row, new_at in (
+        (1, left_lo, left_hi, row + 1, at_hi),
+        (2, right_lo, right_hi, row + 1 + left_size, ~at_hi),
+    ):
+        take = np.flatnonzero(new_hi - new_lo > 1)
+        part = np.take(state, take, axis=0)
+        part[:, _LO] = new_lo[take]
+        part[:, _HI] = new_hi[take]
+        part[:, _CAND] = part[:, _HI] - 1
+        part[:, _ROW] = new_row[take]
+        part[:, _PARENT] = parent[take]
+        part[:, _DEPTH] += 1
+        part[:, _SIDE] = side
+        part[:, _AT_HI] = new_at[take]
+        part[:, _BLOCK] = -1
+        parts.append(part)
+    return np.concatenate(parts)
+
+
 def build_trees(
     ids: np.ndarray,
     twin: np.ndarray,
@@ -286,116 +425,71 @@ def build_trees(
     count = len(seq_start)
     # a sample that is not grid-exact rules out the whole (cheap for float data)
     exact = grid_exact(sx[:1024], sy[:1024]) and grid_exact(sx, sy)
-    extent_x, extent_y = _extents(sx, sy, seq_start)
-    turns = Turns.of(sx, sy, twin, exact)
+    seqs = Sequences.of(sx, sy, twin, seq_start, exact)
     m = seq_len
     tri_count = np.maximum(m - 2, 0)
     tri_start = np.cumsum(tri_count) - tri_count
     total = int(tri_count.sum())
     triangles = np.zeros((total, 3), dtype=np.int64)
+    corners = triangles.reshape(-1)
     parent = np.zeros(total, dtype=np.int64)
     depth = np.zeros(total, dtype=np.int64)
     side = np.zeros(total, dtype=np.int8)
     ok = np.ones(count, dtype=bool)
-    # open nodes
     poly = np.flatnonzero(m >= 3)
-    lo = seq_start[poly] + 1
-    hi = seq_start[poly] + m[poly]
-    at_hi = np.ones(len(poly), dtype=bool)
-    pre = np.zeros(len(poly), dtype=np.int64)
-    par = np.full(len(poly), -1, dtype=np.int64)
-    dep = np.zeros(len(poly), dtype=np.int64)
-    sd = np.zeros(len(poly), dtype=np.int8)
-    cand = hi - 1
-    while len(poly):
+    state = np.zeros((len(poly), 11), dtype=np.int64)
+    state[:, _LO] = seq_start[poly] + 1
+    state[:, _HI] = seq_start[poly] + m[poly]
+    state[:, _CAND] = state[:, _HI] - 1
+    state[:, _ROW] = tri_start[poly]
+    state[:, _FIRST] = tri_start[poly]
+    state[:, _PARENT] = -1
+    state[:, _AT_HI] = 1
+    state[:, _SEQ] = poly
+    state[:, _BLOCK] = -1
+    while len(state):
+        lo, hi, cand = state[:, _LO], state[:, _HI], state[:, _CAND]
+        retry = None
         if exhaustive:
             span = hi - lo - 1
-            owner = np.repeat(np.arange(len(poly), dtype=np.int64), span)
-            c = np.repeat(hi - 1, span) - ragged_index(np.zeros(len(poly), np.int64), span)
-            po = poly[owner]
-            good = _chunked_correct(
-                sx, sy, lo[owner], hi[owner], c, extent_x[po], extent_y[po], turns, exact
-            )
-            found = np.bincount(owner[good], minlength=len(poly)) > 0
-            apex = np.full(len(poly), -1, dtype=np.int64)
+            owner = np.repeat(np.arange(len(lo), dtype=np.int64), span)
+            c = np.repeat(hi - 1, span) - ragged_index(np.zeros(len(lo), np.int64), span)
+            good = _chunked_correct(seqs, lo[owner], hi[owner], c)[0]
+            found = np.bincount(owner[good], minlength=len(lo)) > 0
+            apex = np.full(len(lo), -1, dtype=np.int64)
             if found.any():
+                at_hi = state[:, _AT_HI] == 1
                 v1 = np.where(at_hi, hi, lo)
                 v2 = np.where(at_hi, lo, hi)
                 apex[found] = _choose_elevation(sz, owner[good], c[good], v1, v2)
             failed = ~found
         else:
-            good = _chunked_correct(
-                sx, sy, lo, hi, cand, extent_x[poly], extent_y[poly], turns, exact
-            )
-            found = good
+            found, blocker = _chunked_correct(seqs, lo, hi, cand, state[:, _BLOCK])
             apex = cand
-            failed = ~good & (cand - 1 <= lo)
+            failed = ~found & (cand - 1 <= lo)
+            retry = np.flatnonzero(~found & ~failed)
         if failed.any():
-            ok[poly[failed]] = False
-        # emit triangles
-        emit = np.flatnonzero(found & ok[poly])
-        p, l_, h, a = poly[emit], lo[emit], hi[emit], apex[emit]
-        row = tri_start[p] + pre[emit]
-        mir = mirrored[p]
-        triangles[row, 0] = np.where(mir, ids[l_], ids[h])
-        triangles[row, 1] = np.where(mir, ids[h], ids[l_])
-        triangles[row, 2] = ids[a]
-        parent[row] = par[emit]
-        depth[row] = dep[emit]
-        side[row] = sd[emit]
-        # children: upper (apex, hi, V1 at hi) and lower (lo, apex, V1 at lo)
-        ah = at_hi[emit]
-        left_lo = np.where(ah, a, l_)
-        left_hi = np.where(ah, h, a)
-        right_lo = np.where(ah, l_, a)
-        right_hi = np.where(ah, a, h)
-        left_size = left_hi - left_lo - 1
-        has_left = left_size > 0
-        has_right = right_hi - right_lo - 1 > 0
-        node_pre = pre[emit]
-        retry = np.flatnonzero(~found & ~failed & ok[poly]) if not exhaustive else np.zeros(0, int)
-        parts = [
-            (
-                p[has_left],
-                left_lo[has_left],
-                left_hi[has_left],
-                ah[has_left],
-                node_pre[has_left] + 1,
-                node_pre[has_left],
-                dep[emit][has_left] + 1,
-                1,
-            ),
-            (
-                p[has_right],
-                right_lo[has_right],
-                right_hi[has_right],
-                ~ah[has_right],
-                node_pre[has_right] + 1 + left_size[has_right],
-                node_pre[has_right],
-                dep[emit][has_right] + 1,
-                2,
-            ),
-        ]
-        new_poly = [poly[retry]] + [q[0] for q in parts]
-        new_lo = [lo[retry]] + [q[1] for q in parts]
-        new_hi = [hi[retry]] + [q[2] for q in parts]
-        new_at = [at_hi[retry]] + [q[3] for q in parts]
-        new_pre = [pre[retry]] + [q[4] for q in parts]
-        new_par = [par[retry]] + [q[5] for q in parts]
-        new_dep = [dep[retry]] + [q[6] for q in parts]
-        new_sd = [sd[retry]] + [np.full(len(q[0]), q[7], dtype=np.int8) for q in parts]
-        new_cand = [cand[retry] - 1] + [q[2] - 1 for q in parts]
-        poly = np.concatenate(new_poly)
-        lo = np.concatenate(new_lo)
-        hi = np.concatenate(new_hi)
-        at_hi = np.concatenate(new_at)
-        pre = np.concatenate(new_pre)
-        par = np.concatenate(new_par)
-        dep = np.concatenate(new_dep)
-        sd = np.concatenate(new_sd)
-        cand = np.concatenate(new_cand)
-        live = ok[poly]
-        if not live.all():
-            poly, lo, hi, at_hi = poly[live], lo[live], hi[live], at_hi[live]
-            pre, par, dep, sd, cand = pre[live], par[live], dep[live], sd[live], cand[live]
+            ok[state[failed, _SEQ]] = False
+        # emit triangles: (base, base, apex), counter-clockwise in the output coordinates
+        emit = np.flatnonzero(found)
+        done = np.take(state, emit, axis=0)
+        a = apex[emit]
+        row = done[:, _ROW]
+        first = np.where(mirrored[done[:, _SEQ]], done[:, _LO], done[:, _HI])
+        slots = 3 * row
+        corners[slots] = ids[first]
+        corners[slots + 1] = ids[done[:, _LO] + done[:, _HI] - first]
+        corners[slots + 2] = ids[a]
+        parent[row] = done[:, _PARENT]
+        depth[row] = done[:, _DEPTH]
+        side[row] = done[:, _SIDE]
+        children = _children(done, a)
+        if retry is not None and len(retry):
+            again = np.take(state, retry, axis=0)
+            again[:, _CAND] -= 1
+            again[:, _BLOCK] = blocker[retry]
+            children = np.concatenate([again, children])
+        state = children
+        if not ok.all():
+            state = state[ok[state[:, _SEQ]]]
     return Trees(triangles, parent, depth, side, tri_start, tri_count, ok)
