@@ -6,6 +6,7 @@ build the BSP tree over the bridged vertex sequence with an explicit work list.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -22,7 +23,7 @@ from .predicates import (
 )
 from .rings import PreparedRings, normalise_rings, prepare, ring_label
 from .rules import ApexRule, get_rule
-from .spatial_index import SegmentGrid
+from .spatial_index import ChainBoxes, SegmentGrid
 from .triangulation import Triangulation, TriangulationError
 
 INVALID_MODES = ("fail", "as_given")
@@ -35,12 +36,8 @@ _MAX_CHUNK = 64
 # Edges remembered per base as likely blockers of its next candidates.
 _MAX_BLOCKERS = 256
 _MAX_RECENT_BLOCKERS = 8
-# Grid queries over at most this many cells are gathered as Python lists.
-_LIST_CELLS = 64
 # Candidates per base tested one by one before the facing test switches to chunks.
 _SCALAR_CANDIDATES = 16
-# Up to this many edges per candidate are tested with the scalar predicates.
-_SCALAR_EDGES = 200
 
 
 def _rows(length: int, *rows: np.ndarray | float) -> np.ndarray:
@@ -321,12 +318,19 @@ class _Tree:
         self.m = len(sequence)
         self.exact = grid_exact(self.sx, self.sy)
         self.sign = orient_float if self.exact else orient
-        self.grid = None
-        if self.m > SMALL_SEQUENCE:
+        self._grid: SegmentGrid | None = None
+        self.boxes = ChainBoxes(self.sx, self.sy) if self.m > SMALL_SEQUENCE else None
+
+    @property
+    def grid(self) -> SegmentGrid | None:
+        """Grid over the sequence's edges (the exhaustive rules' candidate tests), built once
+        on first use; None for small sequences."""
+        if self._grid is None and self.m > SMALL_SEQUENCE:
             starts = np.arange(self.m)
-            self.grid = SegmentGrid(
+            self._grid = SegmentGrid(
                 self.sx[starts], self.sy[starts], self.sx[starts + 1], self.sy[starts + 1]
             )
+        return self._grid
 
     def _apex(self, lo: int, hi: int, v1: int, v2: int) -> int:
         """Position of the apex on the base (v1, v2) of sub-polygon [lo, hi], or -1."""
@@ -395,34 +399,80 @@ class _Tree:
         for e in blockers:
             if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
                 return True
-        if self.grid is None or hi - lo <= SMALL_SEQUENCE:
-            edges: list[int] | range = range(lo, hi)
-        else:
-            found = self.grid.query_box_list(xmin, ymin, xmax, ymax, _LIST_CELLS)
-            if found is None:
-                found = self.grid.query_triangle(
-                    np.array(corners[0::2]), np.array(corners[1::2])
-                ).tolist()
-            edges = [e for e in set(found) if lo <= e < hi]
-            if len(edges) > _SCALAR_EDGES:
-                return self._blocked_many(lo, hi, c, np.array(edges), blockers)
-        for e in edges:
+        if self.boxes is not None and hi - lo > SMALL_SEQUENCE:
+            return self._blocked_boxes(lo, hi, corners, blockers)
+        for e in range(lo, hi):
             if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
                 _remember(blockers, e)
                 return True
         return False
 
-    def _blocked_many(
-        self, lo: int, hi: int, c: int, edges: np.ndarray, blockers: list[int]
+    def _blocked_boxes(
+        self,
+        lo: int,
+        hi: int,
+        corners: tuple[float, float, float, float, float, float],
+        blockers: list[int],
     ) -> bool:
-        """:meth:`_blocked` for many edges at once (vectorised)."""
-        rows = np.zeros(len(edges), dtype=np.int64)
-        failing, blocking = pairs_failing(
-            self.sx, self.sy, lo, hi, np.array([c]), rows, edges, self.exact
-        )
-        if len(failing):
-            _remember(blockers, int(blocking[0]))
-        return len(failing) > 0
+        """:meth:`_blocked` for long sub-polygons: the edges are found by descending the chain
+        boxes of positions [lo, hi) that the triangle's closed region may meet (separating-axis
+        tests on each box's rectangle: its two axes and the triangle's three side normals)."""
+        xs, ys, sign = self.xs, self.ys, self.sign
+        boxes = self.boxes
+        levels, sizes, pad = boxes.levels, boxes.sizes, boxes.pad
+        ax, ay, bx, by, cx, cy = corners
+        xmin, xmax = min(ax, bx, cx), max(ax, bx, cx)
+        ymin, ymax = min(ay, by, cy), max(ay, by, cy)
+        # outward unit normals (T is counter-clockwise) and offsets of the triangle's sides
+        sides = []
+        for px, py, qx, qy in ((ax, ay, bx, by), (bx, by, cx, cy), (cx, cy, ax, ay)):
+            nx, ny = qy - py, px - qx
+            norm = math.hypot(nx, ny)
+            if norm > 0 and norm < math.inf:
+                nx, ny = nx / norm, ny / norm
+                sides.append((nx, ny, nx * px + ny * py + pad))
+        top = len(levels) - 1
+        stack = [(top, k) for k in range(len(levels[top]) - 1, -1, -1)]
+        while stack:
+            level, k = stack.pop()
+            size = sizes[level]
+            start = k * size
+            end = start + size
+            if end <= lo or start >= hi:
+                continue
+            x0, x1, y0, y1, ox, oy, ux, uy, hu, hv = levels[level][k]
+            if x1 < xmin or x0 > xmax or y1 < ymin or y0 > ymax:
+                continue
+            apart = False
+            for nx, ny, offset in sides:
+                if (
+                    nx * ox + ny * oy - hu * abs(nx * ux + ny * uy) - hv * abs(ny * ux - nx * uy)
+                    > offset
+                ):
+                    apart = True
+                    break
+            if apart:
+                continue
+            # the triangle's corners along the box's axes, from its centre
+            da, db, dc = ax - ox, bx - ox, cx - ox
+            ea, eb, ec = ay - oy, by - oy, cy - oy
+            pa, pb, pc = ux * da + uy * ea, ux * db + uy * eb, ux * dc + uy * ec
+            if (pa > hu and pb > hu and pc > hu) or (pa < -hu and pb < -hu and pc < -hu):
+                continue
+            pa, pb, pc = ux * ea - uy * da, ux * eb - uy * db, ux * ec - uy * dc
+            if (pa > hv and pb > hv and pc > hv) or (pa < -hv and pb < -hv and pc < -hv):
+                continue
+            if level:
+                child = 2 * k
+                if child + 1 < len(levels[level - 1]):
+                    stack.append((level - 1, child + 1))
+                stack.append((level - 1, child))
+                continue
+            for e in range(max(start, lo), min(end, hi)):
+                if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
+                    _remember(blockers, e)
+                    return True
+        return False
 
     def _grid_correct(
         self, lo: int, hi: int, chunk: np.ndarray, exhaustive: bool, blockers: list[np.ndarray]

@@ -1,7 +1,9 @@
-"""Uniform grid over segments: which segments may touch a given triangle or segment.
+"""Spatial indexes: which segments may touch a given triangle or segment, which points lie
+near a segment.
 
-Queries are conservative (they may return extra segments, never miss one); the exact tests
-are done by the caller on the returned candidates.
+Uniform grids over segments and points, and boxes over runs of a chain's consecutive segments
+(for long, dense segments that no uniform grid separates). Queries are conservative (they may
+return extra segments, never miss one); the exact tests are done by the caller.
 """
 
 from __future__ import annotations
@@ -231,3 +233,82 @@ class PointColumns:
         first = self.starts[base + self._row(bottom)]
         last = self.starts[base + self._row(top) + 1]
         return segment, first, last
+
+
+class ChainBoxes:
+    """Bounding boxes over runs of consecutive segments of a chain of points.
+
+    Segment i joins points i and i + 1 (0 <= i < m, for m + 1 points). Level 0 boxes cover
+    ``leaf`` consecutive segments each, every higher level twice as many, up to one box over
+    the whole chain. Each box is a rectangle aligned with the chord of its run (first to last
+    point) plus its axis-aligned box: a run of long, nearly parallel segments (a comb of
+    spikes) fits a thin rectangle, where an axis-aligned box would cover its neighbours too.
+    Boxes are padded against rounding, so a test that finds a box apart from a shape is
+    conservative.
+
+    ``levels[l][k]`` is the box of segments ``[k * leaf * 2**l, (k + 1) * leaf * 2**l)`` (the
+    last one shorter): ``(xmin, xmax, ymin, ymax, cx, cy, ux, uy, hu, hv)`` with centre
+    (cx, cy), unit axis (ux, uy) along the chord, and half-widths hu along it and hv across.
+    """
+
+    def __init__(self, x: np.ndarray, y: np.ndarray, leaf: int = 8) -> None:
+        m = len(x) - 1
+        self.m = m
+        self.leaf = leaf
+        scale = float(max(np.abs(x).max(), np.abs(y).max())) if len(x) else 0.0
+        # slack against rounding in the projections (coordinates may be large)
+        self.pad = 1e-9 * scale + 1e-300
+        self.levels: list[list[tuple[float, ...]]] = []
+        self.sizes: list[int] = []
+        size = leaf
+        px, py = x[:m], y[:m]
+        while m > 0:
+            starts = np.arange(0, m, size)
+            ends = np.minimum(starts + size, m)
+            self.levels.append(self._boxes(x, y, px, py, starts, ends))
+            self.sizes.append(size)
+            if len(starts) == 1:
+                break
+            size *= 2
+
+    def _boxes(
+        self,
+        x: np.ndarray,
+        y: np.ndarray,
+        px: np.ndarray,
+        py: np.ndarray,
+        starts: np.ndarray,
+        ends: np.ndarray,
+    ) -> list[tuple[float, ...]]:
+        pad = self.pad
+        dx, dy = x[ends] - x[starts], y[ends] - y[starts]
+        length = np.hypot(dx, dy)
+        flat = ~(length > 0) | ~np.isfinite(length)
+        ux = np.where(flat, 1.0, dx / np.where(flat, 1.0, length))
+        uy = np.where(flat, 0.0, dy / np.where(flat, 1.0, length))
+        node = np.repeat(np.arange(len(starts)), ends - starts)
+        boxes = []
+        for values, last in (
+            (px, x[ends]),
+            (py, y[ends]),
+            (ux[node] * px + uy[node] * py, ux * x[ends] + uy * y[ends]),
+            (ux[node] * py - uy[node] * px, ux * y[ends] - uy * x[ends]),
+        ):
+            low = np.minimum(np.minimum.reduceat(values, starts), last)
+            high = np.maximum(np.maximum.reduceat(values, starts), last)
+            boxes.append((low, high))
+        (xmin, xmax), (ymin, ymax), (umin, umax), (vmin, vmax) = boxes
+        cu, cv = (umin + umax) / 2, (vmin + vmax) / 2
+        fields = (
+            xmin - pad,
+            xmax + pad,
+            ymin - pad,
+            ymax + pad,
+            cu * ux - cv * uy,
+            cu * uy + cv * ux,
+            ux,
+            uy,
+            (umax - umin) / 2 + pad,
+            (vmax - vmin) / 2 + pad,
+        )
+        return list(zip(*(field.tolist() for field in fields)))
