@@ -251,6 +251,7 @@ def test_cancelling_drops_the_table_it_created_in_a_database_and_keeps_the_other
     assert tables - before == {"kept"}
     layer = QgsVectorLayer(f"dbname='{database}' table=\"kept\" (geom)", "kept", "spatialite")
     assert layer.featureCount() == 7
+    del layer, connection  # (held until exit, a SpatiaLite connection crashes QGIS's shutdown)
 
 
 def test_a_complete_run_replaces_an_earlier_mesh_file_and_leaves_no_staging_folder(
