@@ -38,6 +38,8 @@ _MAX_BLOCKERS = 256
 _MAX_RECENT_BLOCKERS = 8
 # Candidates per base tested one by one before the facing test switches to chunks.
 _SCALAR_CANDIDATES = 16
+# Largest chunk of candidates filtered at once by rule "first" on long runs.
+_MAX_FIRST_CHUNK = 1024
 
 
 def _rows(length: int, *rows: np.ndarray | float) -> np.ndarray:
@@ -378,16 +380,36 @@ class _Tree:
         for c in range(hi - 1, start, -1):
             if facing_one(xs, ys, lo, hi, c) and not self._blocked(lo, hi, c, blockers):
                 return c
-        # long runs of candidates that do not face the base: filter them in chunks
+        # long runs of candidates that do not face the base or that the same few edges block:
+        # filter them in chunks
         size = _SCALAR_CANDIDATES
         while start > lo:
             stop = max(start - size, lo)
             chunk = np.arange(start, stop, -1)
-            start, size = stop, min(size * 2, _MAX_CHUNK)
-            for c in chunk[facing_candidates(self.sx, self.sy, lo, hi, chunk, self.exact)].tolist():
+            start, size = stop, min(size * 2, _MAX_FIRST_CHUNK)
+            chunk = chunk[facing_candidates(self.sx, self.sy, lo, hi, chunk, self.exact)]
+            if len(chunk) > 1 and blockers:
+                chunk = self._not_blocked_by(lo, hi, chunk, blockers)
+            for c in chunk.tolist():
                 if not self._blocked(lo, hi, c, blockers):
                     return c
         return -1
+
+    def _not_blocked_by(
+        self, lo: int, hi: int, chunk: np.ndarray, blockers: list[int]
+    ) -> np.ndarray:
+        """The candidates of ``chunk`` (in order) that none of the edges ``blockers`` blocks
+        (the vectorised exact test of every candidate against every listed edge)."""
+        known = np.array(blockers)
+        rows = np.repeat(np.arange(len(chunk)), len(known))
+        failing, _ = pairs_failing(
+            self.sx, self.sy, lo, hi, chunk, rows, np.tile(known, len(chunk)), self.exact
+        )
+        if len(failing) == 0:
+            return chunk
+        keep = np.ones(len(chunk), dtype=bool)
+        keep[failing] = False
+        return chunk[keep]
 
     def _blocked(self, lo: int, hi: int, c: int, blockers: list[int]) -> bool:
         """Some edge of sub-polygon [lo, hi] breaks condition 2 or 3 for the triangle on
