@@ -1,5 +1,9 @@
 """Where the time of the engine goes on large polygons (earcut water-huge3, generated islands).
 
+Cases: ``water``; ``islands_<vertices>`` (bench/generate.py, cached as a GeoPackage);
+``coast_<vertices>`` (the same polygon generated in memory, for sizes not worth caching);
+``star_<vertices>`` (the scale run's star ring).
+
 Times the engine on each case and, with ``--profile``, runs it under cProfile (bridging and
 tree building then show up separately). ``--save`` stores the triangulations and ``--check``
 compares a run with a saved one field by field (the speed work must not change results).
@@ -13,13 +17,15 @@ from __future__ import annotations
 import argparse
 import cProfile
 import pstats
+import resource
 import time
 from pathlib import Path
 
 import numpy as np
 from bench_core import WATER_HUGE3, earcut_fixture
 from common import BUILD
-from generate import ensure_islands, read_rings
+from generate import ensure_islands, polygon_with_islands, read_rings
+from scale_run import star_ring
 
 from bsp_triangulate import Triangulation, triangulate
 
@@ -27,11 +33,16 @@ FIELDS = ("vertices", "triangles", "parent", "depth", "side")
 
 
 def load_case(name: str) -> list[np.ndarray]:
-    """Rings of one named case: ``water`` or ``islands_<vertices>``."""
+    """Rings of one named case: ``water``, ``islands_<n>``, ``coast_<n>`` or ``star_<n>``."""
     if name == "water":
         return earcut_fixture(WATER_HUGE3)
-    if name.startswith("islands_"):
-        return read_rings(ensure_islands(int(name.split("_", 1)[1])))[0]
+    kind, _, size = name.partition("_")
+    if kind == "islands":
+        return read_rings(ensure_islands(int(size)))[0]
+    if kind == "coast":
+        return polygon_with_islands(int(size))
+    if kind == "star":
+        return [star_ring(int(size))]
     raise ValueError(f"unknown case {name!r}")
 
 
@@ -64,9 +75,11 @@ def main() -> None:
         if profiler:
             profiler.disable()
         seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
         print(
             f"{name}: {vertices:,} vertices, {len(rings) - 1:,} islands -> "
-            f"{len(result):,} triangles in {seconds:.2f} s ({cpu:.2f} s CPU)"
+            f"{len(result):,} triangles in {seconds:.2f} s ({cpu:.2f} s CPU), "
+            f"peak {peak:,.0f} MiB so far"
         )
         if arguments.save:
             arguments.save.mkdir(parents=True, exist_ok=True)

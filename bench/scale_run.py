@@ -1,13 +1,16 @@
 """Scale runs of the robustness issue: they must finish, within 1 GiB of peak memory.
 
 1. One polygon with one million vertices (a star-shaped concave ring), through the core.
+   With ``--islands``: the benchmark's coast polygon (bench/generate.py: a ring of bays and
+   teeth around a grid of star islands, one island per 100 vertices) of that size instead.
 2. A layer of one million small polygons (L-shaped footprints), through
    `qgis_process run bsptriangulate:triangulate` with a mesh and a GeoPackage of triangles.
 
 Prints wall time, counts and peak memory (ru_maxrss of this process, or of qgis_process under
 `/usr/bin/time -v`). Minutes long: not part of the test suite.
 
-    .venv/bin/python bench/scale_run.py [--polygon] [--layer] [--vertices N] [--features N]
+    .venv/bin/python bench/scale_run.py [--polygon [--islands]] [--layer] [--vertices N]
+        [--features N]
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 BUILD = ROOT / "build" / "scale"
 
 
@@ -38,17 +42,23 @@ def star_ring(vertices: int, seed: int = 1) -> np.ndarray:
     return np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
 
 
-def run_polygon(vertices: int) -> None:
+def run_polygon(vertices: int, islands: bool = False) -> None:
     from bsp_triangulate import triangulate
 
-    ring = star_ring(vertices)
+    if islands:
+        from generate import polygon_with_islands
+
+        rings = polygon_with_islands(vertices)
+    else:
+        rings = [star_ring(vertices)]
+    holes = len(rings) - 1
     start = time.perf_counter()
-    result = triangulate([ring])
+    result = triangulate(rings)
     elapsed = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(
-        f"one polygon, {vertices:,} vertices: {len(result):,} triangles "
-        f"(expected {vertices - 2:,}) in {elapsed:.1f} s, peak {peak:,.0f} MiB"
+        f"one polygon, {vertices:,} vertices, {holes:,} islands: {len(result):,} triangles "
+        f"(expected {vertices + 2 * holes - 2:,}) in {elapsed:.1f} s, peak {peak:,.0f} MiB"
     )
 
 
@@ -126,12 +136,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--polygon", action="store_true", help="only the one large polygon")
     parser.add_argument("--layer", action="store_true", help="only the layer of small polygons")
+    parser.add_argument(
+        "--islands", action="store_true", help="the coast polygon with islands, not the star"
+    )
     parser.add_argument("--vertices", type=int, default=1_000_000)
     parser.add_argument("--features", type=int, default=1_000_000)
     args = parser.parse_args()
     both = not (args.polygon or args.layer)
     if args.polygon or both:
-        run_polygon(args.vertices)
+        run_polygon(args.vertices, args.islands)
     if args.layer or both:
         run_layer(args.features)
 
