@@ -113,12 +113,21 @@ def _order_along(x: np.ndarray, y: np.ndarray, a: int, b: int, inside: list[int]
     return kept
 
 
+# spacing of the order labels of the sequence's occurrences (room for later insertions)
+_LABEL_GAP = 1 << 32
+
+
 class _Bridger:
-    """Joins islands one by one into the sequence ``seq`` (outer ring first)."""
+    """Joins islands one by one into the sequence (outer ring first).
+
+    The sequence is a cyclic linked list of occurrences (nodes), so that a splice costs the
+    island's length, not the sequence's: ``vid[node]`` is the vertex, ``nxt``/``prv`` link the
+    nodes, node 0 is the sequence's first element. ``label`` grows along the sequence: comparing
+    labels compares positions.
+    """
 
     def __init__(self, x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> None:
         self.x, self.y = x, y
-        self.seq = rings[0].copy()
         starts, ends = _ring_edges(rings)
         self.edge_a, self.edge_b = starts, ends
         self.edges = SegmentGrid(x[starts], y[starts], x[ends], y[ends])
@@ -131,30 +140,83 @@ class _Bridger:
         self.bridges = np.empty((len(rings), 2), dtype=np.int64)
         self.bridge_count = 0
         self.seq_points: set[tuple[float, float]] = set()
-        self._add_points(self.seq)
-        self._seq_changed()
+        capacity = len(starts) + 2 * len(rings)
+        self.vid = np.empty(capacity, dtype=np.int64)
+        self.nxt = np.empty(capacity, dtype=np.int64)
+        self.prv = np.empty(capacity, dtype=np.int64)
+        self.label = np.empty(capacity, dtype=np.int64)
+        self.count = 0
+        # first occurrence of each vertex (-1: not in the sequence) and any further ones
+        self.first = np.full(len(x), -1, dtype=np.int64)
+        self.more: dict[int, list[int]] = {}
+        outer = rings[0]
+        nodes = self._new_nodes(outer)
+        self.nxt[nodes] = np.roll(nodes, -1)
+        self.prv[nodes] = np.roll(nodes, 1)
+        self.label[nodes] = np.arange(len(nodes), dtype=np.int64) * _LABEL_GAP
+        self._add_points(outer)
 
-    def _seq_changed(self) -> None:
-        self.in_seq[self.seq] = True
-        self.position = np.full(len(self.x), -1, dtype=np.int64)
-        self.position[self.seq] = np.arange(len(self.seq))
-        counts = np.bincount(self.seq, minlength=len(self.x))
-        self.repeated = counts > 1
+    def _new_nodes(self, vids: np.ndarray) -> np.ndarray:
+        """Nodes for the vertices ``vids`` (not linked yet), registered as occurrences."""
+        nodes = np.arange(self.count, self.count + len(vids), dtype=np.int64)
+        self.count += len(vids)
+        self.vid[nodes] = vids
+        self.in_seq[vids] = True
+        unique, index = np.unique(vids, return_index=True)
+        fresh = self.first[unique] < 0
+        self.first[unique[fresh]] = nodes[index[fresh]]
+        extra = np.flatnonzero(self.first[vids] != nodes)
+        for node, vid in zip(nodes[extra].tolist(), vids[extra].tolist()):
+            self.more.setdefault(vid, []).append(node)
+        return nodes
+
+    def _insert_after(self, node: int, vids: np.ndarray) -> None:
+        """Insert the vertices ``vids`` into the sequence right after ``node``."""
+        nodes = self._new_nodes(vids)
+        after = int(self.nxt[node])
+        low = int(self.label[node])
+        if after == 0:  # at the end of the sequence
+            steps = np.arange(1, len(nodes) + 1, dtype=np.int64) * _LABEL_GAP
+        else:
+            gap = (int(self.label[after]) - low) // (len(nodes) + 1)
+            if gap < 1:
+                self._relabel()
+                low = int(self.label[node])
+                gap = (int(self.label[after]) - low) // (len(nodes) + 1)
+            steps = np.arange(1, len(nodes) + 1, dtype=np.int64) * gap
+        self.label[nodes] = low + steps
+        self.nxt[nodes[:-1]] = nodes[1:]
+        self.prv[nodes[1:]] = nodes[:-1]
+        self.nxt[node], self.prv[nodes[0]] = nodes[0], node
+        self.nxt[nodes[-1]], self.prv[after] = after, nodes[-1]
+
+    def _relabel(self) -> None:
+        """Evenly spaced labels again (when some gap has run out)."""
+        order = self._order()
+        self.label[order] = np.arange(len(order), dtype=np.int64) * _LABEL_GAP
+
+    def _order(self) -> np.ndarray:
+        """The sequence's nodes in order."""
+        return np.argsort(self.label[: self.count], kind="stable")
+
+    @property
+    def seq(self) -> np.ndarray:
+        """The sequence of vertex ids."""
+        return self.vid[self._order()]
 
     def _add_points(self, ring: np.ndarray) -> None:
         self.seq_points.update(zip(self.x[ring].tolist(), self.y[ring].tolist()))
 
     def occurrences(self, vid: int) -> list[int]:
-        if self.repeated[vid]:
-            return np.flatnonzero(self.seq == vid).tolist()
-        return [int(self.position[vid])]
+        """The nodes of ``vid`` in the sequence."""
+        return [int(self.first[vid]), *self.more.get(vid, ())]
 
     # -- validity -------------------------------------------------------------------------
     def _inside_angle(self, k: int, tx: float, ty: float, closed: bool = False) -> bool:
-        """The direction from occurrence k towards (tx, ty) lies in S's interior angle there
+        """The direction from occurrence (node) k towards (tx, ty) lies in S's interior angle there
         (the open angle, or the closed one with ``closed=True``)."""
-        seq, x, y = self.seq, self.x, self.y
-        v, p, n = int(seq[k]), int(seq[k - 1]), int(seq[(k + 1) % len(seq)])
+        vid, x, y = self.vid, self.x, self.y
+        v, p, n = int(vid[k]), int(vid[self.prv[k]]), int(vid[self.nxt[k]])
         vx, vy = x[v], y[v]
         turn = orient(x[p], y[p], vx, vy, x[n], y[n])
         least = 0 if closed else 1
@@ -210,7 +272,7 @@ class _Bridger:
         return not ((o3.astype(np.int16) * o4) < 0).any()
 
     def _valid_occurrences(self, vid: int, island: np.ndarray, h_index: int) -> list[int]:
-        """Positions k of ``vid`` in the sequence from which a bridge to the island may leave."""
+        """Occurrences (nodes) k of ``vid`` from which a bridge to the island may leave."""
         x, y = self.x, self.y
         h = int(island[h_index])
         if x[vid] == x[h] and y[vid] == y[h]:
@@ -230,7 +292,7 @@ class _Bridger:
 
     # -- search ---------------------------------------------------------------------------
     def find_bridge(self, island: np.ndarray, h_index: int) -> tuple[int, int] | None:
-        """(k, vertex id) of the bridge target for the island, or None."""
+        """(node, vertex id) of the bridge target for the island, or None."""
         x, y = self.x, self.y
         h = int(island[h_index])
         hx, hy = float(x[h]), float(y[h])
@@ -273,28 +335,36 @@ class _Bridger:
             dist = float((x[vid] - x[h]) ** 2 + (y[vid] - y[h]) ** 2)
             if dist <= best * (1 + _DISTANCE_MARGIN):
                 exact = exact_sq_distance(x[vid], y[vid], x[h], y[h])
-                options.extend((exact, k, vid) for k in ks)
-        _, k, vid = min(options)
+                options.extend((exact, int(self.label[k]), k, vid) for k in ks)
+        # ties go to the first occurrence in the sequence
+        _, _, k, vid = min(options)
         return k, vid
 
     def splice(self, k: int, island: np.ndarray, h_index: int) -> None:
-        x, y, seq = self.x, self.y, self.seq
+        """Join the island at occurrence (node) k (docs/algorithm.md section 2)."""
+        x, y = self.x, self.y
         loop = np.roll(island, -h_index)
         h = int(loop[0])
-        sk = int(seq[k])
+        sk = int(self.vid[k])
         if x[sk] == x[h] and y[sk] == y[h]:
-            tail = [seq[: k + 1], loop[1:], loop[:1], seq[k + 1 :]]
-            parts = [seq, loop] if k == 0 else tail
+            parts = [loop] if k == 0 else [loop[1:], loop[:1]]
         else:
             self.bridges[self.bridge_count] = (sk, h)
             self.bridge_count += 1
-            if k == 0:
-                parts = [seq, seq[:1], loop, loop[:1]]
-            else:
-                parts = [seq[: k + 1], loop, loop[:1], seq[k : k + 1], seq[k + 1 :]]
-        self.seq = np.concatenate(parts)
+            shared = np.array([sk], dtype=np.int64)
+            parts = [shared, loop, loop[:1]] if k == 0 else [loop, loop[:1], shared]
+        # k == 0: the island goes to the end, so that S keeps its first two vertices
+        self._insert_after(int(self.prv[0]) if k == 0 else k, np.concatenate(parts))
         self._add_points(island)
-        self._seq_changed()
+
+    def nearest_occurrence(self, h: int) -> tuple[int, int]:
+        """(node, vertex id) of the occurrence nearest to vertex ``h`` (first on ties)."""
+        x, y = self.x, self.y
+        order = self._order()
+        seq = self.vid[order]
+        d2 = (x[seq] - x[h]) ** 2 + (y[seq] - y[h]) ** 2
+        k = int(np.argmin(d2))
+        return int(order[k]), int(seq[k])
 
 
 def bridge_islands(
@@ -350,7 +420,7 @@ def bridge_islands(
             slot, h_index = item[2], item[3]
         target = bridger.find_bridge(rings[slot], h_index)
         if target is None and relaxed:
-            target = _nearest_occurrence(x, y, bridger.seq, int(rings[slot][h_index]))
+            target = bridger.nearest_occurrence(int(rings[slot][h_index]))
         if target is None:
             raise TriangulationError(
                 f"{ring_label(ring_numbers[slot])}: no bridge to the outer ring found "
@@ -360,13 +430,6 @@ def bridge_islands(
         joined[slot] = True
         mark_touching(rings[slot])
     return bridger.seq
-
-
-def _nearest_occurrence(x: np.ndarray, y: np.ndarray, seq: np.ndarray, h: int) -> tuple[int, int]:
-    """(k, vertex id) of the occurrence in ``seq`` nearest to vertex ``h`` (first on ties)."""
-    d2 = (x[seq] - x[h]) ** 2 + (y[seq] - y[h]) ** 2
-    k = int(np.argmin(d2))
-    return k, int(seq[k])
 
 
 def _touch_index(x: np.ndarray, y: np.ndarray, ring: np.ndarray, bridger: _Bridger) -> int:
