@@ -162,49 +162,94 @@ _ONE_TABLE = 1 << 16
 _WIDTHS = np.array([4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024])
 
 
-def correct_mask(
-    seqs: Sequences,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    c: np.ndarray,
-    block: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
+def correct_mask(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Per test item: candidate position ``c`` forms a correct triangle on the base of the
-    sub-polygon [lo, hi] (the engine's facing and correct-candidate conditions).
-
-    Also returns per item a position strictly inside the triangle where one was found, else
-    ``block`` (a position of the sub-polygon tested first: one inside rules the item out).
-    """
+    sub-polygon [lo, hi] (the engine's facing and correct-candidate conditions)."""
     ok = _facing(seqs, lo, hi, c)
-    blocker = np.full(len(c), -1, dtype=np.int64) if block is None else block.copy()
     # a 3-vertex sub-polygon has only its corners and its own sides: conditions 2 and 3 hold
     idx = np.flatnonzero(ok & (hi - lo > 2))
-    if len(idx) == 0:
-        return ok, blocker
-    sx, sy = seqs.sx, seqs.sy
-    if block is not None:
-        known = idx[block[idx] >= 0]
-        if len(known):
-            inside = _strictly_inside(seqs, hi[known], lo[known], c[known], block[known])
-            ok[known[inside]] = False
-            idx = idx[ok[idx]]
-            if len(idx) == 0:
-                return ok, blocker
-    size = hi[idx] - lo[idx] + 1
-    widths = np.minimum(np.searchsorted(_WIDTHS, size), len(_WIDTHS) - 1)
-    if len(idx) * int(size.max()) <= _ONE_TABLE:
-        widths[:] = widths.max()  # few items: one table, fewer numpy calls
-    for k in np.unique(widths).tolist():
-        rows = idx[widths == k]
-        width = max(int(_WIDTHS[k]), int(size[widths == k].max()))
-        bad, found = _bad_rows(
-            sx, sy, lo[rows], hi[rows], c[rows], seqs.extent_x[c[rows]],
-            seqs.extent_y[c[rows]], seqs.twin, width, seqs.exact,
-        )  # fmt: skip
-        ok[rows[bad]] = False
-        inside = found >= 0
-        blocker[rows[inside]] = found[inside]
-    return ok, blocker
+    if len(idx):
+        ok[idx[_tables(seqs, lo[idx], hi[idx], c[idx])[0]]] = False
+    return ok
+
+
+def _tables(
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Conditions 2 and 3 for facing candidates ``c`` of sub-polygons [lo, hi] of at least 4
+    vertices: per item whether it fails, and a position strictly inside its triangle or -1.
+
+    Items go in passes of bounded size, each in tables of a few padded widths.
+    """
+    n = len(c)
+    bad = np.zeros(n, dtype=bool)
+    inside = np.full(n, -1, dtype=np.int64)
+    if n == 0:
+        return bad, inside
+    size = hi - lo + 1
+    work = np.cumsum(size)
+    cuts = np.searchsorted(work, np.arange(_CHUNK_ELEMENTS, work[-1], _CHUNK_ELEMENTS))
+    bounds = np.unique(np.concatenate([[0], cuts, [n]])).tolist()
+    for first, stop in zip(bounds[:-1], bounds[1:]):
+        idx = np.arange(first, stop)
+        part = size[first:stop]
+        widths = np.minimum(np.searchsorted(_WIDTHS, part), len(_WIDTHS) - 1)
+        if len(idx) * int(part.max()) <= _ONE_TABLE:
+            widths[:] = widths.max()  # few items: one table, fewer numpy calls
+        for k in np.unique(widths).tolist():
+            rows = idx[widths == k]
+            width = max(int(_WIDTHS[k]), int(part[widths == k].max()))
+            bad[rows], inside[rows] = _bad_rows(
+                seqs.sx, seqs.sy, lo[rows], hi[rows], c[rows], seqs.extent_x[c[rows]],
+                seqs.extent_y[c[rows]], seqs.twin, width, seqs.exact,
+            )  # fmt: skip
+    return bad, inside
+
+
+# candidates tested per node and round after a node's first candidate failed
+_SPAN = 4
+
+
+def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One round of rule "first" for the open nodes ``state``.
+
+    A node whose first candidate failed tests up to ``_SPAN`` candidates (its next ones, in
+    order) for conditions 1 and 4 and against its recorded blocker; the first that passes
+    goes on to the tables. Returns per node whether its candidate ``apex`` is correct, the
+    apex (or the next candidate to test) and the blocker to keep.
+    """
+    lo, hi, cand, block = state[:, _LO], state[:, _HI], state[:, _CAND], state[:, _BLOCK]
+    n = len(lo)
+    span = np.where(cand == hi - 1, 1, np.minimum(cand - lo, _SPAN))
+    if (span == 1).all():
+        owner = np.arange(n)
+        c = cand
+    else:
+        owner = np.repeat(np.arange(n), span)
+        c = cand[owner] - ragged_index(np.zeros(n, dtype=np.int64), span)
+    lo_o, hi_o = lo[owner], hi[owner]
+    ok = _facing(seqs, lo_o, hi_o, c)
+    large = hi_o - lo_o > 2
+    tested = np.flatnonzero(ok & large & (block[owner] >= 0))
+    if len(tested):
+        inside = _strictly_inside(seqs, hi_o[tested], lo_o[tested], c[tested], block[owner[tested]])
+        ok[tested[inside]] = False
+    # the first candidate of each node that passed so far (its index in c), or len(c)
+    starts = np.cumsum(span) - span
+    first = np.minimum.reduceat(np.where(ok, np.arange(len(c)), len(c)), starts)
+    passed = first < len(c)
+    apex = np.where(passed, c[np.minimum(first, len(c) - 1)], cand - span)
+    correct = passed.copy()
+    blocker = block.copy()
+    table = np.flatnonzero(passed & (hi - lo > 2))
+    if len(table):
+        bad, inside = _tables(seqs, lo[table], hi[table], apex[table])
+        correct[table[bad]] = False
+        found = inside >= 0
+        blocker[table[found]] = inside[found]
+        # a failed candidate: the next round starts below it
+        apex[table[bad]] -= 1
+    return correct, apex, blocker
 
 
 def _strictly_inside(
@@ -311,26 +356,20 @@ def _bad_rows(
     return bad, found
 
 
-def _chunked_correct(
-    seqs: Sequences,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    c: np.ndarray,
-    block: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
+def _chunked_correct(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
     """:func:`correct_mask` in passes of bounded size."""
     n = len(c)
+    if n == 0:
+        return np.zeros(0, dtype=bool)
     work = np.cumsum(hi - lo + 1)
-    if n == 0 or work[-1] <= _CHUNK_ELEMENTS:
-        return correct_mask(seqs, lo, hi, c, block)
-    ok = np.empty(n, dtype=bool)
-    blocker = np.empty(n, dtype=np.int64)
+    if work[-1] <= _CHUNK_ELEMENTS:
+        return correct_mask(seqs, lo, hi, c)
+    out = np.empty(n, dtype=bool)
     cuts = np.searchsorted(work, np.arange(_CHUNK_ELEMENTS, work[-1], _CHUNK_ELEMENTS))
     bounds = np.unique(np.concatenate([[0], cuts, [n]]))
     for s, t in zip(bounds[:-1], bounds[1:]):
-        part = None if block is None else block[s:t]
-        ok[s:t], blocker[s:t] = correct_mask(seqs, lo[s:t], hi[s:t], c[s:t], part)
-    return ok, blocker
+        out[s:t] = correct_mask(seqs, lo[s:t], hi[s:t], c[s:t])
+    return out
 
 
 def _choose_elevation(
@@ -448,13 +487,13 @@ def build_trees(
     state[:, _SEQ] = poly
     state[:, _BLOCK] = -1
     while len(state):
-        lo, hi, cand = state[:, _LO], state[:, _HI], state[:, _CAND]
+        lo, hi = state[:, _LO], state[:, _HI]
         retry = None
         if exhaustive:
             span = hi - lo - 1
             owner = np.repeat(np.arange(len(lo), dtype=np.int64), span)
             c = np.repeat(hi - 1, span) - ragged_index(np.zeros(len(lo), np.int64), span)
-            good = _chunked_correct(seqs, lo[owner], hi[owner], c)[0]
+            good = _chunked_correct(seqs, lo[owner], hi[owner], c)
             found = np.bincount(owner[good], minlength=len(lo)) > 0
             apex = np.full(len(lo), -1, dtype=np.int64)
             if found.any():
@@ -464,9 +503,8 @@ def build_trees(
                 apex[found] = _choose_elevation(sz, owner[good], c[good], v1, v2)
             failed = ~found
         else:
-            found, blocker = _chunked_correct(seqs, lo, hi, cand, state[:, _BLOCK])
-            apex = cand
-            failed = ~found & (cand - 1 <= lo)
+            found, apex, blocker = _first_correct(seqs, state)
+            failed = ~found & (apex <= lo)
             retry = np.flatnonzero(~found & ~failed)
         if failed.any():
             ok[state[failed, _SEQ]] = False
@@ -486,7 +524,7 @@ def build_trees(
         children = _children(done, a)
         if retry is not None and len(retry):
             again = np.take(state, retry, axis=0)
-            again[:, _CAND] -= 1
+            again[:, _CAND] = apex[retry]
             again[:, _BLOCK] = blocker[retry]
             children = np.concatenate([again, children])
         state = children
