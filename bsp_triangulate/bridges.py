@@ -51,7 +51,7 @@ def split_touching(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> lis
 
 
 # candidate (edge, vertex) pairs tested at once: bounds the memory of the vectorised tests
-_PAIR_CHUNK = 1 << 20
+_PAIR_CHUNK = 1 << 16
 
 
 def _touching_pairs(

@@ -182,29 +182,55 @@ def exact_sq_distance(ax: float, ay: float, bx: float, by: float) -> Fraction:
     return dx * dx + dy * dy
 
 
-def _as_int_scaled(values: list[float]) -> tuple[list[int], int]:
-    """Exact integers n_i and a shift s with values[i] == n_i * 2**-s."""
-    ratios = [v.as_integer_ratio() for v in values]
-    shift = max((d.bit_length() - 1 for _, d in ratios), default=0)
-    return [n << (shift - (d.bit_length() - 1)) for n, d in ratios], shift
-
-
 def ring_area_sign(x: np.ndarray, y: np.ndarray) -> int:
     """Exact sign of the signed (shoelace) area of the closed ring (x[i], y[i])."""
     if len(x) < 3:
         return 0
-    xn, yn = np.roll(x, -1), np.roll(y, -1)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        left = x * yn
-        right = xn * y
-        total = float(np.sum(left - right))
-        magnitude = float(np.sum(np.abs(left) + np.abs(right)))
-    bound = magnitude * (len(x) + 4) * 2.0 * _EPS + _UNDERFLOW_SLACK * len(x)
-    if np.isfinite(total) and np.isfinite(bound) and abs(total) > bound:
-        return 1 if total > 0 else -1
-    xi, sx = _as_int_scaled(x.tolist())
-    yi, sy = _as_int_scaled(y.tolist())
-    del sx, sy  # a common positive scale does not change the sign
-    n = len(xi)
-    twice_area = sum(xi[i] * yi[(i + 1) % n] - xi[(i + 1) % n] * yi[i] for i in range(n))
+        # the area does not depend on a translation: taken from the first vertex, the terms
+        # stay small for rings far from the origin (the differences round by at most eps
+        # relative, which the bound's factor 4 covers)
+        for dx, dy in ((x, y), (x - x[0], y - y[0])):
+            dxn, dyn = np.roll(dx, -1), np.roll(dy, -1)
+            left = dx * dyn
+            right = dxn * dy
+            total = float(np.sum(left - right))
+            magnitude = float(np.sum(np.abs(left) + np.abs(right)))
+            bound = magnitude * (len(x) + 4) * 4.0 * _EPS + _UNDERFLOW_SLACK * len(x)
+            if np.isfinite(total) and np.isfinite(bound) and abs(total) > bound:
+                return 1 if total > 0 else -1
+    # exact: integers times one common power of two, summed chunk by chunk (bounded memory)
+    shift = max(_max_shift(x), _max_shift(y))
+    twice_area = 0
+    n = len(x)
+    for start in range(0, n, _EXACT_CHUNK):
+        stop = min(start + _EXACT_CHUNK, n)
+        nxt = np.arange(start + 1, stop + 1) % n
+        xi = _scaled_ints(x[start:stop].tolist(), shift)
+        yi = _scaled_ints(y[start:stop].tolist(), shift)
+        xn = _scaled_ints(x[nxt].tolist(), shift)
+        yn = _scaled_ints(y[nxt].tolist(), shift)
+        twice_area += sum(a * d - c * b for a, b, c, d in zip(xi, yi, xn, yn))
     return (twice_area > 0) - (twice_area < 0)
+
+
+# values per chunk of the exact area sum
+_EXACT_CHUNK = 1 << 16
+
+
+def _max_shift(values: np.ndarray) -> int:
+    """The s for which every value times 2**s is an integer (the largest denominator's)."""
+    shift = 0
+    for start in range(0, len(values), _EXACT_CHUNK):
+        part = values[start : start + _EXACT_CHUNK].tolist()
+        shift = max(shift, max(v.as_integer_ratio()[1].bit_length() - 1 for v in part))
+    return shift
+
+
+def _scaled_ints(values: list[float], shift: int) -> list[int]:
+    """values[i] * 2**shift as exact integers (every denominator divides 2**shift)."""
+    out = []
+    for v in values:
+        num, den = v.as_integer_ratio()
+        out.append(num << (shift - (den.bit_length() - 1)))
+    return out

@@ -1,4 +1,5 @@
-"""Large polygons: the chain boxes find every blocking edge, and a long star ring is tiled.
+"""Large polygons: the chain boxes find every blocking edge, a long star ring is tiled, and
+the ring area sign (its float filter from the first vertex, its exact sum in chunks) is exact.
 
 The engine looks up the edges that may block a candidate triangle of a long sub-polygon by
 descending boxes over runs of consecutive edges (``ChainBoxes``). The boxes only prune, so the
@@ -10,13 +11,15 @@ points far from the origin or scaled by a non-representable factor.
 from __future__ import annotations
 
 import random
+from fractions import Fraction
 
 import numpy as np
 import pytest
 
-from bsp_triangulate import triangulate
+from bsp_triangulate import predicates, triangulate
 from bsp_triangulate.bridges import bridge_islands, remove_spikes, split_touching
 from bsp_triangulate.engine import _edge_blocks, _Tree, facing_one
+from bsp_triangulate.predicates import ring_area_sign
 from bsp_triangulate.rings import normalise_rings, prepare
 from bsp_triangulate.rules import get_rule
 from bsp_triangulate.spatial_index import ChainBoxes
@@ -119,3 +122,31 @@ def test_star_ring_of_fifty_thousand_vertices_keeps_its_area() -> None:
     area2 = np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
     assert (cross > 0).all()
     assert abs(cross.sum() - area2) <= 1e-9 * area2
+
+
+def _exact_area_sign(x: np.ndarray, y: np.ndarray) -> int:
+    n = len(x)
+    total = sum(
+        Fraction(x[i]) * Fraction(y[(i + 1) % n]) - Fraction(x[(i + 1) % n]) * Fraction(y[i])
+        for i in range(n)
+    )
+    return (total > 0) - (total < 0)
+
+
+@pytest.mark.parametrize("chunk", [3, 1 << 16])
+def test_ring_area_sign_is_exact_near_zero_and_far_from_the_origin(
+    chunk: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(predicates, "_EXACT_CHUNK", chunk)
+    rng = np.random.default_rng(5)
+    signs = set()
+    for _ in range(600):
+        n = int(rng.integers(3, 12))
+        scale = rng.choice([1.0, 0.1, 3.0**-40, 1e-300, 1e300])
+        x = rng.integers(-3, 4, n) * scale + rng.choice([0.0, 1e6, 1e17, -0.3])
+        y = rng.integers(-3, 4, n) * rng.choice([1.0, 0.1, 3.0**-40]) + rng.choice([0.0, 7e6])
+        with np.errstate(all="ignore"):
+            got = ring_area_sign(x, y)
+        assert got == _exact_area_sign(x, y)
+        signs.add(got)
+    assert signs == {-1, 0, 1}
