@@ -238,10 +238,11 @@ def _band_pairs(
     poly_of: np.ndarray,
     count: int,
     edges: np.ndarray,
-    lo: np.ndarray,
-    hi: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(edge, vertex) pairs of one polygon whose ``coord`` lies in [lo, hi] of the edge."""
+    """(edge, vertex) pairs of one polygon whose ``coord`` lies in [coord[low], coord[high]]
+    of the edge (``low``, ``high``: its end points with the lower and the higher coord)."""
     has = np.bincount(poly_of, minlength=count) > 0
     first = np.flatnonzero(np.r_[True, poly_of[1:] != poly_of[:-1]])
     cmin = np.zeros(count)
@@ -253,13 +254,19 @@ def _band_pairs(
     key = poly_of + (coord - cmin[poly_of]) * scale[poly_of]
     order = np.argsort(key)
     sorted_key = key[order]
-    owner = poly_of[edges]
-    start = np.searchsorted(sorted_key, owner + (lo - cmin[owner]) * scale[owner], "left")
-    stop = np.searchsorted(sorted_key, owner + (hi - cmin[owner]) * scale[owner], "right")
+    rank = np.empty(len(order), dtype=np.int64)
+    rank[order] = np.arange(len(order))
+    # runs of equal keys: the band reaches from the first of the low end's run to the last
+    # of the high end's run
+    same = sorted_key[1:] == sorted_key[:-1]
+    index = np.arange(len(sorted_key))
+    run_first = np.maximum.accumulate(np.where(np.r_[False, same], 0, index))
+    run_last = np.minimum.accumulate(np.where(np.r_[same, False], len(index), index)[::-1])[::-1]
+    start = run_first[rank[low]]
+    stop = run_last[rank[high]] + 1
     # the band's first and last keys are the edge's own end points': drop them unless another
     # vertex has the same key
     tied = np.zeros(len(sorted_key), dtype=bool)
-    same = sorted_key[1:] == sorted_key[:-1]
     tied[1:] |= same
     tied[:-1] |= same
     start += ~tied[start]
@@ -290,9 +297,11 @@ def touching_polygons(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
         (~steep, wy, wx, x0, x1),
     ):
         chosen = np.flatnonzero(mask)
-        band_lo = np.minimum(along[chosen], along[nxt[chosen]])
-        band_hi = np.maximum(along[chosen], along[nxt[chosen]])
-        e, v = _band_pairs(along, poly_of, count, chosen, band_lo, band_hi)
+        ends = nxt[chosen]
+        ascending = along[chosen] <= along[ends]
+        low = np.where(ascending, chosen, ends)
+        high = np.where(ascending, ends, chosen)
+        e, v = _band_pairs(along, poly_of, count, chosen, low, high)
         t = across[v]
         near = (t >= lo[e]) & (t <= hi[e])
         groups.append((e[near], v[near]))
