@@ -81,9 +81,18 @@ def _segment_clear(
     a, b = edge_a[e], edge_b[e]
     ux, uy, vx, vy = wx[u][item], wy[u][item], wx[w][item], wy[w][item]
     ax, ay, bx, by = wx[a], wy[a], wx[b], wy[b]
+    # an edge that meets the closed segment meets its bounding box (exact comparisons)
+    near = np.flatnonzero(
+        (np.maximum(ax, bx) >= np.minimum(ux, vx))
+        & (np.minimum(ax, bx) <= np.maximum(ux, vx))
+        & (np.maximum(ay, by) >= np.minimum(uy, vy))
+        & (np.minimum(ay, by) <= np.maximum(uy, vy))
+    )
+    item, ux, uy, vx, vy = item[near], ux[near], uy[near], vx[near], vy[near]
+    ax, ay, bx, by = ax[near], ay[near], bx[near], by[near]
     o1 = orient_items(ux, uy, vx, vy, ax, ay)
     o2 = orient_items(ux, uy, vx, vy, bx, by)
-    blocked = np.zeros(len(e), dtype=bool)
+    blocked = np.zeros(len(item), dtype=bool)
     # an end point on the segment's line (mostly the segment's own ends) inside the segment
     for o, px, py in ((o1, ax, ay), (o2, bx, by)):
         z = np.flatnonzero(o == 0)
@@ -121,9 +130,14 @@ def bridge_sequences(
     pos = ragged_index(flat.ring_start[island_rings], rlen)
     ring_item = np.repeat(np.arange(len(island_rings), dtype=np.int64), rlen)
     vid = trav[pos]
-    order = np.lexsort((wy[vid], wx[vid], ring_item))
     first_of = np.cumsum(rlen) - rlen
-    h_pos = pos[order[first_of]]  # traversal position of the leftmost vertex
+    # leftmost vertex of each island (smallest x, then y; the first in traversal order)
+    vx, vy = wx[vid], wy[vid]
+    at_left = vx == np.minimum.reduceat(vx, first_of)[ring_item]
+    low_y = np.where(at_left, vy, np.inf)
+    at_left &= low_y == np.minimum.reduceat(low_y, first_of)[ring_item]
+    leftmost = np.minimum.reduceat(np.where(at_left, np.arange(len(pos)), len(pos)), first_of)
+    h_pos = pos[leftmost]  # traversal position of the leftmost vertex
     h_index = h_pos - flat.ring_start[island_rings]
     h_id = trav[h_pos]
     rank = np.lexsort((island_rings, wy[h_id], wx[h_id], island_poly))
