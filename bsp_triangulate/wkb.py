@@ -68,32 +68,36 @@ class _Reader:
         has_m = has_m or iso_dims in (2, 3)
         return endian, base, (has_z, has_m)
 
-    def rings(self, endian: str, dims: int) -> list[np.ndarray]:
-        """Read the rings of one polygon body as (n, dims) float64 arrays."""
+    def rings(self, endian: str, dims: int, has_z: bool) -> list[np.ndarray]:
+        """Read the rings of one polygon body as (n, 3) float64 arrays (z = 0 without Z).
+
+        The rings are views of one native-endian copy per polygon: the WKB buffer is not
+        kept alive by them, and a polygon costs one allocation, not one per ring.
+        """
         count = self.uint32(endian)
-        rings = []
+        spans = []
+        total = 0
         for _ in range(count):
             npoints = self.uint32(endian)
             nbytes = npoints * dims * 8
             if self.pos + nbytes > len(self.data):
                 raise ValueError("truncated WKB: ring shorter than its point count")
-            coords = np.frombuffer(
-                self.data, dtype=endian + "f8", count=npoints * dims, offset=self.pos
-            )
+            spans.append((self.pos, npoints))
             self.pos += nbytes
-            rings.append(coords.reshape(npoints, dims))
+            total += npoints
+        out = np.zeros((total, 3), dtype=np.float64)
+        width = 3 if has_z and dims >= 3 else 2
+        rings = []
+        row = 0
+        for offset, npoints in spans:
+            coords = np.frombuffer(
+                self.data, dtype=endian + "f8", count=npoints * dims, offset=offset
+            ).reshape(npoints, dims)
+            ring = out[row : row + npoints]
+            ring[:, :width] = coords[:, :width]
+            rings.append(ring)
+            row += npoints
         return rings
-
-
-def _to_xyz(coords: np.ndarray, has_z: bool) -> np.ndarray:
-    """A native-endian (n, 3) copy (the WKB buffer is not kept alive by the rings)."""
-    if has_z and coords.shape[1] == 3:
-        return coords.astype(np.float64)
-    out = np.zeros((len(coords), 3), dtype=np.float64)
-    out[:, :2] = coords[:, :2]
-    if has_z:
-        out[:, 2] = coords[:, 2]
-    return out
 
 
 def polygons_from_wkb(wkb: bytes) -> tuple[list[list[np.ndarray]], bool]:
@@ -108,19 +112,18 @@ def polygons_from_wkb(wkb: bytes) -> tuple[list[list[np.ndarray]], bool]:
     endian, base, (has_z, has_m) = reader.header()
     dims = 2 + has_z + has_m
     if base == WKB_POLYGON:
-        bodies = [reader.rings(endian, dims)]
+        bodies = [reader.rings(endian, dims, has_z)]
     elif base == WKB_MULTIPOLYGON:
         bodies = []
         for _ in range(reader.uint32(endian)):
             part_endian, part_base, (part_z, part_m) = reader.header()
             if part_base != WKB_POLYGON:
                 raise ValueError(f"MultiPolygon part of WKB type {part_base}, not a Polygon")
-            bodies.append(reader.rings(part_endian, 2 + part_z + part_m))
+            bodies.append(reader.rings(part_endian, 2 + part_z + part_m, part_z))
             has_z = has_z or part_z
     else:
         raise ValueError(f"WKB geometry type {base} is not a Polygon or MultiPolygon")
-    parts = [[_to_xyz(ring, ring.shape[1] >= 3 and has_z) for ring in body] for body in bodies]
-    return [rings for rings in parts if rings], has_z
+    return [rings for rings in bodies if rings], has_z
 
 
 def _triangle_records(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
