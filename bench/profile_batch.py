@@ -5,7 +5,11 @@ and the Swellendam farms layer. The engine runs on a prefix only (it is slow) an
 per vertex; on that prefix every batch result is compared with the engine's.
 
 Usage: python bench/profile_batch.py [--counts 5000 50000] [--engine 300] [--rule first]
-       [--profile]
+       [--profile] [--stages]
+
+``--stages`` prints the CPU seconds of each step of the batch path (ring normalisation,
+touching search, area check, bridges, and in the tree: per-position tables, facing tests,
+blocker tests, vertex tables, the rest being the round bookkeeping).
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from generate import star_polygons
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bsp_triangulate import TriangulationError, triangulate  # noqa: E402
+from bsp_triangulate import TriangulationError, batch, batch_bsp, triangulate  # noqa: E402
 from bsp_triangulate.batch import triangulate_batch  # noqa: E402
 
 FARMS = ROOT.parent / "shared" / "data" / "swellendam" / "farms_33S.shp"
@@ -101,6 +105,64 @@ def compare_with_engine(polygons: list, results: list, rule: str) -> tuple[float
     return elapsed, compared, different
 
 
+# (module, function) pairs timed by --stages, in pipeline order; nested ones count inside
+# their caller too
+STAGES = (
+    (batch, "flatten_rings"),
+    (batch, "touching_polygons"),
+    (batch, "clear_area"),
+    (batch, "bridge_sequences"),
+    (batch, "build_trees"),
+    (batch_bsp.Sequences, "of"),
+    (batch_bsp, "_facing"),
+    (batch_bsp, "_strictly_inside"),
+    (batch_bsp, "_tables"),
+    (batch_bsp, "_bad_rows"),
+)
+
+
+def stage_times(polygons: list, rule: str) -> tuple[float, dict[str, float]]:
+    """CPU seconds of one batch call and of each step in ``STAGES`` within it."""
+    seconds: dict[str, float] = {}
+    saved = [(owner, name, owner.__dict__[name]) for owner, name in STAGES]
+
+    def timer(name: str, function):
+        def wrapped(*args, **kwargs):
+            start = time.process_time()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                seconds[name] = seconds.get(name, 0.0) + time.process_time() - start
+
+        return wrapped
+
+    for owner, name, original in saved:
+        if isinstance(original, classmethod):
+            setattr(owner, name, classmethod(timer(name, original.__func__)))
+        else:
+            setattr(owner, name, timer(name, original))
+    try:
+        start = time.process_time()
+        triangulate_batch(polygons, rule)
+        total = time.process_time() - start
+    finally:
+        for owner, name, original in saved:
+            setattr(owner, name, original)
+    return total, seconds
+
+
+def print_stages(polygons: list, rule: str) -> None:
+    total, seconds = stage_times(polygons, rule)
+    tree = seconds.get("build_trees", 0.0)
+    inner = ("of", "_facing", "_strictly_inside", "_tables")
+    rows = [(name, seconds.get(name, 0.0)) for _, name in STAGES]
+    rows.append(("tree bookkeeping", tree - sum(seconds.get(name, 0.0) for name in inner)))
+    rows.append(("other", total - sum(seconds.get(name, 0.0) for _, name in STAGES[:5])))
+    print(f"stages (CPU, total {total:.3f} s):")
+    for name, value in rows:
+        print(f"  {name:20s} {value:8.3f} s  {100.0 * value / total:5.1f} %")
+
+
 def report(name: str, polygons: list, rule: str, engine_count: int, profile: bool) -> None:
     vertices = vertex_count(polygons)
     if profile:
@@ -144,10 +206,14 @@ def main() -> None:
     parser.add_argument("--rule", default="first", choices=("first", "elevation"))
     parser.add_argument("--no-farms", action="store_true")
     parser.add_argument("--profile", action="store_true", help="cProfile the batch call")
+    parser.add_argument("--stages", action="store_true", help="CPU time per step of the batch")
     arguments = parser.parse_args()
     for count in arguments.counts:
         polygons = star_polygons(count)
         report(f"stars {count}", polygons, arguments.rule, arguments.engine, arguments.profile)
+        if arguments.stages:
+            print_stages(polygons, arguments.rule)
+            print()
     if not arguments.no_farms and FARMS.exists():
         report("Swellendam farms", farms(), arguments.rule, 10**9, arguments.profile)
 
