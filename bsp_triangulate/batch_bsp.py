@@ -5,6 +5,13 @@ are the engine's ``facing_candidates`` and ``correct_candidates`` over flat ragg
 Each node knows its pre-order index when it is created (a node on the range [lo, hi] has
 hi - lo - 1 triangles below and including it), so triangles are written straight into their
 final slots.
+
+Where the time goes (rule "first"): conditions 1 and 4 are a few orientations per candidate
+(``_facing``); conditions 2 and 3 test every vertex of the sub-polygon (``_bad_rows``, padded
+tables of float32 signs with an exact fallback), which grows with the square of the
+sub-polygon size as the trees are fan-shaped. A vertex found strictly inside a candidate's
+triangle is tested first against the node's next candidates (``_strictly_inside``), which
+rules out most failing candidates without a table.
 """
 
 from __future__ import annotations
