@@ -8,7 +8,7 @@ final slots.
 
 Where the time goes (rule "first"): conditions 1 and 4 are a few orientations per candidate
 (``_facing``); conditions 2 and 3 test every vertex of the sub-polygon (``_bad_rows``, padded
-tables of float32 signs with an exact fallback), which grows with the square of the
+tables of float64 signs with an exact fallback), which grows with the square of the
 sub-polygon size as the trees are fan-shaped. A vertex found strictly inside a candidate's
 triangle is tested first against the node's next candidates (``_strictly_inside``), which
 rules out most failing candidates without a table.
@@ -16,7 +16,6 @@ rules out most failing candidates without a table.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -38,15 +37,6 @@ _EPS = 2.0**-53
 # |fl(q - p)| <= (1 + eps) |q - p|, the extents and the bound itself are rounded: margin
 _BOUND_FACTOR = CCW_ERRBOUND * (1.0 + 32.0 * _EPS)
 _UNDERFLOW_SLACK = 1e-300
-# Float32 table filter. A coordinate relative to its sequence's corner is within
-# (1 + 1e-7) * 2**-24 * E of its exact value (E: the larger extent); a difference of two,
-# rounded, within 3.0000004 * 2**-24 * E; so u_x * d_y - u_y * d_x, rounded, is within
-# 16.0003 * 2**-24 * E**2 of the exact orientation. The factor leaves room for rounding the
-# bound itself up to float32; the slack covers products that underflow. Extents outside
-# (low, high) keep float64 tables (no overflow or loss in float32).
-_F32_FACTOR = 17.0 * 2.0**-24
-_F32_SLACK = 1e-37
-_F32_LOW, _F32_HIGH = 1e-15, 1e15
 
 
 @dataclass
@@ -77,11 +67,6 @@ class Sequences:
     extent_y: np.ndarray
     table: np.ndarray
     exact: bool
-    # float32 coordinates relative to each sequence's lower-left corner and per position the
-    # bound on the error of a table orientation computed from them (None: float64 tables)
-    fx: np.ndarray | None = None
-    fy: np.ndarray | None = None
-    fbound: np.ndarray | None = None
 
     @classmethod
     def of(
@@ -107,16 +92,9 @@ class Sequences:
             spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
             turn[spike] = _SPIKE
             table[1:-1, _TURN] = turn
-        fx = fy = fbound = None
-        extent = np.maximum(extent_x, extent_y)
-        if not exact and len(extent) and extent.min() > _F32_LOW and extent.max() < _F32_HIGH:
-            fx = (sx - np.repeat(np.minimum.reduceat(sx, starts), lengths)).astype(np.float32)
-            fy = (sy - np.repeat(np.minimum.reduceat(sy, starts), lengths)).astype(np.float32)
-            fbound = np.repeat(_F32_FACTOR * extent * extent + _F32_SLACK, lengths)
-            fbound = fbound.astype(np.float32)
         extent_x, extent_y = np.repeat(extent_x, lengths), np.repeat(extent_y, lengths)
         xy = np.ascontiguousarray(table[:, :2])
-        return cls(sx, sy, xy, twin, extent_x, extent_y, table, exact, fx, fy, fbound)
+        return cls(sx, sy, xy, twin, extent_x, extent_y, table, exact)
 
 
 def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -228,7 +206,10 @@ def _tables(
         for k in np.unique(widths).tolist():
             rows = idx[widths == k]
             width = max(int(_WIDTHS[k]), int(part[widths == k].max()))
-            bad[rows], inside[rows] = _bad_rows(seqs, lo[rows], hi[rows], c[rows], width)
+            bad[rows], inside[rows] = _bad_rows(
+                seqs.sx, seqs.sy, lo[rows], hi[rows], c[rows], seqs.extent_x[c[rows]],
+                seqs.extent_y[c[rows]], seqs.twin, width, seqs.exact,
+            )  # fmt: skip
     return bad, inside
 
 
@@ -294,51 +275,33 @@ def _strictly_inside(
 
 
 def _bad_rows(
-    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, width: int
+    sx: np.ndarray,
+    sy: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    extent_x: np.ndarray,
+    extent_y: np.ndarray,
+    twin: np.ndarray,
+    width: int,
+    exact: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Conditions 2 and 3 of the correct triangle for items of one padded width, and per
     item a position strictly inside the triangle, or -1.
 
     Tables are (width, items): column i holds the positions lo_i .. hi_i, padded with hi_i,
-    so that per-item values broadcast along long contiguous rows. Signs come from float32
-    tables where the sequences allow (``Sequences.fx``), else float64; uncertain ones are
-    decided exactly on the float64 coordinates.
+    so that per-item values broadcast along long contiguous rows.
     """
-    sx, sy, twin, exact = seqs.sx, seqs.sy, seqs.twin, seqs.exact
     n = len(lo)
     pos = np.arange(width, dtype=np.int64)[:, None] + lo
     np.minimum(pos, hi, out=pos)
+    px, py = sx[pos], sy[pos]
     ax, ay, bx, by, cx, cy = sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]
     last = hi - lo
     ccol = c - lo
-    if seqs.fx is not None:
-        fx, fy = seqs.fx, seqs.fy
-        fpx, fpy = fx[pos], fy[pos]
-        fax, fay, fbx, fby, fcx, fcy = fx[hi], fy[hi], fx[lo], fy[lo], fx[c], fy[c]
-        fbound = seqs.fbound[c]
 
-        def bound(ux: np.ndarray, uy: np.ndarray) -> np.ndarray | None:
-            return fbound
-
-    else:
-        fpx, fpy = sx[pos], sy[pos]
-        fax, fay, fbx, fby, fcx, fcy = ax, ay, bx, by, cx, cy
-        extent_x, extent_y = seqs.extent_x[c], seqs.extent_y[c]
-
-        def bound(ux: np.ndarray, uy: np.ndarray) -> np.ndarray | None:
-            return None if exact else row_bound(ux, uy, extent_x, extent_y)
-
-    def exact_at(
-        ux: np.ndarray, uy: np.ndarray, vx: np.ndarray, vy: np.ndarray
-    ) -> Callable[[tuple[np.ndarray, np.ndarray]], tuple[np.ndarray, ...]]:
-        """Float64 points of the line u -> v (per item) and of the table entries."""
-
-        def points(where: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, ...]:
-            k, r = where
-            at = pos[k, r]
-            return ux[r], uy[r], vx[r], vy[r], sx[at], sy[at]
-
-        return points
+    def bound(ux: np.ndarray, uy: np.ndarray) -> np.ndarray | None:
+        return None if exact else row_bound(ux, uy, extent_x, extent_y)
 
     # entries known to be exactly zero: p at position lo (b), hi and the padding (a), c, and
     # the other occurrence (twin) of a corner inside the range: p is then a or b itself
@@ -350,25 +313,19 @@ def _bad_rows(
 
     ta, tb, tc = twin_col(hi), twin_col(lo), twin_col(c)
     n_ta, n_tb, n_tc = int((ta >= 0).sum()), int((tb >= 0).sum()), int((tc >= 0).sum())
-    dxa, dya = fpx - fax, fpy - fay
+    dxa, dya = px - ax, py - ay
     pos_ab, _, _ = orient_rows(
-        fax, fay, fbx, fby, fpx, fpy, dxa, dya, bound(fbx - fax, fby - fay),
-        n + pad_count + n_ta + n_tb,
+        ax, ay, bx, by, px, py, dxa, dya, bound(bx - ax, by - ay), n + pad_count + n_ta + n_tb,
         lambda k, r: (k == 0) | (k >= last[r]) | (k == ta[r]) | (k == tb[r]),
-        exact_at(ax, ay, bx, by),
     )  # fmt: skip
     # orient(a, c, p) = -orient(c, a, p), sharing p - a with the line a -> b
     _, pos_ca, zero_ca = orient_rows(
-        fax, fay, fcx, fcy, fpx, fpy, dxa, dya, bound(fcx - fax, fcy - fay),
-        n + pad_count + n_ta + n_tc,
+        ax, ay, cx, cy, px, py, dxa, dya, bound(cx - ax, cy - ay), n + pad_count + n_ta + n_tc,
         lambda k, r: (k == ccol[r]) | (k >= last[r]) | (k == ta[r]) | (k == tc[r]),
-        exact_at(ax, ay, cx, cy),
     )  # fmt: skip
     pos_bc, _, zero_bc = orient_rows(
-        fbx, fby, fcx, fcy, fpx, fpy, fpx - fbx, fpy - fby, bound(fcx - fbx, fcy - fby),
-        2 * n + n_tb + n_tc,
+        bx, by, cx, cy, px, py, px - bx, py - by, bound(cx - bx, cy - by), 2 * n + n_tb + n_tc,
         lambda k, r: (k == 0) | (k == ccol[r]) | (k == tb[r]) | (k == tc[r]),
-        exact_at(bx, by, cx, cy),
     )  # fmt: skip
     # a vertex strictly inside: the edges at it meet the open triangle
     inside = pos_ab & pos_bc
@@ -381,8 +338,7 @@ def _bad_rows(
     # corners themselves)
     for (k, r), ux, uy in ((zero_bc, bx, by), (zero_ca, ax, ay)):
         if len(r):
-            at = pos[k, r]
-            between = strictly_between(sx[at], sy[at], ux[r], uy[r], cx[r], cy[r])
+            between = strictly_between(px[k, r], py[k, r], ux[r], uy[r], cx[r], cy[r])
             bad[r[between]] = True
     # condition 2 where no vertex is inside: an edge with an end strictly inside every side
     # that passes no corner outside (the padding adds only point edges at a, where f_ab is 0
@@ -394,8 +350,7 @@ def _bad_rows(
     flat = np.flatnonzero(inward)
     if len(flat):
         k, r = np.divmod(flat, n)
-        at0, at1 = pos[k, r], pos[k + 1, r]
-        ex0, ey0, ex1, ey1 = sx[at0], sy[at0], sx[at1], sy[at1]
+        ex0, ey0, ex1, ey1 = px[k, r], py[k, r], px[k + 1, r], py[k + 1, r]
         m = len(r)
         g = orient_items(
             np.tile(ex0, 3), np.tile(ey0, 3), np.tile(ex1, 3), np.tile(ey1, 3),

@@ -39,7 +39,6 @@ def orient_rows(
     bound: np.ndarray | None,
     known_count: int,
     known_zero: Callable[[np.ndarray, np.ndarray], np.ndarray],
-    exact_points: Callable[[tuple[np.ndarray, np.ndarray]], tuple[np.ndarray, ...]] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
     """Exact orient(a, b, p) > 0 and < 0 masks, with ``a``, ``b``, ``bound`` (one per row)
     broadcast against the 2D ``p``; and the (rows, cols) of the zero signs other than the
@@ -49,9 +48,6 @@ def orient_rows(
     ``bound`` None means the coordinates are grid-exact (every float result is exact).
     ``known_zero(rows, cols)`` marks the ``known_count`` entries that the caller knows to be
     exactly 0 (p is a or b itself: the float result is then exactly 0 too).
-    ``exact_points(where)``: (ax, ay, bx, by, px, py) at the entries ``where`` to decide
-    uncertain signs with, when the arguments are approximations (then ``bound`` must cover
-    their error).
     """
     det = (bx - ax) * dy
     det -= (by - ay) * dx
@@ -68,16 +64,13 @@ def orient_rows(
     where = (where[0][keep], where[1][keep])
     if bound is None or len(where[0]) == 0:
         return positive, negative, where
-    if exact_points is not None:
-        axu, ayu, bxu, byu, pxu, pyu = exact_points(where)
-    else:
-        shape = det.shape
-        pxu = np.broadcast_to(px, shape)[where]
-        pyu = np.broadcast_to(py, shape)[where]
-        axu = np.broadcast_to(ax, shape)[where]
-        ayu = np.broadcast_to(ay, shape)[where]
-        bxu = np.broadcast_to(bx, shape)[where]
-        byu = np.broadcast_to(by, shape)[where]
+    shape = det.shape
+    pxu = np.broadcast_to(px, shape)[where]
+    pyu = np.broadcast_to(py, shape)[where]
+    axu = np.broadcast_to(ax, shape)[where]
+    ayu = np.broadcast_to(ay, shape)[where]
+    bxu = np.broadcast_to(bx, shape)[where]
+    byu = np.broadcast_to(by, shape)[where]
     # a point equal to a or b (another occurrence of it) lies on the line: exact zero
     at_end = ((pxu == axu) & (pyu == ayu)) | ((pxu == bxu) & (pyu == byu))
     rest = np.flatnonzero(~at_end)
