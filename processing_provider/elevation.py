@@ -282,19 +282,24 @@ class DemElevation(ElevationSource):
             return
         xy = np.concatenate([ring[:, :2] for _item, ring in rings])
         values = self.sampler.sample(xy)
-        offsets = np.cumsum([0] + [len(ring) for _item, ring in rings])
-        for (item, ring), start, stop in zip(rings, offsets[:-1], offsets[1:]):
+        lengths = np.array([len(ring) for _item, ring in rings], dtype=np.int64)
+        offsets = np.concatenate([[0], np.cumsum(lengths)])
+        # missing values per ring, counted for all rings at once
+        ring_of_value = np.repeat(np.arange(len(rings)), lengths)
+        missing_counts = np.bincount(ring_of_value[np.isnan(values)], minlength=len(rings))
+        for (item, ring), start, stop, missing in zip(
+            rings, offsets[:-1].tolist(), offsets[1:].tolist(), missing_counts.tolist()
+        ):
             if item.error is not None:
                 continue
             z = values[start:stop]
-            missing = np.isnan(z)
-            if not missing.any():
+            if not missing:
                 ring[:, 2] = z
-            elif missing.all():
+            elif missing == len(z):
                 item.error = "no vertex of a ring lies on a valid DEM cell"
             elif self.nodata_policy == NODATA_FAIL:
                 item.error = (
-                    f"{int(missing.sum())} of {len(z)} vertices of a ring fall on DEM nodata "
+                    f"{missing} of {len(z)} vertices of a ring fall on DEM nodata "
                     "or outside the DEM"
                 )
             else:

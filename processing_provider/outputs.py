@@ -73,6 +73,9 @@ _LINE_DTYPE = np.dtype(
 )
 
 
+_PER_TRIANGLE = ("item", "part", "order", "parent", "depth", "side")
+
+
 @dataclass
 class BatchMesh:
     """The triangles of a batch of features, concatenated, with their tree attributes."""
@@ -95,36 +98,43 @@ class BatchMesh:
     @classmethod
     def build(cls, results: list[tuple[FeatureRings, list[Triangulation]]]) -> BatchMesh:
         """Concatenate the triangulations of the parts of each feature."""
-        vertices, triangles, item, part, order, parent, depth, side = ([] for _ in range(8))
-        offset = 0
-        for row, (_feature, parts) in enumerate(results):
-            for index, tri in enumerate(parts):
-                count = len(tri.triangles)
-                if not count:
-                    continue
-                vertices.append(np.asarray(tri.vertices, dtype=np.float64))
-                triangles.append(np.asarray(tri.triangles, dtype=np.int64) + offset)
-                offset += len(tri.vertices)
-                item.append(np.full(count, row, np.int64))
-                part.append(np.full(count, index, np.int64))
-                order.append(np.arange(count, dtype=np.int64))
-                parent.append(np.asarray(tri.parent, dtype=np.int64))
-                depth.append(np.asarray(tri.depth, dtype=np.int64))
-                side.append(np.asarray(tri.side, dtype=np.int64))
+        kept = [
+            (row, index, tri)
+            for row, (_feature, parts) in enumerate(results)
+            for index, tri in enumerate(parts)
+            if len(tri.triangles)
+        ]
+        items = [feature for feature, _parts in results]
+        if not kept:
+            return cls(
+                vertices=np.zeros((0, 3)),
+                triangles=np.zeros((0, 3), np.int64),
+                **{name: np.zeros(0, np.int64) for name in _PER_TRIANGLE},
+                items=items,
+            )
+        counts = np.array([len(tri.triangles) for _row, _index, tri in kept], dtype=np.int64)
+        vertex_counts = np.array([len(tri.vertices) for _row, _index, tri in kept], np.int64)
+        first = np.cumsum(counts) - counts
+        vertex_offsets = np.cumsum(vertex_counts) - vertex_counts
+        triangles = np.concatenate([tri.triangles for _row, _index, tri in kept]).astype(np.int64)
+        triangles += np.repeat(vertex_offsets, counts)[:, None]
 
-        def joined(arrays: list[np.ndarray], shape: tuple[int, ...], dtype) -> np.ndarray:
-            return np.concatenate(arrays) if arrays else np.zeros(shape, dtype)
+        def joined(name: str) -> np.ndarray:
+            arrays = [getattr(tri, name) for _row, _index, tri in kept]
+            return np.concatenate(arrays).astype(np.int64, copy=False)
 
         return cls(
-            vertices=joined(vertices, (0, 3), np.float64),
-            triangles=joined(triangles, (0, 3), np.int64),
-            item=joined(item, (0,), np.int64),
-            part=joined(part, (0,), np.int64),
-            order=joined(order, (0,), np.int64),
-            parent=joined(parent, (0,), np.int64),
-            depth=joined(depth, (0,), np.int64),
-            side=joined(side, (0,), np.int64),
-            items=[feature for feature, _parts in results],
+            vertices=np.concatenate([tri.vertices for _row, _index, tri in kept]).astype(
+                np.float64, copy=False
+            ),
+            triangles=triangles,
+            item=np.repeat(np.array([row for row, _index, _tri in kept], np.int64), counts),
+            part=np.repeat(np.array([index for _row, index, _tri in kept], np.int64), counts),
+            order=np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(first, counts),
+            parent=joined("parent"),
+            depth=joined("depth"),
+            side=joined("side"),
+            items=items,
         )
 
     def __len__(self) -> int:
