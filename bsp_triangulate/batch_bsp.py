@@ -482,6 +482,8 @@ def build_trees(
     depth = np.zeros(total, dtype=np.int64)
     side = np.zeros(total, dtype=np.int8)
     ok = np.ones(count, dtype=bool)
+    # per round: rows, base corners, apex, parent, depth and side of the emitted triangles
+    emitted: list[tuple[np.ndarray, ...]] = []
     poly = np.flatnonzero(m >= 3)
     state = np.zeros((len(poly), 11), dtype=np.int64)
     state[:, _LO] = seq_start[poly] + 1
@@ -521,13 +523,8 @@ def build_trees(
         a = apex[emit]
         row = done[:, _ROW]
         first = np.where(mirrored[done[:, _SEQ]], done[:, _LO], done[:, _HI])
-        slots = 3 * row
-        corners[slots] = ids[first]
-        corners[slots + 1] = ids[done[:, _LO] + done[:, _HI] - first]
-        corners[slots + 2] = ids[a]
-        parent[row] = done[:, _PARENT]
-        depth[row] = done[:, _DEPTH]
-        side[row] = done[:, _SIDE]
+        second = done[:, _LO] + done[:, _HI] - first
+        emitted.append((row, first, second, a, done[:, _PARENT], done[:, _DEPTH], done[:, _SIDE]))
         children = _children(done, a)
         if retry is not None and len(retry):
             again = np.take(state, retry, axis=0)
@@ -537,4 +534,14 @@ def build_trees(
         state = children
         if not ok.all():
             state = state[ok[state[:, _SEQ]]]
+    # all rows at once: one pass of scattered writes per field instead of one per round
+    if emitted:
+        row, first, second, a, up, level, branch = (np.concatenate(f) for f in zip(*emitted))
+        slots = 3 * row
+        corners[slots] = ids[first]
+        corners[slots + 1] = ids[second]
+        corners[slots + 2] = ids[a]
+        parent[row] = up
+        depth[row] = level
+        side[row] = branch
     return Trees(triangles, parent, depth, side, tri_start, tri_count, ok)
