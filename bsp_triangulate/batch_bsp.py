@@ -228,12 +228,15 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     lo, hi, cand, block = state[:, _LO], state[:, _HI], state[:, _CAND], state[:, _BLOCK]
     n = len(lo)
     span = np.where(cand == hi - 1, 1, np.minimum(cand - lo, _SPAN))
-    if (span == 1).all():
-        owner = np.arange(n)
+    starts = np.cumsum(span) - span
+    index = np.arange(int(starts[-1] + span[-1]) if n else 0)
+    if len(index) == n:
+        owner = index
         c = cand
     else:
         owner = np.repeat(np.arange(n), span)
-        c = cand[owner] - ragged_index(np.zeros(n, dtype=np.int64), span)
+        starts_o = starts[owner]
+        c = cand[owner] - (index - starts_o)
     lo_o, hi_o = lo[owner], hi[owner]
     ok = _facing(seqs, lo_o, hi_o, c)
     large = hi_o - lo_o > 2
@@ -242,8 +245,7 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
         inside = _strictly_inside(seqs, hi_o[tested], lo_o[tested], c[tested], block[owner[tested]])
         ok[tested[inside]] = False
     # the first candidate of each node that passed so far (its index in c), or len(c)
-    starts = np.cumsum(span) - span
-    first = np.minimum.reduceat(np.where(ok, np.arange(len(c)), len(c)), starts)
+    first = np.minimum.reduceat(np.where(ok, index, len(c)), starts)
     passed = first < len(c)
     apex = np.where(passed, c[np.minimum(first, len(c) - 1)], cand - span)
     correct = passed.copy()
