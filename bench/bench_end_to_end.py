@@ -4,7 +4,8 @@ Each run is one ``qgis_process.bin run`` under ``/usr/bin/time -v`` on the bench
 polygons (GeoPackage) and DEM: QGIS's ``3d:tessellate``, ``bsptriangulate:triangulate`` with
 DEM elevation and a mesh (.2dm or .ply alone, then with the per-triangle output to memory and
 to a GeoPackage), ``native:setzfromraster`` and ``native:multiparttosingleparts`` on the
-tessellated layer (QGIS writing one feature per triangle) for reference. Times include qgis_process's start-up (first row).
+tessellated layer (QGIS writing one feature per triangle) for reference. Times include
+qgis_process's start-up (first row).
 
 Usage: python bench/bench_end_to_end.py [--quick]
 """

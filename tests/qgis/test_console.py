@@ -220,10 +220,8 @@ def test_cancelling_drops_the_table_it_created_in_a_database_and_keeps_the_other
     from qgis.core import QgsProviderRegistry
 
     database = tmp_path / "results.sqlite"
-    dataset = ogr.GetDriverByName("SQLite").CreateDataSource(
-        str(database), options=["SPATIALITE=YES"]
-    )
-    dataset = None
+    # the data source closes as soon as it is dropped
+    ogr.GetDriverByName("SQLite").CreateDataSource(str(database), options=["SPATIALITE=YES"])
     destination = f"spatialite:dbname='{database}' table=\"{{}}\" (geom)"
     metadata = QgsProviderRegistry.instance().providerMetadata("spatialite")
     connection = metadata.createConnection(f"dbname='{database}'", {})
