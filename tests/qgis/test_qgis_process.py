@@ -112,3 +112,27 @@ def test_input_with_a_fid_attribute_gives_a_geopackage_with_one_row_per_triangle
     assert results["TRIANGLE_COUNT"] == 3
     layer = QgsVectorLayer(str(triangles_path), "triangles", "ogr")
     assert layer.featureCount() == 3
+
+
+def test_leaving_out_the_triangles_output_gives_a_mesh_only_run(
+    qgis_process: QgisProcess, tmp_path: Path
+) -> None:
+    square_with_hole = [
+        closed([(0, 0), (10, 0), (10, 10), (0, 10)]),
+        closed([(3, 3), (7, 3), (5, 6)]),
+    ]
+    source = write_geojson(tmp_path / "square.geojson", [square_with_hole], 32733)
+    mesh_path = tmp_path / "square.ply"
+    results = qgis_process.run_json(
+        "run",
+        "bsptriangulate:triangulate",
+        "--",
+        f"INPUT={source}",
+        "ELEVATION_SOURCE=1",
+        f"OUTPUT_MESH={mesh_path}",
+    )["results"]
+    assert "OUTPUT_TRIANGLES" not in results
+    assert (results["FEATURE_COUNT"], results["TRIANGLE_COUNT"]) == (1, 4 + 3 + 2 - 2)
+    _vertices, faces = read_mesh(mesh_path)
+    assert len(faces) == 7
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["square.geojson", "square.ply"]
