@@ -9,11 +9,15 @@ import numpy as np
 from qgis.core import QgsFeature, QgsFeedback, QgsGeometry, QgsWkbTypes
 
 from ..bsp_triangulate.rings import working_axes
-from ..bsp_triangulate.wkb import polygons_from_wkb
+from ..bsp_triangulate.wkb import polygon_table, polygons_from_wkb
 
 INVALID_REPAIR = 0
 INVALID_FAIL = 1
 INVALID_AS_GIVEN = 2
+
+# Features whose WKB is parsed together: bounded by count and by bytes (large polygons).
+READ_FEATURES = 4096
+READ_BYTES = 8 << 20
 
 Ring = np.ndarray
 Polygon = list  # list of rings, outer ring first
@@ -87,6 +91,13 @@ def read_feature(feature: QgsFeature, invalid_policy: int) -> FeatureRings:
     except (ValueError, IndexError) as error:
         item.error = f"unreadable geometry: {error}"
         return item
+    return _checked(item, geometry, parts, invalid_policy)
+
+
+def _checked(
+    item: FeatureRings, geometry: QgsGeometry, parts: list[Polygon], invalid_policy: int
+) -> FeatureRings:
+    """``item`` with ``parts`` read from ``geometry``, or its repair, or the reason it fails."""
     # GEOS judges validity in XY, where a wall (a near-vertical face) has no area: walls are
     # left to the engine, which triangulates them in their own plane (and fails bad ones).
     if (
@@ -112,6 +123,49 @@ def read_feature(feature: QgsFeature, invalid_policy: int) -> FeatureRings:
     return item
 
 
+def read_features(
+    features: Iterable[QgsFeature], invalid_policy: int, feedback: QgsFeedback | None = None
+) -> Iterator[FeatureRings]:
+    """``read_feature`` of every feature, in order; the WKB of many features parsed at once."""
+    chunk: list[tuple[QgsFeature, QgsGeometry, bytes]] = []
+    size = 0
+    for feature in features:
+        if feedback is not None and feedback.isCanceled():
+            break
+        geometry = feature.geometry()
+        wkb = bytes(geometry.asWkb())
+        chunk.append((feature, geometry, wkb))
+        size += len(wkb)
+        if len(chunk) >= READ_FEATURES or size >= READ_BYTES:
+            yield from _read_chunk(chunk, invalid_policy)
+            chunk, size = [], 0
+    if chunk:
+        yield from _read_chunk(chunk, invalid_policy)
+
+
+def _read_chunk(
+    chunk: list[tuple[QgsFeature, QgsGeometry, bytes]], invalid_policy: int
+) -> list[FeatureRings]:
+    """Features whose WKB the bulk reader takes (non-empty Polygon and MultiPolygon) are read
+    from it; every other one goes through ``read_feature``."""
+    table = polygon_table([wkb for _feature, _geometry, wkb in chunk])
+    # QGIS calls a (multi)polygon empty when no part has a point in its outer ring: those
+    # (and null geometries, which are not parsed) take the one-feature path
+    part_geometry = np.repeat(np.arange(len(chunk)), table.geometry_parts)
+    outer_filled = table.ring_len[table.part_ring0] > 0
+    filled = np.bincount(part_geometry[outer_filled], minlength=len(chunk)) > 0
+    items = []
+    for (feature, geometry, _wkb), parts, has_z, usable in zip(
+        chunk, table.polygons(), table.geometry_z.tolist(), filled.tolist()
+    ):
+        if parts is None or not usable:
+            items.append(read_feature(feature, invalid_policy))
+            continue
+        item = FeatureRings(feature, has_z=has_z)
+        items.append(_checked(item, geometry, parts, invalid_policy))
+    return items
+
+
 def _has_wall(parts: list[Polygon]) -> bool:
     """Some part's outer ring is worked on in a vertical plane by the engine."""
     return any(part and working_axes(part[0]) != (0, 1) for part in parts)
@@ -132,10 +186,7 @@ def feature_batches(
     """Group converted features in batches bounded by feature and vertex counts (streaming)."""
     batch: list[FeatureRings] = []
     vertices = 0
-    for feature in features:
-        if feedback is not None and feedback.isCanceled():
-            break
-        item = read_feature(feature, invalid_policy)
+    for item in read_features(features, invalid_policy, feedback):
         batch.append(item)
         vertices += item.vertex_count()
         if len(batch) >= max_features or vertices >= max_vertices:
