@@ -1,0 +1,394 @@
+"""ASCII text of whole float64 and integer arrays at once, with numpy and no per-value Python.
+
+Text mesh formats (2DM, ASCII DAT, ASCII PLY) need millions of numbers as decimal tokens, and
+Python's ``%r`` costs about half a microsecond per float. Here every step works on whole
+columns: the digits come from integer numpy arithmetic, four characters at a time from a
+table, into one fixed-width uint8 block per field; padding is NUL bytes, dropped when the
+rows of a block are joined into one ``bytes`` object.
+
+Floats
+------
+Every token reads back (Python's ``float()``, C's ``strtod``/``atof`` as MDAL uses, or any
+correctly rounded parser) as exactly the same double, the sign of -0.0 included. Tokens use
+Python's ``repr`` layout: fixed notation (``351182.162``, ``0.0001``, ``12.0``) for
+1e-4 <= |x| < 1e16, which is where the vectorised path works; other values (smaller or larger
+magnitudes, subnormals, inf, nan) and the rare ones below 1e-2 that need more than 18 fraction
+digits are written by ``repr`` itself, one by one, so they keep repr's exponent notation
+(``1e-05``, ``1e+16``), which ``strtod`` reads.
+
+For a finite x with 10**e <= |x| < 10**(e+1), -4 <= e <= 15:
+
+1. ``N = round(|x| * 10**(16 - e))`` is computed exactly (ties to even), N in
+   [10**16, 10**17). 10**s is exact in binary64 for s <= 22 (5**22 < 2**53), and Dekker's
+   TwoProduct (Veltkamp splitting, no FMA needed) gives the product exactly as ``p + err``
+   with ``p = fl(|x| * 10**s)``. Once e is right, 1e16 <= p <= 1e17, so p >= 2**53 is an even
+   integer; then ``N = p + rint(err)`` rounds the exact product half to even, and
+   ``err - rint(err)`` (exact) has the sign of the remainder. e starts from
+   ``floor(log10(|x|))`` and is corrected until N has 17 digits.
+2. The 17 correctly rounded significant digits always read back as x: the decimal is within
+   5 * 10**(e-17) of |x|, less than 2**-54 * |x|, which is at most half the gap between x and
+   either neighbouring double (Matula's bound, 10**16 > 2**53).
+3. First the 15-digit rounding ``N15 = round(|x| * 10**(14 - e))`` is tried, taken from N and
+   the remainder's sign without double rounding. N15 < 2**53 and 10**k (|k| <= 22) are exact
+   doubles, and IEEE division and multiplication are correctly rounded, so
+   ``fl(N15 / 10**k) == |x|`` proves that the decimal N15 * 10**-k reads back as x (what a
+   correctly rounded ``strtod`` returns is that same nearest double). When it does, the 15
+   digits are used, trailing zeros stripped, so 351182.162 stays ``351182.162``; otherwise the
+   17 digits are.
+4. If ``repr(x)`` has at most 15 significant digits, the token equals it: repr's decimal D is
+   within half an ulp of x (< 1.2e-16 |x|), closer than half the 15-digit spacing (> 5e-16 |x|),
+   so D is the 15-digit rounding of x and passes the check of step 3. Values whose repr needs
+   16 or 17 digits get 17 (fewer if they end in zeros), which still read back exactly.
+
+Integers
+--------
+Plain decimal digits with a leading minus for negative values, as ``str``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Union
+
+import numpy as np
+
+
+def _quad_table(transform) -> np.ndarray:
+    """10,000 four-character entries (one native uint32 each) of ``transform(i)``."""
+    text = b"".join(transform(i) for i in range(10_000))
+    return np.frombuffer(text, np.uint32).copy()
+
+
+def _lead(i: int, zero: bytes = b"\0\0\0\0") -> bytes:
+    return str(i).encode().rjust(4, b"\0") if i else zero
+
+
+def _dot(i: int) -> bytes:
+    # The top group of 10**count + fraction: its leading 1 becomes the decimal point.
+    text = str(i).encode()
+    return (b"." + text[1:]).rjust(4, b"\0") if text[0:1] == b"1" else _lead(i)
+
+
+_FULL = _quad_table(lambda i: b"%04d" % i)
+# Index rem + 10_000 * (nothing above): the highest group drops its leading zeros.
+_INNER = np.concatenate([_FULL, _quad_table(_lead)])
+_UNITS = np.concatenate([_FULL, _quad_table(lambda i: _lead(i, b"\0\0\x000"))])
+_FRACTION = np.concatenate([_FULL, _quad_table(_dot)])
+_POW10_INT = np.array([10**k for k in range(19)], dtype=np.int64)
+_POW10 = np.array([float(10**k) for k in range(23)])  # all exact
+_SPLITTER = float(2**27 + 1)
+_MIN_EXP, _MAX_EXP = -4, 15  # decimal exponents that repr writes in fixed notation
+_MAX_FRACTION_DIGITS = 18  # 10**18 + fraction still fits int64
+_ROWS_IN_CACHE = 16384  # rows joined at a time: their block stays in the CPU cache
+
+
+class Field:
+    """The tokens of one column, written only when the rows are joined: digit runs (int64
+    values, each < 10**width, with the table of their units quad), a minus sign where
+    ``negative``, and whole tokens (bytes) for the ``fallback`` rows."""
+
+    __slots__ = ("fallback", "negative", "rows", "runs", "tokens")
+
+    def __init__(
+        self,
+        runs: list[tuple[np.ndarray, int, np.ndarray]],
+        negative: np.ndarray | None,
+        fallback: np.ndarray,
+        tokens: list[bytes],
+    ) -> None:
+        self.runs = runs
+        self.rows = len(runs[0][0])
+        self.negative = negative if negative is not None and negative.any() else None
+        self.fallback = fallback
+        self.tokens = tokens
+
+    def __len__(self) -> int:
+        return self.rows
+
+
+Part = Union[bytes, Field]
+
+
+def _split(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Veltkamp splitting: a == hi + lo exactly, each with at most 26 significant bits."""
+    c = _SPLITTER * a
+    hi = c - (c - a)
+    return hi, a - hi
+
+
+_POW10_HI, _POW10_LO = _split(_POW10)
+
+
+def _quads(width: int) -> int:
+    return max(-(-width // 4), 1)
+
+
+def _write_run(out: np.ndarray, values: np.ndarray, units: np.ndarray) -> None:
+    """Digits of non-negative int64 ``values`` into the uint32 columns ``out`` (four
+    characters each), right-aligned, NUL instead of leading zeros (0 itself is "0"). With
+    ``units=_FRACTION`` the leading 1 of each value becomes a decimal point."""
+    groups = out.shape[1]
+    inner = units if units is _FRACTION else _INNER
+    rest = values
+    for group in range(groups - 1, 0, -1):
+        high = rest // 10_000
+        index = rest - high * 10_000
+        index += (high == 0) * 10_000
+        out[:, group] = (units if group == groups - 1 else inner)[index]
+        rest = high
+    out[:, 0] = (units if groups == 1 else inner)[rest + 10_000]
+
+
+def int_field(values: np.ndarray) -> Field:
+    """Decimal tokens of integers (bool or any integer dtype), as ``str`` writes them."""
+    original = np.asarray(values).ravel()
+    if original.dtype.kind not in "biu":
+        raise TypeError(f"int_field needs integers, not {original.dtype}")
+    if original.dtype == np.uint64:
+        fallback = np.flatnonzero(original >= np.uint64(2**63))
+    elif original.dtype == np.int64:
+        fallback = np.flatnonzero(original == np.iinfo(np.int64).min)  # |v| is no int64
+    else:
+        fallback = np.zeros(0, np.intp)
+    values = original.astype(np.int64)
+    values[fallback] = 0
+    negative = values < 0
+    magnitudes = np.abs(values)
+    width = len(str(int(magnitudes.max(initial=0))))
+    tokens = [str(int(v)).encode() for v in original[fallback].tolist()]
+    return Field([(magnitudes, width, _UNITS)], negative, fallback, tokens)
+
+
+def _round_17(a: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``N = round(a * 10**(16 - e))`` half to even, exactly, and ``r`` with the sign of
+    ``a * 10**(16 - e) - N``; needs 0 <= 16 - e <= 22 and 1e16 <= fl(a * 10**(16 - e)) <= 1e17."""
+    s = 16 - e
+    p = a * _POW10[s]
+    a_hi, a_lo = _split(a)
+    p_hi, p_lo = _POW10_HI[s], _POW10_LO[s]
+    # Dekker's TwoProduct: a * 10**s == p + err exactly (no overflow or underflow here).
+    err = ((a_hi * p_hi - p) + a_hi * p_lo + a_lo * p_hi) + a_lo * p_lo
+    # p >= 2**53 is an even integer, so rounding err half to even rounds p + err the same way.
+    step = np.rint(err)
+    return p.astype(np.int64) + step.astype(np.int64), err - step
+
+
+def _decimal_17(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For a in [1e-4, 1e16): (N, r, e, ok), N in [10**16, 10**17) the exact
+    round(a * 10**(16 - e)), r with the sign of the remainder, 10**e <= a < 10**(e + 1)."""
+    # log10 is good to an ulp or so: e may be one off next to powers of ten, fixed below.
+    e = np.floor(np.log10(a)).astype(np.int64)
+    p = a * _POW10[16 - e]
+    off = np.flatnonzero((p < 1e16) | (p > 1e17))
+    for _ in range(3):
+        if not len(off):
+            break
+        p_off = a[off] * _POW10[16 - e[off]]
+        e[off] += (p_off > 1e17).astype(np.int64) - (p_off < 1e16)
+        np.clip(e, -6, 16, out=e)
+        p_off = a[off] * _POW10[16 - e[off]]
+        off = off[(p_off < 1e16) | (p_off > 1e17)]
+    ok = np.ones(len(a), bool)
+    ok[off] = False
+    e[off] = 0
+    n, r = _round_17(np.where(ok, a, 1.0) if len(off) else a, e)
+    for _ in range(3):
+        # fl(a * 10**s) == 1e16 can still round below 10**16 (e one too high) and 1e17 above.
+        off = np.flatnonzero(((n < 10**16) | (n >= 10**17)) & ok)
+        if not len(off):
+            break
+        top = off[n[off] == 10**17]  # rounded up to a power of ten: same decimal, e + 1
+        n[top] = 10**16
+        e[top] += 1
+        off = off[n[off] != 10**16]
+        e[off] += (n[off] > 10**17).astype(np.int64) - (n[off] < 10**16)
+        np.clip(e, -6, 16, out=e)
+        n[off], r[off] = _round_17(a[off], e[off])
+    ok &= (n >= 10**16) & (n < 10**17)
+    return n, r, e, ok
+
+
+def _strip_zeros(fraction: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Trailing zeros of ``fraction`` (``count`` digits, zero-padded) dropped."""
+    last_zero = (fraction - fraction // 10 * 10 == 0) & (count > 0)
+    hits = np.count_nonzero(last_zero)
+    if not hits:
+        return fraction, count
+    subset = hits < len(fraction) // 2
+    index = np.flatnonzero(last_zero) if subset else None
+    f = fraction[index] if subset else fraction.copy()
+    c = count[index] if subset else count.copy()
+    for k in (16, 8, 4, 2, 1):  # binary search on the number of zeros
+        if c.max() < k:
+            continue
+        unit = 10**k
+        shorter = f // unit
+        strip = (shorter * unit == f) & (c >= k)
+        f -= strip * (f - shorter)
+        c -= strip * k
+    if not subset:
+        return f, c
+    fraction, count = fraction.copy(), count.copy()
+    fraction[index], count[index] = f, c
+    return fraction, count
+
+
+def _fixed_parts(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fixed notation of a in [1e-4, 1e16): (integer part, 10**count + fraction digits, ok),
+    the fraction's ``count`` >= 1 digits without trailing zeros but one. ok is False where the
+    value needs ``repr``."""
+    n17, r, e, ok = _decimal_17(a)
+    # The 15-digit rounding from the exact 17-digit one and the remainder's sign.
+    q = n17 // 100
+    m = n17 - q * 100
+    n15 = q + ((m > 50) | ((m == 50) & ((r > 0) | ((r == 0) & (q & 1 == 1)))))
+    k = 14 - e  # n15 * 10**-k is the 15-digit decimal
+    exact = n15.astype(np.float64)  # n15 <= 10**15 < 2**53
+    back = exact / _POW10[np.maximum(k, 0)]
+    negative_k = np.flatnonzero(k < 0)
+    back[negative_k] = exact[negative_k] * _POW10[-k[negative_k]]
+    short = back == a
+    top = np.flatnonzero(n15 == 10**15)  # same decimal with 15 digits and e + 1
+    n15[top] //= 10
+    k[top] -= 1
+    if short.all():
+        digits, scale = n15, k
+    elif not short.any():
+        digits, scale = n17, 16 - e
+    else:
+        digits = n17 - short * (n17 - n15)
+        scale = 16 - e
+        scale -= short * (scale - k)
+    exponent = np.where(short, 14, 16) - scale if len(top) else e  # of the leading digit
+    ok &= (exponent >= _MIN_EXP) & (exponent <= _MAX_EXP)
+    # Integer part: floor(a) or one more, where the decimal rounds up to the next integer
+    # (rounding a * 10**s >= floor(a) * 10**s cannot go below floor(a)).
+    whole = np.floor(a).astype(np.int64)
+    unit = _POW10_INT[np.clip(scale, 0, 18)]  # digits < 10**17: capping at 10**18 is exact
+    fraction = digits - whole * unit
+    carry = np.flatnonzero(fraction >= unit)
+    whole[carry] += 1
+    fraction[carry] -= unit[carry]
+    integral = np.flatnonzero(scale <= 0)  # only e = 15 with 15 digits: 10 * n15
+    whole[integral] = digits[integral] * _POW10_INT[-scale[integral]]
+    fraction[integral] = 0
+    count = np.maximum(scale, 0)
+    fraction, count = _strip_zeros(fraction, count)
+    count = np.maximum(count, 1)
+    ok &= count <= _MAX_FRACTION_DIGITS
+    count[~ok] = 1
+    return whole, _POW10_INT[count] + fraction, ok
+
+
+def float_field(values: np.ndarray) -> Field:
+    """Tokens of float64 values that read back bit for bit (see the module docstring)."""
+    x = np.asarray(values, dtype=np.float64).ravel()
+    rows = len(x)
+    magnitude = np.abs(x)
+    candidate = (magnitude >= 1e-4) & (magnitude < 1e16)
+    if candidate.all():
+        whole, fraction, ok = _fixed_parts(magnitude)
+    else:
+        whole = np.zeros(rows, np.int64)
+        fraction = np.full(rows, 10, np.int64)  # ".0", as for zeros
+        ok = magnitude == 0
+        index = np.flatnonzero(candidate)
+        if len(index):
+            whole[index], fraction[index], ok[index] = _fixed_parts(magnitude[index])
+    fallback = np.flatnonzero(~ok)
+    whole[fallback] = 0
+    fraction[fallback] = 10
+    runs = [
+        (whole, len(str(int(whole.max(initial=0)))), _UNITS),
+        (fraction, len(str(int(fraction.max(initial=10)))), _FRACTION),
+    ]
+    tokens = [repr(v).encode() for v in x[fallback].tolist()]
+    return Field(runs, np.signbit(x) & ok, fallback, tokens)
+
+
+def join_rows(parts: Sequence[Part]) -> bytes:
+    """Rows made of ``parts`` (bytes repeated on every row, or fields of one length), joined
+    into one bytes object.
+
+    Every field takes whole uint32 quads of a (rows, quads) block, its digits right-aligned;
+    the literal text before it (and its sign) goes into leading NUL bytes of its first quad
+    where they are free, and all NUL bytes are dropped at the end. The literal text after the
+    last field is moved to the front of the row and moved back as a whole at the end, so it
+    costs no quad of its own."""
+    fields = [part for part in parts if isinstance(part, Field)]
+    if not fields:
+        raise ValueError("join_rows needs at least one field")
+    rows = len(fields[0])
+    if any(len(field) != rows for field in fields):
+        raise ValueError("fields of different lengths")
+    if not rows:
+        return b""
+    plan = []
+    pending = b""
+    for part in parts:
+        if isinstance(part, Field):
+            plan.append((part, pending))
+            pending = b""
+        else:
+            pending += part
+    trailing = pending
+    plan[0] = (plan[0][0], trailing + plan[0][1])
+    layout = []
+    total = 0
+    for field, prefix in plan:
+        run_quads = [_quads(width) for _, width, _ in field.runs]
+        lead = len(prefix) + (field.negative is not None)
+        slack = 4 * run_quads[0] - field.runs[0][1]
+        extra = max(-(-(lead - slack) // 4), 0)
+        longest = max((len(token) for token in field.tokens), default=0)
+        extra = max(extra, -(-(len(prefix) + longest) // 4) - sum(run_quads))
+        layout.append((field, prefix, total, extra, run_quads))
+        total += extra + sum(run_quads)
+    pieces = []
+    for begin in range(0, rows, _ROWS_IN_CACHE):
+        end = min(begin + _ROWS_IN_CACHE, rows)
+        pieces.append(_join_block(layout, total, begin, end).translate(None, b"\0"))
+    joined = b"".join(pieces)
+    return joined[len(trailing) :] + trailing if trailing else joined
+
+
+def _join_block(layout: list, total: int, begin: int, end: int) -> bytes:
+    """Rows ``begin:end`` of the planned layout as one bytes object, NUL padding included."""
+    block = np.empty((end - begin, total), np.uint32)
+    text = block.view(np.uint8)
+    for field, prefix, start, extra, run_quads in layout:
+        block[:, start : start + extra] = 0
+        column = start + extra
+        for (values, _, units), quads in zip(field.runs, run_quads):
+            _write_run(block[:, column : column + quads], values[begin:end], units)
+            column += quads
+        first = 4 * start
+        if prefix:
+            text[:, first : first + len(prefix)] = np.frombuffer(prefix, np.uint8)
+        if field.negative is not None:
+            text[:, first + len(prefix)] = field.negative[begin:end] * ord("-")
+        if field.tokens:
+            low, high = np.searchsorted(field.fallback, [begin, end])
+            if low == high:
+                continue
+            width = 4 * (column - start) - len(prefix)
+            padded = b"".join(token.ljust(width, b"\0") for token in field.tokens[low:high])
+            region = text[:, first + len(prefix) : 4 * column]
+            region[field.fallback[low:high] - begin] = np.frombuffer(padded, np.uint8).reshape(
+                -1, width
+            )
+    return block.tobytes()
+
+
+def float_tokens(values: np.ndarray) -> list[str]:
+    """The tokens of ``float_field`` as strings (for tests and small arrays)."""
+    if np.size(values) == 0:
+        return []
+    return join_rows([float_field(values), b"\n"]).decode("ascii").splitlines()
+
+
+def int_tokens(values: np.ndarray) -> list[str]:
+    """The tokens of ``int_field`` as strings (for tests and small arrays)."""
+    if np.size(values) == 0:
+        return []
+    return join_rows([int_field(values), b"\n"]).decode("ascii").splitlines()
