@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bsp_triangulate import mesh as mesh_module
 from bsp_triangulate.mesh import merge_meshes, write_2dm, write_face_dat, write_ply
 
 SQUARE = (
@@ -128,3 +129,62 @@ def test_ply_rejects_bad_names_and_out_of_range_faces(tmp_path):
         write_ply(tmp_path / "x.ply", *SQUARE, {"feature id": [1, 2]})
     with pytest.raises(ValueError, match="outside"):
         write_ply(tmp_path / "x.ply", SQUARE[0], SQUARE[1] + 3)
+
+
+def test_2dm_coordinates_of_every_kind_read_back_bit_for_bit(tmp_path, monkeypatch):
+    monkeypatch.setattr(mesh_module, "_CHUNK_ROWS", 7)  # several blocks: ids run on across them
+    rng = np.random.default_rng(8)
+    vertices = np.concatenate(
+        [
+            rng.uniform(3e5, 4e5, (20, 3)),
+            np.round(rng.uniform(-6.1e6, 6.1e6, (20, 3)), 3),
+            [[-0.0, 0.0, 1e-7], [1e22, -5e-324, 2.0**53 + 2], [0.1, -1e-4, 9999999999999998.0]],
+        ]
+    )
+    faces = rng.integers(0, len(vertices), size=(30, 3)).astype(np.int32)
+    path = tmp_path / "mesh.2dm"
+    write_2dm(path, vertices, faces, {"id": np.arange(30), "h": np.linspace(-1, 1, 30)})
+    lines = path.read_text(encoding="ascii").splitlines()
+    nodes = [line.split(" ") for line in lines if line.startswith("ND ")]
+    assert [int(n[1]) for n in nodes] == list(range(1, len(vertices) + 1))
+    back = np.array([[float(t) for t in n[2:]] for n in nodes])
+    assert np.array_equal(back.view(np.uint64), vertices.view(np.uint64))  # -0.0 too
+    elements = [line.split(" ") for line in lines if line.startswith("E3T ")]
+    assert [int(e[1]) for e in elements] == list(range(1, 31))
+    np.testing.assert_array_equal(np.array([e[2:5] for e in elements], dtype=int), faces + 1)
+    # Coordinates with at most 15 significant digits are written exactly as repr writes them.
+    for node, row in zip(nodes[20:40], vertices[20:40].tolist()):
+        assert node[2:] == [repr(v) for v in row]
+    dat = (tmp_path / "mesh_els.dat").read_text(encoding="ascii").split("ENDDS\n")
+    assert dat[0].splitlines()[-30:] == [str(i) for i in range(30)]
+    h = [float(t) for t in dat[1].splitlines()[-30:]]
+    assert h == np.linspace(-1, 1, 30).tolist()
+
+
+def test_2dm_text_is_what_the_repr_template_wrote(tmp_path):
+    rng = np.random.default_rng(9)
+    vertices = np.round(rng.uniform(-1e6, 1e6, (500, 3)), 3)
+    faces = rng.integers(0, 500, size=(400, 3))
+    path = tmp_path / "mesh.2dm"
+    write_2dm(path, vertices, faces)
+    expected = "MESH2D\n" + "".join(
+        f"ND {i} {x!r} {y!r} {z!r}\n" for i, (x, y, z) in enumerate(vertices.tolist(), 1)
+    )
+    expected += "".join(
+        f"E3T {i} {a} {b} {c} 1\n" for i, (a, b, c) in enumerate((faces + 1).tolist(), 1)
+    )
+    assert path.read_text(encoding="ascii") == expected
+
+
+def test_ascii_ply_float_and_negative_properties(tmp_path):
+    vertices = np.array([[0.1, -0.0, 1e-7], [351182.162, 6e6, -2.5], [1.0, 2.0, 3.0]])
+    props = {"a": np.array([-7], dtype=np.int64), "b": np.array([0.30000000000000004])}
+    path = write_ply(tmp_path / "a.ply", vertices, np.array([[0, 1, 2]]), props, binary=False)
+    _, body = _read_ply(path)
+    rows = body.decode("ascii").splitlines()
+    assert rows == [
+        "0.1 -0.0 1e-07",
+        "351182.162 6000000.0 -2.5",
+        "1.0 2.0 3.0",
+        "3 0 1 2 -7 0.30000000000000004",
+    ]

@@ -82,3 +82,24 @@ def test_2dm_loads_with_z_and_els_dat_face_datasets(qgis_app, tmp_path, terrain_
     groups = _face_groups(provider)
     assert set(groups) == {"feature_id", "depth"}
     np.testing.assert_array_equal(groups["depth"], datasets["depth"])
+
+
+def test_2dm_full_precision_and_exponent_tokens_load_bit_for_bit(qgis_app, tmp_path, terrain_mesh):
+    # 17-digit coordinates, repr's exponent notation (1e-07, 1e+22), -0.0 and negative values
+    # as MDAL's atof reads them, in the mesh and in the _els.dat face values.
+    vertices, faces, _ = terrain_mesh
+    rng = np.random.default_rng(3)
+    vertices = vertices + np.array([351182.0, 6.0e6, 0.0]) + rng.uniform(0, 1, vertices.shape)
+    vertices[:4, 2] = [-0.0, 1e-7, -1e22, 2.0**53 + 2]
+    values = rng.uniform(-1e3, 1e3, len(faces))
+    values[:5] = [0.1, 1e-7, 1e22, -2.5, 0.30000000000000004]
+    mesh_path, dat_path = write_2dm(tmp_path / "precise.2dm", vertices, faces, {"h": values})
+    assert b"1e-07" in mesh_path.read_bytes() and b"1e+22" in dat_path.read_bytes()
+    layer, mesh = _load(mesh_path, extra=dat_path)
+    provider = layer.dataProvider()
+    got = np.array(
+        [[mesh.vertex(i).x(), mesh.vertex(i).y(), mesh.vertex(i).z()] for i in range(len(vertices))]
+    )
+    assert np.array_equal(got.view(np.uint64), vertices.view(np.uint64))
+    np.testing.assert_array_equal(np.array([mesh.face(i) for i in range(len(faces))]), faces)
+    assert np.array_equal(_face_groups(provider)["h"], values)
