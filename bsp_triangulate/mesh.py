@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .number_text import Part, float_field, int_field, join_rows
+from .number_text import Part, float_field, int_field, text_pieces
 
 _CHUNK_ROWS = 100_000
 
@@ -71,7 +71,7 @@ def _write_blocks(handle, rows: int, block_parts: Callable[[int, int], Sequence[
     """Write rows ``0..rows-1`` a block at a time; ``block_parts(start, stop)`` gives the
     literal bytes and fields of rows ``start:stop``, so memory stays flat."""
     for start in range(0, rows, _CHUNK_ROWS):
-        handle.write(join_rows(block_parts(start, min(start + _CHUNK_ROWS, rows))))
+        handle.writelines(text_pieces(block_parts(start, min(start + _CHUNK_ROWS, rows))))
 
 
 def _write_lines(handle, column: np.ndarray, field: Callable[[np.ndarray], Part]) -> None:
