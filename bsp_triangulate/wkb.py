@@ -136,6 +136,7 @@ class PolygonTable:
     - ``ring_start``, ``ring_len``: each ring's rows of ``points``.
     - ``part_ring0``, ``part_rings``: first ring and ring count of each part that has rings.
     - ``geometry_part0``, ``geometry_parts``: first part and part count of each geometry.
+    - ``geometry_empty_parts``: parts without rings of each geometry (not in the part arrays).
     - ``geometry_z``: the geometry's own header has Z (the part headers aside).
     - ``parsed``: the geometry was read here; the others (other types, big-endian, SRID,
       malformed, very many rings) are left to ``polygons_from_wkb`` and have no parts here.
@@ -150,6 +151,7 @@ class PolygonTable:
     part_rings: np.ndarray
     geometry_part0: np.ndarray
     geometry_parts: np.ndarray
+    geometry_empty_parts: np.ndarray
     geometry_z: np.ndarray
     parsed: np.ndarray
 
@@ -298,7 +300,9 @@ def _table(
     part_geometry = np.concatenate([records[0] for records in part_records])
     part_ids = np.concatenate([records[1] for records in part_records])
     ring_count = np.bincount(part, minlength=part_total)
-    kept = parsed[part_geometry] & (ring_count[part_ids] > 0)
+    empty = ring_count[part_ids] == 0
+    geometry_empty_parts = np.bincount(part_geometry[empty], minlength=count).astype(np.int64)
+    kept = parsed[part_geometry] & ~empty
     part_geometry, part_ids = part_geometry[kept], part_ids[kept]
     order = np.argsort(part_geometry, kind="stable")
     part_geometry, part_ids = part_geometry[order], part_ids[order]
@@ -316,6 +320,7 @@ def _table(
         part_rings=part_rings,
         geometry_part0=geometry_part0,
         geometry_parts=geometry_parts,
+        geometry_empty_parts=geometry_empty_parts,
         geometry_z=geometry_z,
         parsed=parsed,
     )

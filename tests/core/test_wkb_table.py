@@ -37,12 +37,19 @@ def _same_as_scalar(wkbs: list[bytes]) -> np.ndarray:
     table = polygon_table(wkbs)
     polygons = table.polygons()
     assert len(polygons) == len(wkbs)
-    for wkb, parts, geometry_z, parsed in zip(
-        wkbs, polygons, table.geometry_z.tolist(), table.parsed.tolist()
+    for wkb, parts, geometry_z, parsed, empty_parts in zip(
+        wkbs,
+        polygons,
+        table.geometry_z.tolist(),
+        table.parsed.tolist(),
+        table.geometry_empty_parts.tolist(),
     ):
         if not parsed:
             assert parts is None
             continue
+        code = struct.unpack("<I", wkb[1:5])[0]
+        declared = struct.unpack("<I", wkb[5:9])[0] if (code & 0x1FFFFFFF) % 1000 == 6 else 1
+        assert len(parts) + empty_parts == declared
         expected, has_z = polygons_from_wkb(wkb)
         code = struct.unpack("<I", wkb[1:5])[0]
         assert geometry_z == bool(code & 0x80000000 or (code % 1000000) // 1000 in (1, 3))
