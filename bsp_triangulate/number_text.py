@@ -22,23 +22,28 @@ For a finite x with 10**e <= |x| < 10**(e+1), -4 <= e <= 15:
    [10**16, 10**17). 10**s is exact in binary64 for s <= 22 (5**22 < 2**53), and Dekker's
    TwoProduct (Veltkamp splitting, no FMA needed) gives the product exactly as ``p + err``
    with ``p = fl(|x| * 10**s)``. Once e is right, 1e16 <= p <= 1e17, so p >= 2**53 is an even
-   integer; then ``N = p + rint(err)`` rounds the exact product half to even, and
-   ``err - rint(err)`` (exact) has the sign of the remainder. e starts from
+   integer, and ``N = p + rint(err)`` rounds the exact product half to even. e starts from
    ``floor(log10(|x|))`` and is corrected until N has 17 digits.
 2. The 17 correctly rounded significant digits always read back as x: the decimal is within
    5 * 10**(e-17) of |x|, less than 2**-54 * |x|, which is at most half the gap between x and
    either neighbouring double (Matula's bound, 10**16 > 2**53).
-3. First the 15-digit rounding ``N15 = round(|x| * 10**(14 - e))`` is tried, taken from N and
-   the remainder's sign without double rounding. N15 < 2**53 and 10**k (|k| <= 22) are exact
-   doubles, and IEEE division and multiplication are correctly rounded, so
-   ``fl(N15 / 10**k) == |x|`` proves that the decimal N15 * 10**-k reads back as x (what a
-   correctly rounded ``strtod`` returns is that same nearest double). When it does, the 15
-   digits are used, trailing zeros stripped, so 351182.162 stays ``351182.162``; otherwise the
-   17 digits are.
-4. If ``repr(x)`` has at most 15 significant digits, the token equals it: repr's decimal D is
-   within half an ulp of x (< 1.2e-16 |x|), closer than half the 15-digit spacing (> 5e-16 |x|),
-   so D is the 15-digit rounding of x and passes the check of step 3. Values whose repr needs
-   16 or 17 digits get 17 (fewer if they end in zeros), which still read back exactly.
+3. First a 15-digit decimal is tried: ``N15 = rint(fl(|x| * 10**k))``, k = 14 - e. N15 < 2**53
+   and 10**k (0 <= k <= 22) are exact doubles and IEEE division is correctly rounded, so
+   ``fl(N15 / 10**k) == |x|`` proves that the decimal N15 * 10**-k reads back as x (a
+   correctly rounded ``strtod`` returns that same nearest double). When it does, these digits
+   are used, trailing zeros stripped, so 351182.162 stays ``351182.162``; otherwise the 17
+   digits of step 1 are.
+4. If ``repr(x)`` has at most 15 significant digits, the token equals it. repr's decimal D
+   (padded to 15 digits, D * 10**-k) is within half an ulp of x, < 1.2e-16 |x|, so
+   ``|x| * 10**k`` is within 0.11 of the integer D and fl() moves it by at most 1/16: rint
+   gives D, which passes the check. Only one 15-digit decimal can read back as x (their
+   spacing, > 1e-15 |x|, exceeds the width of x's rounding interval, < 2.3e-16 |x|), so a
+   passing N15 is always the nearest one. Values whose repr needs 16 or 17 digits get 17
+   (fewer if they end in zeros), which still read back exactly.
+5. A column often has a fixed number of decimals c: a sample of 64 values gives the most
+   common c, and then ``D = rint(fl(|x| * 10**c))`` with ``fl(D / 10**c) == |x|`` and
+   D < 10**15 (so, as in 4, D is repr's decimal if that has c decimals) but no such decimal
+   with c - 1 digits, is repr's text directly, without steps 1-3.
 
 Integers
 --------
@@ -147,42 +152,53 @@ def int_field(values: np.ndarray) -> Field:
     original = np.asarray(values).ravel()
     if original.dtype.kind not in "biu":
         raise TypeError(f"int_field needs integers, not {original.dtype}")
-    if original.dtype == np.uint64:
+    values = original.astype(np.int64, copy=False)
+    low, high = (int(values.min()), int(values.max())) if len(values) else (0, 0)
+    fallback = np.zeros(0, np.intp)
+    if original.dtype == np.uint64 and int(original.max(initial=0)) >= 2**63:
         fallback = np.flatnonzero(original >= np.uint64(2**63))
-    elif original.dtype == np.int64:
-        fallback = np.flatnonzero(original == np.iinfo(np.int64).min)  # |v| is no int64
+    elif low == np.iinfo(np.int64).min:
+        fallback = np.flatnonzero(values == low)  # |v| is no int64
+    if len(fallback) or low < 0:
+        values = values.copy()
+        values[fallback] = 0
+        negative = values < 0
+        magnitudes = np.abs(values)
+        high = int(magnitudes.max())
     else:
-        fallback = np.zeros(0, np.intp)
-    values = original.astype(np.int64)
-    values[fallback] = 0
-    negative = values < 0
-    magnitudes = np.abs(values)
-    width = len(str(int(magnitudes.max(initial=0))))
+        negative, magnitudes = None, values
     tokens = [str(int(v)).encode() for v in original[fallback].tolist()]
-    return Field([(magnitudes, width, _UNITS)], negative, fallback, tokens)
+    return Field([(magnitudes, len(str(high)), _UNITS)], negative, fallback, tokens)
 
 
-def _round_17(a: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``N = round(a * 10**(16 - e))`` half to even, exactly, and ``r`` with the sign of
-    ``a * 10**(16 - e) - N``; needs 0 <= 16 - e <= 22 and 1e16 <= fl(a * 10**(16 - e)) <= 1e17."""
-    s = 16 - e
+def _scale(e: np.ndarray, offset: int) -> np.ndarray | int:
+    """``offset - e``, as one int where every e is the same (the usual case for a column of
+    coordinates), so that table look-ups and products take a scalar."""
+    low = int(e.min())
+    return offset - low if low == int(e.max()) else offset - e
+
+
+def _round_17(a: np.ndarray, s: np.ndarray | int) -> np.ndarray:
+    """``round(a * 10**s)`` half to even, exactly; needs 0 <= s <= 22 and
+    1e16 <= fl(a * 10**s) <= 1e17."""
     p = a * _POW10[s]
     a_hi, a_lo = _split(a)
     p_hi, p_lo = _POW10_HI[s], _POW10_LO[s]
     # Dekker's TwoProduct: a * 10**s == p + err exactly (no overflow or underflow here).
     err = ((a_hi * p_hi - p) + a_hi * p_lo + a_lo * p_hi) + a_lo * p_lo
     # p >= 2**53 is an even integer, so rounding err half to even rounds p + err the same way.
-    step = np.rint(err)
-    return p.astype(np.int64) + step.astype(np.int64), err - step
+    return p.astype(np.int64) + np.rint(err).astype(np.int64)
 
 
-def _decimal_17(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """For a in [1e-4, 1e16): (N, r, e, ok), N in [10**16, 10**17) the exact
-    round(a * 10**(16 - e)), r with the sign of the remainder, 10**e <= a < 10**(e + 1)."""
+def _decimal_17(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """For a in [1e-4, 1e16): (N, e, ok), N in [10**16, 10**17) the exact
+    round(a * 10**(16 - e)), 10**e <= a < 10**(e + 1); ok (None: all) is False where that
+    failed."""
     # log10 is good to an ulp or so: e may be one off next to powers of ten, fixed below.
     e = np.floor(np.log10(a)).astype(np.int64)
-    p = a * _POW10[16 - e]
+    p = a * _POW10[_scale(e, 16)]
     off = np.flatnonzero((p < 1e16) | (p > 1e17))
+    ok = None
     for _ in range(3):
         if not len(off):
             break
@@ -191,13 +207,17 @@ def _decimal_17(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
         np.clip(e, -6, 16, out=e)
         p_off = a[off] * _POW10[16 - e[off]]
         off = off[(p_off < 1e16) | (p_off > 1e17)]
-    ok = np.ones(len(a), bool)
-    ok[off] = False
-    e[off] = 0
-    n, r = _round_17(np.where(ok, a, 1.0) if len(off) else a, e)
+    if len(off):
+        ok = np.ones(len(a), bool)
+        ok[off] = False
+        e[off] = 0
+        a = np.where(ok, a, 1.0)
+    n = _round_17(a, _scale(e, 16))
     for _ in range(3):
         # fl(a * 10**s) == 1e16 can still round below 10**16 (e one too high) and 1e17 above.
-        off = np.flatnonzero(((n < 10**16) | (n >= 10**17)) & ok)
+        off = np.flatnonzero((n < 10**16) | (n >= 10**17))
+        if ok is not None:
+            off = off[ok[off]]
         if not len(off):
             break
         top = off[n[off] == 10**17]  # rounded up to a power of ten: same decimal, e + 1
@@ -206,14 +226,19 @@ def _decimal_17(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
         off = off[n[off] != 10**16]
         e[off] += (n[off] > 10**17).astype(np.int64) - (n[off] < 10**16)
         np.clip(e, -6, 16, out=e)
-        n[off], r[off] = _round_17(a[off], e[off])
-    ok &= (n >= 10**16) & (n < 10**17)
-    return n, r, e, ok
+        n[off] = _round_17(a[off], 16 - e[off])
+    off = np.flatnonzero((n < 10**16) | (n >= 10**17))
+    if len(off):
+        ok = np.ones(len(a), bool) if ok is None else ok
+        ok[off] = False
+    return n, e, ok
 
 
 def _strip_zeros(fraction: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Trailing zeros of ``fraction`` (``count`` digits, zero-padded) dropped."""
-    last_zero = (fraction - fraction // 10 * 10 == 0) & (count > 0)
+    last_zero = fraction - fraction // 10 * 10 == 0
+    if int(count.min()) <= 0:
+        last_zero &= count > 0
     hits = np.count_nonzero(last_zero)
     if not hits:
         return fraction, count
@@ -236,50 +261,66 @@ def _strip_zeros(fraction: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, n
     return fraction, count
 
 
-def _fixed_parts(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _fixed_parts(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Fixed notation of a in [1e-4, 1e16): (integer part, 10**count + fraction digits, ok),
-    the fraction's ``count`` >= 1 digits without trailing zeros but one. ok is False where the
-    value needs ``repr``."""
-    n17, r, e, ok = _decimal_17(a)
-    # The 15-digit rounding from the exact 17-digit one and the remainder's sign.
-    q = n17 // 100
-    m = n17 - q * 100
-    n15 = q + ((m > 50) | ((m == 50) & ((r > 0) | ((r == 0) & (q & 1 == 1)))))
-    k = 14 - e  # n15 * 10**-k is the 15-digit decimal
-    exact = n15.astype(np.float64)  # n15 <= 10**15 < 2**53
-    back = exact / _POW10[np.maximum(k, 0)]
-    negative_k = np.flatnonzero(k < 0)
-    back[negative_k] = exact[negative_k] * _POW10[-k[negative_k]]
-    short = back == a
-    top = np.flatnonzero(n15 == 10**15)  # same decimal with 15 digits and e + 1
-    n15[top] //= 10
-    k[top] -= 1
+    the fraction's ``count`` >= 1 digits without trailing zeros but one. ok (None: all) is
+    False where the value needs ``repr``."""
+    rows = len(a)
+    n17, e, ok = _decimal_17(a)
+    # The 15-digit decimal: if the nearest one reads back, rint(fl(a * 10**k)) is it (see
+    # _fixed_decimals), the division proves it, and no other 15-digit decimal reads back.
+    k = _scale(e, 14)
+    low_k = k if isinstance(k, int) else int(k.min())
+    unit15 = _POW10[max(k, 0) if isinstance(k, int) else np.maximum(k, 0)]
+    n15 = np.rint(a * unit15)
+    short = n15 / unit15 == a
+    if low_k < 0:  # e = 15: 10**k is no exact double, these take 17 digits
+        short &= k >= 0
+    top = np.zeros(0, np.intp)
+    if n15.max() >= 1e15:  # rounded up to a power of ten: the same decimal with e + 1
+        top = np.flatnonzero(short & (n15 >= 1e15))
+        n15[top] = 1e14
+        k = np.full(rows, k) if isinstance(k, int) else k.copy()
+        k[top] -= 1
+    s17 = _scale(e, 16)
     if short.all():
-        digits, scale = n15, k
+        digits, scale = n15.astype(np.int64), k
     elif not short.any():
-        digits, scale = n17, 16 - e
+        digits, scale = n17, s17
     else:
-        digits = n17 - short * (n17 - n15)
-        scale = 16 - e
-        scale -= short * (scale - k)
-    exponent = np.where(short, 14, 16) - scale if len(top) else e  # of the leading digit
-    ok &= (exponent >= _MIN_EXP) & (exponent <= _MAX_EXP)
+        digits = n17 - short * (n17 - n15.astype(np.int64))
+        scale = s17 - short * (s17 - k)
+    low_e, high_e = int(e.min()), int(e.max()) + (len(top) > 0)
+    if low_e < _MIN_EXP or high_e > _MAX_EXP:  # repr writes these with an exponent
+        exponent = e.copy()
+        exponent[top] += 1
+        wrong = (exponent < _MIN_EXP) | (exponent > _MAX_EXP)
+        ok = ~wrong if ok is None else ok & ~wrong
     # Integer part: floor(a) or one more, where the decimal rounds up to the next integer
     # (rounding a * 10**s >= floor(a) * 10**s cannot go below floor(a)).
     whole = np.floor(a).astype(np.int64)
-    unit = _POW10_INT[np.clip(scale, 0, 18)]  # digits < 10**17: capping at 10**18 is exact
+    uniform = isinstance(scale, int)
+    low_scale = scale if uniform else int(scale.min())
+    # digits < 10**17: capping the unit at 10**18 is exact
+    unit = _POW10_INT[min(max(scale, 0), 18) if uniform else np.clip(scale, 0, 18)]
     fraction = digits - whole * unit
     carry = np.flatnonzero(fraction >= unit)
     whole[carry] += 1
-    fraction[carry] -= unit[carry]
-    integral = np.flatnonzero(scale <= 0)  # only e = 15 with 15 digits: 10 * n15
-    whole[integral] = digits[integral] * _POW10_INT[-scale[integral]]
-    fraction[integral] = 0
-    count = np.maximum(scale, 0)
+    fraction[carry] -= unit if uniform else unit[carry]
+    count = np.full(rows, scale) if uniform else scale
+    if low_scale <= 0:  # only e = 15 with 15 digits: 10 * n15
+        integral = np.flatnonzero(count <= 0)
+        whole[integral] = digits[integral] * _POW10_INT[-count[integral]]
+        fraction[integral] = 0
+        count = np.maximum(count, 0)
     fraction, count = _strip_zeros(fraction, count)
-    count = np.maximum(count, 1)
-    ok &= count <= _MAX_FRACTION_DIGITS
-    count[~ok] = 1
+    if int(count.min()) < 1:
+        count = np.maximum(count, 1)
+    if int(count.max()) > _MAX_FRACTION_DIGITS:
+        long = count > _MAX_FRACTION_DIGITS
+        ok = ~long if ok is None else ok & ~long
+    if ok is not None:
+        count[~ok] = 1
     return whole, _POW10_INT[count] + fraction, ok
 
 
@@ -304,42 +345,61 @@ def _fixed_decimals(a: np.ndarray, decimals: int) -> tuple[np.ndarray, ...]:
     return good, whole.astype(np.int64), fraction.astype(np.int64) + top
 
 
-def _positive_parts(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``_fixed_parts`` of a, first trying the number of fraction digits most of a sample
-    has (columns often have a fixed number of decimals), which is several times cheaper."""
-    rows = len(a)
-    if rows < _GUESS_ROWS:
-        return _fixed_parts(a)
-    sample = a[:: rows // 64][:64]
+def _guess_decimals(a: np.ndarray) -> int | None:
+    """The number of fraction digits most of a sample of a >= 0 has, if at least half of the
+    sample has that many and at most 15 significant digits; else None."""
+    if len(a) < _GUESS_ROWS:
+        return None
+    sample = a[:: len(a) // 64][:64]
+    sample = sample[(sample >= 1e-4) & (sample < 1e16)]
+    if len(sample) < 32:
+        return None
     _, sample_fraction, sample_ok = _fixed_parts(sample)
-    counts = np.searchsorted(_POW10_INT, sample_fraction[sample_ok], side="right") - 1
-    tally = np.bincount(counts, minlength=19)
-    decimals = int(tally.argmax())
+    if sample_ok is not None:
+        sample_fraction = sample_fraction[sample_ok]
+    counts = np.searchsorted(_POW10_INT, sample_fraction, side="right") - 1
+    decimals = int(np.bincount(counts, minlength=19).argmax())
     if np.count_nonzero(_fixed_decimals(sample, decimals)[0]) < 32:
+        return None
+    return decimals
+
+
+def _positive_parts(
+    a: np.ndarray, decimals: int | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """``_fixed_parts`` of a, trying ``decimals`` fraction digits first (columns often have a
+    fixed number of decimals), which is several times cheaper."""
+    if decimals is None:
         return _fixed_parts(a)
     good, whole, fraction = _fixed_decimals(a, decimals)
-    ok = np.ones(rows, bool)
     rest = np.flatnonzero(~good)
-    if len(rest):
-        whole[rest], fraction[rest], ok[rest] = _fixed_parts(a[rest])
+    if not len(rest):
+        return whole, fraction, None
+    whole[rest], fraction[rest], rest_ok = _fixed_parts(a[rest])
+    if rest_ok is None:
+        return whole, fraction, None
+    ok = np.ones(len(a), bool)
+    ok[rest] = rest_ok
     return whole, fraction, ok
 
 
 def float_field(values: np.ndarray) -> Field:
     """Tokens of float64 values that read back bit for bit (see the module docstring)."""
     x = np.asarray(values, dtype=np.float64).ravel()
-    rows = len(x)
     magnitude = np.abs(x)
+    decimals = _guess_decimals(magnitude)
     candidate = (magnitude >= 1e-4) & (magnitude < 1e16)
-    if candidate.all():
-        whole, fraction, ok = _positive_parts(magnitude)
+    if len(x) and candidate.all():
+        whole, fraction, ok = _positive_parts(magnitude, decimals)
+        ok = np.ones(len(x), bool) if ok is None else ok
     else:
-        whole = np.zeros(rows, np.int64)
-        fraction = np.full(rows, 10, np.int64)  # ".0", as for zeros
+        whole = np.zeros(len(x), np.int64)
+        fraction = np.full(len(x), 10, np.int64)  # ".0", as for zeros
         ok = magnitude == 0
         index = np.flatnonzero(candidate)
         if len(index):
-            whole[index], fraction[index], ok[index] = _positive_parts(magnitude[index])
+            whole[index], fraction[index], part_ok = _positive_parts(magnitude[index], decimals)
+            ok[index] = True if part_ok is None else part_ok
     fallback = np.flatnonzero(~ok)
     whole[fallback] = 0
     fraction[fallback] = 10
