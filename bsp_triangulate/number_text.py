@@ -52,6 +52,7 @@ Plain decimal digits with a leading minus for negative values, as ``str``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Union
 
@@ -84,7 +85,7 @@ _POW10 = np.array([float(10**k) for k in range(23)])  # all exact
 _SPLITTER = float(2**27 + 1)
 _MIN_EXP, _MAX_EXP = -4, 15  # decimal exponents that repr writes in fixed notation
 _MAX_FRACTION_DIGITS = 18  # 10**18 + fraction still fits int64
-_ROWS_IN_CACHE = 4096  # rows joined at a time: their block stays in the CPU cache
+_BLOCK_BYTES = 2**18  # rows joined at a time: their block stays in the CPU cache
 _GUESS_ROWS = 1024  # from this many values on, a sample guesses their number of decimals
 
 
@@ -129,13 +130,12 @@ def _quads(width: int) -> int:
     return max(-(-width // 4), 1)
 
 
-def _write_run(out: np.ndarray, values: np.ndarray, units: np.ndarray) -> None:
-    """Digits of non-negative int64 ``values`` into the uint32 columns ``out`` (four
-    characters each), right-aligned, NUL instead of leading zeros (0 itself is "0"). With
-    ``units=_FRACTION`` the leading 1 of each value becomes a decimal point."""
+def _write_run(out: np.ndarray, values: np.ndarray, units: np.ndarray, low: int) -> None:
+    """Digits of non-negative int64 ``values`` (none below ``low``) into the uint32 columns
+    ``out`` (four characters each), right-aligned, NUL instead of leading zeros (0 itself is
+    "0"). With ``units=_FRACTION`` the leading 1 of each value becomes a decimal point."""
     groups = out.shape[1]
     inner = units if units is _FRACTION else _INNER
-    low = int(values.min()) if groups > 1 else 0
     rest = values
     for group in range(groups - 1, 0, -1):
         high = rest // 10_000
@@ -171,11 +171,17 @@ def int_field(values: np.ndarray) -> Field:
     return Field([(magnitudes, len(str(high)), _UNITS)], negative, fallback, tokens)
 
 
-def _scale(e: np.ndarray, offset: int) -> np.ndarray | int:
+def _bounds(values: np.ndarray | int) -> tuple[int, int]:
+    if isinstance(values, int):
+        return values, values
+    return int(values.min()), int(values.max())
+
+
+def _scale(e: np.ndarray | int, offset: int) -> np.ndarray | int:
     """``offset - e``, as one int where every e is the same (the usual case for a column of
     coordinates), so that table look-ups and products take a scalar."""
-    low = int(e.min())
-    return offset - low if low == int(e.max()) else offset - e
+    low, high = _bounds(e)
+    return offset - low if low == high else offset - e
 
 
 def _round_17(a: np.ndarray, s: np.ndarray | int) -> np.ndarray:
@@ -190,10 +196,20 @@ def _round_17(a: np.ndarray, s: np.ndarray | int) -> np.ndarray:
     return p.astype(np.int64) + np.rint(err).astype(np.int64)
 
 
-def _decimal_17(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+def _decimal_17(a: np.ndarray) -> tuple[np.ndarray, np.ndarray | int, np.ndarray | None]:
     """For a in [1e-4, 1e16): (N, e, ok), N in [10**16, 10**17) the exact
-    round(a * 10**(16 - e)), 10**e <= a < 10**(e + 1); ok (None: all) is False where that
-    failed."""
+    round(a * 10**(16 - e)), 10**e <= a < 10**(e + 1) (one int if it is the same for all);
+    ok (None: all) is False where that failed."""
+    low, high = float(a.min()), float(a.max())
+    e = math.floor(math.log10(low))
+    # fl() is monotonic, so every fl(a * 10**s) lies between these two products; 64 is more
+    # than the rounding of p (8 at most) and of p + err to N.
+    if (
+        e == math.floor(math.log10(high))
+        and low * _POW10[16 - e] >= 1e16 + 64
+        and high * _POW10[16 - e] <= 1e17 - 64
+    ):
+        return _round_17(a, 16 - e), e, None
     # log10 is good to an ulp or so: e may be one off next to powers of ten, fixed below.
     e = np.floor(np.log10(a)).astype(np.int64)
     p = a * _POW10[_scale(e, 16)]
@@ -290,9 +306,9 @@ def _fixed_parts(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | No
     else:
         digits = n17 - short * (n17 - n15.astype(np.int64))
         scale = s17 - short * (s17 - k)
-    low_e, high_e = int(e.min()), int(e.max()) + (len(top) > 0)
-    if low_e < _MIN_EXP or high_e > _MAX_EXP:  # repr writes these with an exponent
-        exponent = e.copy()
+    low_e, high_e = _bounds(e)
+    if low_e < _MIN_EXP or high_e + (len(top) > 0) > _MAX_EXP:  # repr writes an exponent
+        exponent = np.full(rows, e) if isinstance(e, int) else e.copy()
         exponent[top] += 1
         wrong = (exponent < _MIN_EXP) | (exponent > _MAX_EXP)
         ok = ~wrong if ok is None else ok & ~wrong
@@ -453,11 +469,14 @@ def text_pieces(parts: Sequence[Part]) -> list[bytes]:
         extra = max(-(-(lead - slack) // 4), 0)
         longest = max((len(token) for token in field.tokens), default=0)
         extra = max(extra, -(-(len(prefix) + longest) // 4) - sum(run_quads))
-        layout.append((field, prefix, total, extra, run_quads))
+        lows = [int(values.min()) for values, _, _ in field.runs]
+        prefix_chars = np.frombuffer(prefix, np.uint8)
+        layout.append((field, prefix_chars, total, extra, run_quads, lows))
         total += extra + sum(run_quads)
     pieces = []
-    for begin in range(0, rows, _ROWS_IN_CACHE):
-        end = min(begin + _ROWS_IN_CACHE, rows)
+    step = max(_BLOCK_BYTES // (4 * total), 256)
+    for begin in range(0, rows, step):
+        end = min(begin + step, rows)
         pieces.append(_join_block(layout, total, begin, end).translate(None, b"\0"))
     if trailing:
         pieces[0] = pieces[0][len(trailing) :]
@@ -469,27 +488,27 @@ def _join_block(layout: list, total: int, begin: int, end: int) -> bytes:
     """Rows ``begin:end`` of the planned layout as one bytes object, NUL padding included."""
     block = np.empty((end - begin, total), np.uint32)
     text = block.view(np.uint8)
-    for field, prefix, start, extra, run_quads in layout:
-        block[:, start : start + extra] = 0
+    for field, prefix, start, extra, run_quads, lows in layout:
+        if extra:
+            block[:, start : start + extra] = 0
         column = start + extra
-        for (values, _, units), quads in zip(field.runs, run_quads):
-            _write_run(block[:, column : column + quads], values[begin:end], units)
+        for (values, _, units), quads, low in zip(field.runs, run_quads, lows):
+            _write_run(block[:, column : column + quads], values[begin:end], units, low)
             column += quads
         first = 4 * start
-        if prefix:
-            text[:, first : first + len(prefix)] = np.frombuffer(prefix, np.uint8)
+        if len(prefix):
+            text[:, first : first + len(prefix)] = prefix
         if field.negative is not None:
             text[:, first + len(prefix)] = field.negative[begin:end] * ord("-")
         if field.tokens:
-            low, high = np.searchsorted(field.fallback, [begin, end])
-            if low == high:
+            first_token, last_token = np.searchsorted(field.fallback, [begin, end])
+            if first_token == last_token:
                 continue
+            tokens = field.tokens[first_token:last_token]
             width = 4 * (column - start) - len(prefix)
-            padded = b"".join(token.ljust(width, b"\0") for token in field.tokens[low:high])
+            padded = np.frombuffer(b"".join(t.ljust(width, b"\0") for t in tokens), np.uint8)
             region = text[:, first + len(prefix) : 4 * column]
-            region[field.fallback[low:high] - begin] = np.frombuffer(padded, np.uint8).reshape(
-                -1, width
-            )
+            region[field.fallback[first_token:last_token] - begin] = padded.reshape(-1, width)
     return block.tobytes()
 
 
