@@ -505,8 +505,12 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
 
         total = source.featureCount()
         step = 100.0 / total if total > 0 else 0.0
+        request = QgsFeatureRequest()
+        # attributes are read only for the triangles' rows and a Z expression
+        if sinks[0] is None and not isinstance(source_of_z, elevation.ExpressionElevation):
+            request.setSubsetOfAttributes([])
         features = source.getFeatures(
-            QgsFeatureRequest(), QgsProcessingFeatureSource.FlagSkipGeometryValidityChecks
+            request, QgsProcessingFeatureSource.FlagSkipGeometryValidityChecks
         )
         mesh = MeshAccumulator() if mesh_path else None
         read = triangulated = triangles = failed = empty = 0
