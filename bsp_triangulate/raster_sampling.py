@@ -105,6 +105,89 @@ def sample_grid(
     return result.reshape(shape)
 
 
+class PreparedGrid:
+    """A raster grid prepared for repeated sampling; ``sample`` gives exactly what
+    ``sample_grid`` gives for the same grid, geotransform and nodata.
+
+    The values are kept as float64 with a border of one cell, and every cell without a value
+    (nodata, NaN, infinite, or beyond the grid) is NaN: a neighbour's index needs no clipping
+    and its validity is one NaN test.
+    """
+
+    def __init__(
+        self, array: np.ndarray, geotransform: Sequence[float], nodata: float | None = None
+    ) -> None:
+        grid = np.asarray(array)
+        if grid.ndim != 2:
+            raise ValueError("the raster array must be 2-D (rows, cols)")
+        self.rows, self.cols = grid.shape
+        self.geotransform = geotransform
+        values = grid.astype(np.float64)
+        valid = np.isfinite(values)
+        if nodata is not None and not np.isnan(nodata):
+            if grid.dtype.kind == "f":  # as _gather: nodata compared in the grid's precision
+                valid &= grid != grid.dtype.type(nodata)
+            else:
+                valid &= values != float(nodata)
+        padded = np.full((self.rows + 2, self.cols + 2), np.nan)
+        padded[1:-1, 1:-1] = np.where(valid, values, np.nan)
+        self.width = self.cols + 2
+        self.values = padded.ravel()
+
+    def sample(self, xs: np.ndarray, ys: np.ndarray, method: str = "bilinear") -> np.ndarray:
+        """Values at the points (xs, ys), NaN where there is none (see ``sample_grid``)."""
+        rows_n, cols_n, width = self.rows, self.cols, self.width
+        cols, rows = world_to_pixel(self.geotransform, xs, ys)
+        shape = cols.shape
+        cols, rows = cols.ravel(), rows.ravel()
+        inside = (cols >= 0) & (cols <= cols_n) & (rows >= 0) & (rows <= rows_n)
+        every = bool(inside.all())
+        if not every:
+            cols, rows = cols[inside], rows[inside]
+        if method == "nearest":
+            c = np.clip(np.floor(cols).astype(np.int64), 0, cols_n - 1)
+            r = np.clip(np.floor(rows).astype(np.int64), 0, rows_n - 1)
+            found = self.values[(r + 1) * width + (c + 1)]
+        elif method == "bilinear":
+            found = self._bilinear(cols, rows)
+        else:
+            raise ValueError(f"unknown sampling method {method!r}; use 'bilinear' or 'nearest'")
+        if every:
+            return found.reshape(shape)
+        result = np.full(inside.shape, np.nan)
+        result[inside] = found
+        return result.reshape(shape)
+
+    def _bilinear(self, cols: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """``sample_grid``'s bilinear arithmetic, operation for operation."""
+        width = self.width
+        u = cols - 0.5
+        v = rows - 0.5
+        c0 = np.floor(u).astype(np.int64)
+        r0 = np.floor(v).astype(np.int64)
+        fu = u - c0
+        fv = v - r0
+        first = (r0 + 1) * width + (c0 + 1)
+        total = np.zeros(u.shape)
+        weight_sum = np.zeros(u.shape)
+        for offset, weight in (
+            (0, (1 - fu) * (1 - fv)),
+            (1, fu * (1 - fv)),
+            (width, (1 - fu) * fv),
+            (width + 1, fu * fv),
+        ):
+            cell = self.values[first + offset]
+            unused = np.isnan(cell) | ~(weight > 0)
+            term = weight * cell
+            if unused.any():
+                term[unused] = 0.0
+                weight[unused] = 0.0
+            total += term
+            weight_sum += weight
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(weight_sum > 0, total / weight_sum, np.nan)
+
+
 def fill_along_ring(values: np.ndarray, xy: np.ndarray | None = None) -> np.ndarray:
     """Fill NaNs of a closed ring's values from the nearest valid values on both sides.
 

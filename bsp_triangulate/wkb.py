@@ -155,6 +155,19 @@ class PolygonTable:
     geometry_z: np.ndarray
     parsed: np.ndarray
 
+    def geometry_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """(start, stop): the rows of ``points`` that hold each geometry's rings (0, 0 for a
+        geometry without parts)."""
+        start = np.zeros(len(self.parsed), dtype=np.int64)
+        stop = np.zeros(len(self.parsed), dtype=np.int64)
+        has = np.flatnonzero(self.geometry_parts > 0)
+        first_ring = self.part_ring0[self.geometry_part0[has]]
+        last_part = self.geometry_part0[has] + self.geometry_parts[has] - 1
+        last_ring = self.part_ring0[last_part] + self.part_rings[last_part] - 1
+        start[has] = self.ring_start[first_ring]
+        stop[has] = self.ring_start[last_ring] + self.ring_len[last_ring]
+        return start, stop
+
     def polygons(self) -> list[list[list[np.ndarray]] | None]:
         """Per geometry, its parts' rings as views of ``points`` (None where not parsed)."""
         points = self.points

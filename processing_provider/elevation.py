@@ -18,7 +18,7 @@ from qgis.core import (
     QgsRectangle,
 )
 
-from ..bsp_triangulate.raster_sampling import fill_along_ring, sample_grid
+from ..bsp_triangulate.raster_sampling import PreparedGrid, fill_along_ring
 from .geometry_io import FeatureRings
 
 ELEVATION_NONE = 0
@@ -187,7 +187,7 @@ class DemSampler:
         self.xres = extent.width() / self.cols
         self.yres = extent.height() / self.rows
         self.tiles_x = -(-self.cols // self.TILE)
-        self._cache: OrderedDict[int, tuple] = OrderedDict()
+        self._cache: OrderedDict[int, PreparedGrid] = OrderedDict()
 
     def sample(self, xy: np.ndarray) -> np.ndarray:
         """Values at (n, 2) points in the layer's CRS; NaN outside the DEM and on nodata."""
@@ -195,28 +195,36 @@ class DemSampler:
             xy = transform_xy(xy, self.transform)
         values = np.full(len(xy), np.nan)
         with np.errstate(invalid="ignore"):
-            col = np.floor((xy[:, 0] - self.xmin) / self.xres)
-            row = np.floor((self.ymax - xy[:, 1]) / self.yres)
-        inside = np.isfinite(col) & np.isfinite(row)
-        inside &= (col >= 0) & (col < self.cols) & (row >= 0) & (row < self.rows)
+            col = (xy[:, 0] - self.xmin) / self.xres
+            row = (self.ymax - xy[:, 1]) / self.yres
+        # 0 <= floor(q) < n exactly when 0 <= q < n (n whole; False for NaN and infinities)
+        inside = (col >= 0) & (col < self.cols) & (row >= 0) & (row < self.rows)
         index = np.flatnonzero(inside)
         if not len(index):
             return values
-        keys = (row[index] // self.TILE).astype(np.int64) * self.tiles_x + (
-            col[index] // self.TILE
-        ).astype(np.int64)
+        if self.tiles_x == 1 and self.rows <= self.TILE:
+            keys = np.zeros(1, dtype=np.int64)  # a single tile
+        else:
+            keys = (np.floor(row[index]) // self.TILE).astype(np.int64) * self.tiles_x + (
+                np.floor(col[index]) // self.TILE
+            ).astype(np.int64)
+        if (keys == keys[0]).all():
+            # one tile (a DEM of at most TILE x TILE cells, or a batch within one tile)
+            grid = self._tile(int(keys[0]))
+            if len(index) == len(xy):
+                return grid.sample(xy[:, 0], xy[:, 1], self.method)
+            values[index] = grid.sample(xy[index, 0], xy[index, 1], self.method)
+            return values
         order = np.argsort(keys, kind="stable")
         keys, index = keys[order], index[order]
         starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
         for start, stop in zip(starts, np.r_[starts[1:], len(keys)]):
             chosen = index[start:stop]
-            array, geotransform, nodata = self._tile(int(keys[start]))
-            values[chosen] = sample_grid(
-                array, geotransform, xy[chosen, 0], xy[chosen, 1], self.method, nodata
-            )
+            grid = self._tile(int(keys[start]))
+            values[chosen] = grid.sample(xy[chosen, 0], xy[chosen, 1], self.method)
         return values
 
-    def _tile(self, key: int) -> tuple:
+    def _tile(self, key: int) -> PreparedGrid:
         if key in self._cache:
             self._cache.move_to_end(key)
             return self._cache[key]
@@ -225,7 +233,7 @@ class DemSampler:
         r1 = min((tile_row + 1) * self.TILE + self.MARGIN, self.rows)
         c0 = max(tile_col * self.TILE - self.MARGIN, 0)
         c1 = min((tile_col + 1) * self.TILE + self.MARGIN, self.cols)
-        tile = self._read(r0, r1, c0, c1)
+        tile = PreparedGrid(*self._read(r0, r1, c0, c1))
         self._cache[key] = tile
         if len(self._cache) > self.CACHE:
             self._cache.popitem(last=False)
@@ -277,25 +285,37 @@ class DemElevation(ElevationSource):
         self.nodata_policy = nodata_policy
 
     def apply(self, batch: list[FeatureRings]) -> None:
-        rings = list(_rings(batch))
+        usable = [item for item in batch if item.ok]
+        rings = [ring for item in usable for part in item.parts for ring in part]
         if not rings:
             return
-        xy = np.concatenate([ring[:, :2] for _item, ring in rings])
-        values = self.sampler.sample(xy)
-        lengths = np.array([len(ring) for _item, ring in rings], dtype=np.int64)
+        lengths = np.fromiter(map(len, rings), dtype=np.int64, count=len(rings))
+        # the z columns to fill, in ring order: runs of rows of one array where the reader
+        # left the rings one after another, single rings elsewhere
+        targets = _z_targets(usable)
         offsets = np.concatenate([[0], np.cumsum(lengths)])
-        # missing values per ring, counted for all rings at once
+        if sum(len(target) for target in targets) != offsets[-1]:
+            targets = rings  # blocks that do not match the rings: ring by ring
+        xy = np.concatenate([target[:, :2] for target in targets])
+        values = self.sampler.sample(xy)
+        position = 0
+        for target in targets:
+            target[:, 2] = values[position : position + len(target)]
+            position += len(target)
+        # missing values per ring, counted for all rings at once; only those rings need more
         ring_of_value = np.repeat(np.arange(len(rings)), lengths)
         missing_counts = np.bincount(ring_of_value[np.isnan(values)], minlength=len(rings))
-        for (item, ring), start, stop, missing in zip(
-            rings, offsets[:-1].tolist(), offsets[1:].tolist(), missing_counts.tolist()
-        ):
+        incomplete = np.flatnonzero(missing_counts).tolist()
+        if not incomplete:
+            return
+        owners = [item for item in usable for part in item.parts for _ring in part]
+        for index in incomplete:
+            item, ring = owners[index], rings[index]
             if item.error is not None:
                 continue
-            z = values[start:stop]
-            if not missing:
-                ring[:, 2] = z
-            elif missing == len(z):
+            z = values[offsets[index] : offsets[index + 1]]
+            missing = int(missing_counts[index])
+            if missing == len(z):
                 item.error = "no vertex of a ring lies on a valid DEM cell"
             elif self.nodata_policy == NODATA_FAIL:
                 item.error = (
@@ -304,6 +324,28 @@ class DemElevation(ElevationSource):
                 )
             else:
                 ring[:, 2] = fill_along_ring(z, ring[:, :2])
+
+
+def _z_targets(items: list[FeatureRings]) -> list[np.ndarray]:
+    """The rows holding the items' rings, in order: one view per run of items whose blocks
+    follow each other in one array, one view per ring of the other items."""
+    targets: list[np.ndarray] = []
+    run_array, run_start, run_stop = None, 0, 0
+    for item in items:
+        block = item.block
+        if block is not None and block[0] is run_array and block[1] == run_stop:
+            run_stop = block[2]
+            continue
+        if run_array is not None:
+            targets.append(run_array[run_start:run_stop])
+            run_array = None
+        if block is not None:
+            run_array, run_start, run_stop = block
+        else:
+            targets.extend(ring for part in item.parts for ring in part)
+    if run_array is not None:
+        targets.append(run_array[run_start:run_stop])
+    return targets
 
 
 def scale_z(batch: list[FeatureRings], scale: float, offset: float) -> None:

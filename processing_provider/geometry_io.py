@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
 
 import numpy as np
 from qgis.core import QgsFeature, QgsFeedback, QgsGeometry, QgsWkbTypes
@@ -24,15 +23,39 @@ Ring = np.ndarray
 Polygon = list  # list of rings, outer ring first
 
 
-@dataclass
 class FeatureRings:
-    """One input feature as polygons of (n, 3) float64 rings, or the reason it is not usable."""
+    """One input feature as polygons of (n, 3) float64 rings, or the reason it is not usable.
 
-    feature: QgsFeature
-    parts: list[Polygon] = field(default_factory=list)
-    error: str | None = None
-    repaired: bool = False
-    has_z: bool = False
+    ``block``: when not None, ``(points, start, stop)``: the rings are the rows
+    ``points[start:stop]``, one after another in order (as the bulk reader makes them), so
+    their z can be read and written as one slice. Assigning ``parts`` clears it.
+    """
+
+    __slots__ = ("_parts", "block", "error", "feature", "has_z", "repaired")
+
+    def __init__(
+        self,
+        feature: QgsFeature,
+        parts: list[Polygon] | None = None,
+        error: str | None = None,
+        repaired: bool = False,
+        has_z: bool = False,
+    ) -> None:
+        self.feature = feature
+        self._parts: list[Polygon] = [] if parts is None else parts
+        self.error = error
+        self.repaired = repaired
+        self.has_z = has_z
+        self.block: tuple[np.ndarray, int, int] | None = None
+
+    @property
+    def parts(self) -> list[Polygon]:
+        return self._parts
+
+    @parts.setter
+    def parts(self, parts: list[Polygon]) -> None:
+        self._parts = parts
+        self.block = None
 
     @property
     def fid(self) -> int:
@@ -40,14 +63,14 @@ class FeatureRings:
 
     @property
     def ok(self) -> bool:
-        return self.error is None and bool(self.parts)
+        return self.error is None and bool(self._parts)
 
     @property
     def is_empty(self) -> bool:
-        return self.error is None and not self.parts
+        return self.error is None and not self._parts
 
     def vertex_count(self) -> int:
-        return sum(len(ring) for part in self.parts for ring in part)
+        return sum(len(ring) for part in self._parts for ring in part)
 
 
 def _as_xyz(ring) -> np.ndarray:
@@ -168,15 +191,25 @@ def _read_chunk(
         proven = np.zeros(len(chunk), dtype=bool)
     else:
         proven = proven_valid(table, filled)
+    points = table.points
+    starts, stops = table.geometry_rows()
     items = []
-    for (feature, geometry, _wkb), parts, has_z, usable, known in zip(
-        chunk, table.polygons(), table.geometry_z.tolist(), filled.tolist(), proven.tolist()
+    for (feature, geometry, _wkb), parts, has_z, usable, known, start, stop in zip(
+        chunk,
+        table.polygons(),
+        table.geometry_z.tolist(),
+        filled.tolist(),
+        proven.tolist(),
+        starts.tolist(),
+        stops.tolist(),
     ):
         if parts is None or not usable:
             items.append(read_feature(feature, invalid_policy))
             continue
-        item = FeatureRings(feature, has_z=has_z)
-        items.append(_checked(item, geometry, parts, invalid_policy, known))
+        item = _checked(FeatureRings(feature, has_z=has_z), geometry, parts, invalid_policy, known)
+        if item.parts is parts:
+            item.block = (points, start, stop)
+        items.append(item)
     return items
 
 

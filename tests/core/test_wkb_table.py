@@ -37,6 +37,10 @@ def _same_as_scalar(wkbs: list[bytes]) -> np.ndarray:
     table = polygon_table(wkbs)
     polygons = table.polygons()
     assert len(polygons) == len(wkbs)
+    for parts, start, stop in zip(polygons, *table.geometry_rows()):
+        rings = [ring for part in parts or [] for ring in part]
+        joined = np.concatenate(rings) if rings else np.zeros((0, 3))
+        assert table.points[start:stop].tobytes() == joined.tobytes()
     for wkb, parts, geometry_z, parsed, empty_parts in zip(
         wkbs,
         polygons,
