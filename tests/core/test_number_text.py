@@ -275,3 +275,18 @@ def test_large_blocks_of_full_precision_read_back():
     finite = ~np.isnan(values)
     assert np.array_equal(back[finite].view(np.uint64), values[finite].view(np.uint64))
     assert all(t == "nan" for t in np.array(tokens)[~finite])
+
+
+@examples(30)
+@given(
+    st.integers(0, 6),
+    st.lists(st.tuples(st.integers(0, 2047), st.floats(width=64)), max_size=40),
+)
+def test_columns_with_a_usual_number_of_decimals_and_outliers(decimals, outliers):
+    # Long enough for the sample that guesses the number of decimals; the outliers (any
+    # double, so also other decimals, 17 digits, zeros, -0.0, inf, nan) take the exact path.
+    rng = np.random.default_rng(decimals)
+    values = np.round(rng.uniform(-1e6, 1e6, 2048), decimals)
+    for row, value in outliers:
+        values[row] = value
+    check_tokens(values.tolist())
