@@ -103,6 +103,7 @@ def _numbers(path: Path) -> np.ndarray:
 def run_kind(kind: str, args: argparse.Namespace) -> str:
     """Time the three writers on one kind of coordinates; the summary line."""
     vertices, faces, datasets = make_mesh(args.vertices, args.faces, kind)
+    (ROOT / "build").mkdir(exist_ok=True)
     with tempfile.TemporaryDirectory(dir=ROOT / "build") as folder:
         folder = Path(folder)
         writers = {
