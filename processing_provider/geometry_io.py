@@ -70,6 +70,8 @@ class FeatureRings:
         return self.error is None and not self._parts
 
     def vertex_count(self) -> int:
+        if self.block is not None:
+            return self.block[2] - self.block[1]
         return sum(len(ring) for part in self._parts for ring in part)
 
 

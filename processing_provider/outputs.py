@@ -140,6 +140,12 @@ class BatchMesh:
     def __len__(self) -> int:
         return len(self.triangles)
 
+    def feature_count(self) -> int:
+        """How many features have triangles here (``item`` is non-decreasing)."""
+        if not len(self.item):
+            return 0
+        return int(np.count_nonzero(self.item[1:] != self.item[:-1])) + 1
+
     def parent_index(self) -> np.ndarray:
         """Row of each triangle's parent in this batch, -1 for roots."""
         rows = np.arange(len(self), dtype=np.int64)
@@ -553,15 +559,15 @@ def merge_identical_vertices(
     key ^= key >> np.uint64(32)
     key += bits[:, 2] * _HASH_MULTIPLIERS[2]
     key ^= key >> np.uint64(29)
-    order = np.argsort(key, kind="stable")
+    order = np.argsort(key)  # not stable (3x faster): first appearances are minima below
     sorted_key = key[order]
     del key
     starts = np.empty(count, dtype=bool)
     starts[0] = True
     np.not_equal(sorted_key[1:], sorted_key[:-1], out=starts[1:])
     del sorted_key
-    # the stable sort puts each group's first appearance first
-    first = order[np.flatnonzero(starts)]
+    # each group's first appearance: the smallest index among its members
+    first = np.minimum.reduceat(order, np.flatnonzero(starts))
     representative = np.empty(count, dtype=np.int64)
     representative[order] = first[np.cumsum(starts) - 1]
     del order, starts

@@ -546,7 +546,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                             self.tr("Feature {}: {}").format(item.fid, item.error), False
                         )
                 batch_mesh = BatchMesh.build(pairs)
-                with_triangles = len(set(batch_mesh.item.tolist()))
+                with_triangles = batch_mesh.feature_count()
                 triangulated += with_triangles
                 empty += sum(1 for item in batch if item.error is None) - with_triangles
                 triangles += len(batch_mesh)
@@ -668,17 +668,20 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 if not feedback.isCanceled()
                 for result in self._run_engine([item], rule, tolerance, feedback)
             ]
+        # the parts that failed, found in one pass (usually none)
+        failed = {i for i, result in enumerate(outcome) if isinstance(result, Exception)}
         results = []
         position = 0
         for item in items:
-            parts = outcome[position : position + len(item.parts)]
-            position += len(item.parts)
-            errors = [(i, error) for i, error in enumerate(parts) if isinstance(error, Exception)]
-            if errors:
-                index, error = errors[0]
-                where = self.tr(" (part {})").format(index) if len(item.parts) > 1 else ""
-                item.error = self.tr("cannot be triangulated{}: {}").format(where, error)
+            count = len(item.parts)
+            parts = outcome[position : position + count]
+            if failed and not failed.isdisjoint(range(position, position + count)):
+                index = min(failed.intersection(range(position, position + count))) - position
+                where = self.tr(" (part {})").format(index) if count > 1 else ""
+                item.error = self.tr("cannot be triangulated{}: {}").format(where, parts[index])
+                position += count
                 continue
+            position += count
             results.append((item, parts))
         return results
 
