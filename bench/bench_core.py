@@ -17,11 +17,19 @@ import mapbox_earcut
 import numpy as np
 import shapely
 from common import SHARED_DATA, BudgetExceededError, Row, rows_table, timed, within
-from generate import DEFAULT_COUNT, ensure_islands, ensure_stars, read_rings
+from generate import (
+    DEFAULT_COUNT,
+    ensure_islands,
+    ensure_stars,
+    footprint_polygons,
+    read_rings,
+)
 
 from bsp_triangulate import Triangulation, triangulate_many
 
 QUICK_COUNT = 5_000
+# building footprints: twice as many polygons as the star set, with far fewer vertices each
+FOOTPRINTS_PER_STAR = 2
 DEFAULT_BUDGET = 1_800.0  # seconds per measurement before it is abandoned
 WATER_HUGE3 = SHARED_DATA / "earcut" / "fixtures" / "water-huge3.json"
 
@@ -165,6 +173,13 @@ def run(
     stars = read_rings(stars_path)
     case = f"{len(stars):,} stars with 1 island ({vertex_count(stars):,} vertices)"
     rows = compare(case, stars, 2 if quick else 1, budget)
+    footprints = footprint_polygons(FOOTPRINTS_PER_STAR * count)
+    courtyards = sum(len(rings) - 1 for rings in footprints)
+    footprint_case = (
+        f"{len(footprints):,} building footprints, {courtyards:,} with a courtyard "
+        f"({vertex_count(footprints):,} vertices)"
+    )
+    rows += compare(footprint_case, footprints, 2 if quick else 1, budget)
     if WATER_HUGE3.exists():
         water = [earcut_fixture(WATER_HUGE3)]
         holes = len(water[0]) - 1

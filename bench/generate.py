@@ -77,6 +77,36 @@ def star_polygons(count: int = DEFAULT_COUNT, seed: int = SEED) -> list[Rings]:
     return polygons
 
 
+# orthogonal building outlines in a unit square, counter-clockwise: rectangle, L, T, U
+FOOTPRINT_SHAPES = (
+    [(0, 0), (1, 0), (1, 1), (0, 1)],
+    [(0, 0), (1, 0), (1, 0.45), (0.5, 0.45), (0.5, 1), (0, 1)],
+    [(0.3, 0), (0.7, 0), (0.7, 0.6), (1, 0.6), (1, 1), (0, 1), (0, 0.6), (0.3, 0.6)],
+    [(0, 0), (1, 0), (1, 1), (0.7, 1), (0.7, 0.4), (0.3, 0.4), (0.3, 1), (0, 1)],
+)
+
+
+def footprint_polygons(count: int, seed: int = SEED) -> list[Rings]:
+    """``count`` building footprints (rectangles, L, T and U shapes of 4 to 8 vertices, 8 to
+    30 m, rotated at random) on a 40 m grid; a tenth of them have a rectangular courtyard."""
+    rng = np.random.default_rng(seed)
+    side = math.ceil(math.sqrt(count))
+    polygons: list[Rings] = []
+    for index in range(count):
+        row, column = divmod(index, side)
+        shape = np.asarray(FOOTPRINT_SHAPES[int(rng.integers(len(FOOTPRINT_SHAPES)))], float)
+        size = rng.uniform(8.0, 30.0, 2)
+        angle = rng.uniform(0.0, np.pi)
+        rotation = np.array([[np.cos(angle), np.sin(angle)], [-np.sin(angle), np.cos(angle)]])
+        centre = np.array([ORIGIN_X + column * 40.0, ORIGIN_Y + row * 40.0])
+        rings = [(shape - 0.5) * size @ rotation + centre]
+        if len(shape) == 4 and rng.random() < 0.4:  # a courtyard, clockwise
+            court = np.array([(0.3, 0.3), (0.3, 0.7), (0.7, 0.7), (0.7, 0.3)])
+            rings.append((court - 0.5) * size @ rotation + centre)
+        polygons.append(rings)
+    return polygons
+
+
 def polygon_with_islands(vertices: int, seed: int = SEED) -> Rings:
     """One concave polygon of ``vertices`` vertices in all, ``vertices // 100`` islands."""
     rng = np.random.default_rng(seed + vertices)
