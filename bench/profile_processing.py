@@ -4,8 +4,13 @@ Runs the algorithm with ``processing.run`` on the benchmark's star polygons with
 elevation and a .2dm mesh, triangles to memory (default) or to a GeoPackage, and prints the
 functions that take the most time, the wall time and the peak resident memory.
 
+With ``--stages`` there is no cProfile: the run's stages (feature reading with the validity
+decisions, elevation, the engine, the per-batch mesh arrays, the mesh file: vertex merge and
+writer) are timed in CPU and wall seconds instead, and ``--root`` runs the plugin of another
+checkout (an earlier commit) in the same way, for before/after tables in one session.
+
 Usage: python bench/profile_processing.py [--count 5000] [--gpkg | --mesh-only]
-       [--mesh-format 2dm|ply] [--no-profile]
+       [--mesh-format 2dm|ply] [--no-profile | --stages] [--root PATH] [--repeat N]
        [--top 30]
 """
 
@@ -13,13 +18,16 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import functools
 import importlib
+import importlib.util
 import os
 import pstats
 import resource
 import sys
 import tempfile
 import time
+from collections import defaultdict
 from pathlib import Path
 
 from common import BUILD, ROOT
@@ -29,7 +37,18 @@ os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 os.environ.setdefault("QGIS_CUSTOM_CONFIG_PATH", tempfile.mkdtemp(prefix="bsptri-profile-"))
 
 
-def start_qgis():
+def load_plugin(root: Path):
+    """The plugin package ``bsptriangulate`` from the checkout at ``root``."""
+    spec = importlib.util.spec_from_file_location(
+        "bsptriangulate", root / "__init__.py", submodule_search_locations=[str(root)]
+    )
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["bsptriangulate"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def start_qgis(root: Path = ROOT):
     """QgsApplication (offscreen), Processing and the plugin's provider; keep the references."""
     from qgis.core import QgsApplication
 
@@ -39,14 +58,100 @@ def start_qgis():
     from processing.core.Processing import Processing
 
     Processing.initialize()
-    sys.path.insert(0, str(ROOT))
-    from tests.conftest import load_plugin_package
-
-    package = load_plugin_package()
+    package = load_plugin(root)
     provider_module = importlib.import_module(f"{package.__name__}.processing_provider.provider")
     provider = provider_module.BspTriangulateProvider()
     QgsApplication.processingRegistry().addProvider(provider)
     return application, provider
+
+
+class StageClock:
+    """CPU and wall seconds spent in named stages of the algorithm, by wrapping its functions
+    (the names exist in every version of the plugin since the Processing provider)."""
+
+    def __init__(self) -> None:
+        self.cpu: dict[str, float] = defaultdict(float)
+        self.wall: dict[str, float] = defaultdict(float)
+        self.active: list[str] = []
+
+    def _enter(self, name: str) -> tuple[float, float]:
+        self.active.append(name)
+        return time.process_time(), time.perf_counter()
+
+    def _leave(self, name: str, started: tuple[float, float]) -> None:
+        cpu = time.process_time() - started[0]
+        wall = time.perf_counter() - started[1]
+        self.active.pop()
+        self.cpu[name] += cpu
+        self.wall[name] += wall
+        if self.active:  # an enclosing stage does not count this time again
+            self.cpu[self.active[-1]] -= cpu
+            self.wall[self.active[-1]] -= wall
+
+    def wrap(self, owner: object, attribute: str, name: str) -> None:
+        function = getattr(owner, attribute)
+        clock = self
+
+        @functools.wraps(function)
+        def timed(*args, **kwargs):
+            started = clock._enter(name)
+            try:
+                return function(*args, **kwargs)
+            finally:
+                clock._leave(name, started)
+
+        if isinstance(owner, type) and isinstance(owner.__dict__.get(attribute), classmethod):
+            function = owner.__dict__[attribute].__func__
+            setattr(owner, attribute, classmethod(timed))
+        else:
+            setattr(owner, attribute, timed)
+
+    def wrap_generator(self, owner: object, attribute: str, name: str) -> None:
+        function = getattr(owner, attribute)
+        clock = self
+
+        @functools.wraps(function)
+        def timed(*args, **kwargs):
+            iterator = iter(function(*args, **kwargs))
+            while True:
+                started = clock._enter(name)
+                try:
+                    item = next(iterator)
+                except StopIteration:
+                    return
+                finally:
+                    clock._leave(name, started)
+                yield item
+
+        setattr(owner, attribute, timed)
+
+    def install(self, package: str) -> None:
+        algorithm = sys.modules[f"{package}.processing_provider.triangulate_algorithm"]
+        elevation = sys.modules[f"{package}.processing_provider.elevation"]
+        outputs = sys.modules[f"{package}.processing_provider.outputs"]
+        self.wrap_generator(algorithm, "feature_batches", "read features (WKB, validity)")
+        for source in ("FlatElevation", "GeometryElevation", "ExpressionElevation"):
+            self.wrap(getattr(elevation, source), "apply", "elevation")
+        self.wrap(elevation.DemElevation, "apply", "elevation")
+        self.wrap(algorithm, "triangulate_many", "engine (triangulate_many)")
+        self.wrap(outputs.BatchMesh, "build", "batch mesh arrays")
+        self.wrap(outputs.MeshAccumulator, "add", "batch mesh arrays")
+        self.wrap(outputs, "merge_identical_vertices", "mesh: vertex merge")
+        self.wrap(outputs, "write_ply", "mesh: writer (mesh.py)")
+        self.wrap(outputs, "write_2dm", "mesh: writer (mesh.py)")
+        self.wrap(outputs.MeshAccumulator, "stage", "mesh: gather")
+
+    def table(self, total_cpu: float, total_wall: float) -> str:
+        names = list(self.cpu)
+        rows = [(name, self.cpu[name], self.wall[name]) for name in names]
+        rest_cpu = total_cpu - sum(self.cpu.values())
+        rest_wall = total_wall - sum(self.wall.values())
+        rows.append(("rest (algorithm loop, QGIS)", rest_cpu, rest_wall))
+        rows.append(("total (processing.run)", total_cpu, total_wall))
+        width = max(len(name) for name, _cpu, _wall in rows)
+        lines = [f"{'stage':<{width}}  {'CPU s':>7}  {'wall s':>7}"]
+        lines += [f"{name:<{width}}  {cpu:7.2f}  {wall:7.2f}" for name, cpu, wall in rows]
+        return "\n".join(lines)
 
 
 def main() -> None:
@@ -56,11 +161,15 @@ def main() -> None:
     outputs.add_argument("--gpkg", action="store_true", help="triangles to a GeoPackage")
     outputs.add_argument("--mesh-only", action="store_true", help="no per-triangle output")
     parser.add_argument("--mesh-format", choices=("2dm", "ply"), default="2dm")
-    parser.add_argument("--no-profile", action="store_true", help="wall time only")
+    timing = parser.add_mutually_exclusive_group()
+    timing.add_argument("--no-profile", action="store_true", help="wall time only")
+    timing.add_argument("--stages", action="store_true", help="CPU and wall time per stage")
+    parser.add_argument("--root", type=Path, default=ROOT, help="plugin checkout to run")
+    parser.add_argument("--repeat", type=int, default=1, help="runs (--stages: the fastest)")
     parser.add_argument("--top", type=int, default=30, help="functions to list")
     arguments = parser.parse_args()
     polygons, dem = ensure_stars(arguments.count)
-    application, provider = start_qgis()
+    application, provider = start_qgis(arguments.root.resolve())
     import processing
     from qgis.core import QgsProcessingContext, QgsProcessingFeedback
 
@@ -76,6 +185,10 @@ def main() -> None:
     }
     if arguments.mesh_only:
         parameters["OUTPUT_TRIANGLES"] = None
+    if arguments.stages:
+        run_stages(arguments, parameters)
+        del provider, application
+        return
     context = QgsProcessingContext()
     feedback = QgsProcessingFeedback()
     profiler = None if arguments.no_profile else cProfile.Profile()
@@ -99,6 +212,32 @@ def main() -> None:
         statistics.sort_stats("tottime").print_stats(arguments.top)
         statistics.sort_stats("cumulative").print_stats(arguments.top)
     del provider, application
+
+
+def run_stages(arguments: argparse.Namespace, parameters: dict) -> None:
+    """The algorithm ``--repeat`` times with stage clocks; prints the fastest run's table."""
+    import processing
+    from qgis.core import QgsProcessingContext, QgsProcessingFeedback
+
+    clock = StageClock()
+    clock.install("bsptriangulate")
+    best = None
+    for _run in range(arguments.repeat):
+        clock.cpu.clear()
+        clock.wall.clear()
+        cpu, wall = time.process_time(), time.perf_counter()
+        processing.run(
+            "bsptriangulate:triangulate",
+            parameters,
+            context=QgsProcessingContext(),
+            feedback=QgsProcessingFeedback(),
+        )
+        cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+        if best is None or cpu < best[0]:
+            best = (cpu, wall, dict(clock.cpu), dict(clock.wall))
+    cpu, wall, clock.cpu, clock.wall = best
+    print(f"{arguments.count:,} polygons, {arguments.root}: {wall:.2f} s wall, {cpu:.2f} s CPU")
+    print(clock.table(cpu, wall))
 
 
 if __name__ == "__main__":
