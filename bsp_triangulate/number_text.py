@@ -250,18 +250,16 @@ def _decimal_17(a: np.ndarray) -> tuple[np.ndarray, np.ndarray | int, np.ndarray
     return n, e, ok
 
 
-def _strip_zeros(fraction: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Trailing zeros of ``fraction`` (``count`` digits, zero-padded) dropped."""
+def _strip_zeros(fraction: np.ndarray, count: np.ndarray) -> None:
+    """Drop the trailing zeros of ``fraction`` (``count`` digits, zero-padded), in place."""
     last_zero = fraction - fraction // 10 * 10 == 0
     if int(count.min()) <= 0:
         last_zero &= count > 0
     hits = np.count_nonzero(last_zero)
     if not hits:
-        return fraction, count
-    subset = hits < len(fraction) // 2
-    index = np.flatnonzero(last_zero) if subset else None
-    f = fraction[index] if subset else fraction.copy()
-    c = count[index] if subset else count.copy()
+        return
+    index = np.flatnonzero(last_zero) if hits < len(fraction) // 2 else slice(None)
+    f, c = fraction[index], count[index]
     for k in (16, 8, 4, 2, 1):  # binary search on the number of zeros
         if c.max() < k:
             continue
@@ -270,11 +268,7 @@ def _strip_zeros(fraction: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, n
         strip = (shorter * unit == f) & (c >= k)
         f -= strip * (f - shorter)
         c -= strip * k
-    if not subset:
-        return f, c
-    fraction, count = fraction.copy(), count.copy()
     fraction[index], count[index] = f, c
-    return fraction, count
 
 
 def _fixed_parts(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -329,7 +323,7 @@ def _fixed_parts(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | No
         whole[integral] = digits[integral] * _POW10_INT[-count[integral]]
         fraction[integral] = 0
         count = np.maximum(count, 0)
-    fraction, count = _strip_zeros(fraction, count)
+    _strip_zeros(fraction, count)
     if int(count.min()) < 1:
         count = np.maximum(count, 1)
     if int(count.max()) > _MAX_FRACTION_DIGITS:
