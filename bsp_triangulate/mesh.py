@@ -108,7 +108,9 @@ def write_2dm(
 ) -> list[Path]:
     """Write a 2DM mesh (``MESH2D``, ``ND id x y z``, ``E3T id n1 n2 n3 1``, 1-based ids).
 
-    Coordinates are written with the shortest repr that reads back as the same double.
+    Coordinates read back (strtod, as MDAL reads them) as exactly the same doubles: as repr
+    writes them where that takes at most 15 significant digits, else with 17 (see
+    ``number_text``).
     2DM itself carries no named face values, so ``face_datasets`` go to a companion
     ``<name>_els.dat`` (ASCII DAT, one scalar group per dataset, on faces), which MDAL reads
     when it is added to the mesh layer as an extra dataset. Returns the written paths.
