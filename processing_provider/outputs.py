@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import shutil
@@ -73,22 +74,43 @@ _LINE_DTYPE = np.dtype(
 )
 
 
-_PER_TRIANGLE = ("item", "part", "order", "parent", "depth", "side")
-
-
-@dataclass
 class BatchMesh:
-    """The triangles of a batch of features, concatenated, with their tree attributes."""
+    """The triangles of a batch of features, concatenated, with their tree attributes.
 
-    vertices: np.ndarray  # (V, 3)
-    triangles: np.ndarray  # (M, 3) into vertices
-    item: np.ndarray  # (M,) index into ``items``
-    part: np.ndarray
-    order: np.ndarray  # index in the part's BSP pre-order
-    parent: np.ndarray  # parent's order, -1 for the root
-    depth: np.ndarray
-    side: np.ndarray
-    items: list[FeatureRings]
+    - ``vertices`` (V, 3), ``triangles`` (M, 3) into ``vertices``, ``item`` (M,) index into
+      ``items``;
+    - ``part``, ``order`` (index in the part's BSP pre-order), ``parent`` (the parent's
+      order, -1 for the root), ``depth``, ``side``: (M,) columns made when first read (a
+      mesh-only run needs only ``depth``).
+    """
+
+    def __init__(
+        self, items: list[FeatureRings], kept: list[tuple[int, int, Triangulation]]
+    ) -> None:
+        self.items = items
+        self._kept = kept
+        if not kept:
+            self._counts = np.zeros(0, np.int64)
+            self.vertices = np.zeros((0, 3))
+            self.triangles = np.zeros((0, 3), np.int64)
+            self.item = np.zeros(0, np.int64)
+            return
+        counts = np.fromiter((len(tri.triangles) for _r, _i, tri in kept), np.int64, len(kept))
+        vertex_counts = np.fromiter(
+            (len(tri.vertices) for _r, _i, tri in kept), np.int64, len(kept)
+        )
+        vertex_offsets = np.cumsum(vertex_counts) - vertex_counts
+        triangles = np.concatenate([tri.triangles for _row, _index, tri in kept]).astype(
+            np.int64, copy=False
+        )
+        triangles += np.repeat(vertex_offsets, counts)[:, None]
+        self._counts = counts
+        self.vertices = np.concatenate([tri.vertices for _row, _index, tri in kept]).astype(
+            np.float64, copy=False
+        )
+        self.triangles = triangles
+        rows = np.fromiter((row for row, _index, _tri in kept), np.int64, len(kept))
+        self.item = np.repeat(rows, counts)
 
     @property
     def fid(self) -> np.ndarray:
@@ -104,38 +126,35 @@ class BatchMesh:
             for index, tri in enumerate(parts)
             if len(tri.triangles)
         ]
-        items = [feature for feature, _parts in results]
-        if not kept:
-            return cls(
-                vertices=np.zeros((0, 3)),
-                triangles=np.zeros((0, 3), np.int64),
-                **{name: np.zeros(0, np.int64) for name in _PER_TRIANGLE},
-                items=items,
-            )
-        counts = np.array([len(tri.triangles) for _row, _index, tri in kept], dtype=np.int64)
-        vertex_counts = np.array([len(tri.vertices) for _row, _index, tri in kept], np.int64)
-        first = np.cumsum(counts) - counts
-        vertex_offsets = np.cumsum(vertex_counts) - vertex_counts
-        triangles = np.concatenate([tri.triangles for _row, _index, tri in kept]).astype(np.int64)
-        triangles += np.repeat(vertex_offsets, counts)[:, None]
+        return cls([feature for feature, _parts in results], kept)
 
-        def joined(name: str) -> np.ndarray:
-            arrays = [getattr(tri, name) for _row, _index, tri in kept]
-            return np.concatenate(arrays).astype(np.int64, copy=False)
+    def _joined(self, name: str) -> np.ndarray:
+        if not self._kept:
+            return np.zeros(0, np.int64)
+        arrays = [getattr(tri, name) for _row, _index, tri in self._kept]
+        return np.concatenate(arrays).astype(np.int64, copy=False)
 
-        return cls(
-            vertices=np.concatenate([tri.vertices for _row, _index, tri in kept]).astype(
-                np.float64, copy=False
-            ),
-            triangles=triangles,
-            item=np.repeat(np.array([row for row, _index, _tri in kept], np.int64), counts),
-            part=np.repeat(np.array([index for _row, index, _tri in kept], np.int64), counts),
-            order=np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(first, counts),
-            parent=joined("parent"),
-            depth=joined("depth"),
-            side=joined("side"),
-            items=items,
-        )
+    @functools.cached_property
+    def part(self) -> np.ndarray:
+        indexes = np.fromiter((index for _r, index, _t in self._kept), np.int64, len(self._kept))
+        return np.repeat(indexes, self._counts)
+
+    @functools.cached_property
+    def order(self) -> np.ndarray:
+        first = np.cumsum(self._counts) - self._counts
+        return np.arange(len(self), dtype=np.int64) - np.repeat(first, self._counts)
+
+    @functools.cached_property
+    def parent(self) -> np.ndarray:
+        return self._joined("parent")
+
+    @functools.cached_property
+    def depth(self) -> np.ndarray:
+        return self._joined("depth")
+
+    @functools.cached_property
+    def side(self) -> np.ndarray:
+        return self._joined("side")
 
     def __len__(self) -> int:
         return len(self.triangles)
@@ -559,6 +578,13 @@ def merge_identical_vertices(
     key ^= key >> np.uint64(32)
     key += bits[:, 2] * _HASH_MULTIPLIERS[2]
     key ^= key >> np.uint64(29)
+    # identical vertices have identical keys: without a repeated key (a plain sort, much
+    # faster than an argsort, tells) nothing merges
+    sorted_key = np.sort(key)
+    repeated = bool((sorted_key[1:] == sorted_key[:-1]).any())
+    del sorted_key
+    if not repeated:
+        return vertices, faces
     order = np.argsort(key)  # not stable (3x faster): first appearances are minima below
     sorted_key = key[order]
     del key
