@@ -121,22 +121,14 @@ def read_feature(feature: QgsFeature, invalid_policy: int) -> FeatureRings:
 
 
 def _checked(
-    item: FeatureRings,
-    geometry: QgsGeometry,
-    parts: list[Polygon],
-    invalid_policy: int,
-    proven: bool = False,
+    item: FeatureRings, geometry: QgsGeometry, parts: list[Polygon], invalid_policy: int
 ) -> FeatureRings:
-    """``item`` with ``parts`` read from ``geometry``, or its repair, or the reason it fails.
-
-    ``proven``: the geometry is known to be valid (``proven_valid``), GEOS is not asked.
-    """
+    """``item`` with ``parts`` read from ``geometry``, or its repair, or the reason it fails."""
     # GEOS judges validity in XY, where a wall (a near-vertical face) has no area: walls are
     # left to the engine, which triangulates them in their own plane (and fails bad ones).
     if (
         invalid_policy != INVALID_AS_GIVEN
         and not (item.has_z and _has_wall(parts))
-        and not proven
         and not geometry.isGeosValid()
     ):
         if invalid_policy == INVALID_FAIL:
@@ -161,54 +153,57 @@ def read_features(
     features: Iterable[QgsFeature], invalid_policy: int, feedback: QgsFeedback | None = None
 ) -> Iterator[FeatureRings]:
     """``read_feature`` of every feature, in order; the WKB of many features parsed at once."""
-    chunk: list[tuple[QgsFeature, QgsGeometry, bytes]] = []
+    chunk: list[QgsFeature] = []
+    wkbs: list[bytes] = []
     size = 0
     for feature in features:
         if feedback is not None and feedback.isCanceled():
             break
-        geometry = feature.geometry()
-        wkb = bytes(geometry.asWkb())
-        chunk.append((feature, geometry, wkb))
+        wkb = feature.geometry().asWkb().data()
+        chunk.append(feature)
+        wkbs.append(wkb)
         size += len(wkb)
         if len(chunk) >= READ_FEATURES or size >= READ_BYTES:
-            yield from _read_chunk(chunk, invalid_policy)
-            chunk, size = [], 0
+            yield from _read_chunk(chunk, wkbs, invalid_policy)
+            chunk, wkbs, size = [], [], 0
     if chunk:
-        yield from _read_chunk(chunk, invalid_policy)
+        yield from _read_chunk(chunk, wkbs, invalid_policy)
 
 
 def _read_chunk(
-    chunk: list[tuple[QgsFeature, QgsGeometry, bytes]], invalid_policy: int
+    chunk: list[QgsFeature], wkbs: list[bytes], invalid_policy: int
 ) -> list[FeatureRings]:
     """Features whose WKB the bulk reader takes (non-empty Polygon and MultiPolygon) are read
     from it; every other one goes through ``read_feature``."""
-    table = polygon_table([wkb for _feature, _geometry, wkb in chunk])
+    table = polygon_table(wkbs)
     # QGIS calls a (multi)polygon empty when no part has a point in its outer ring: those
     # (and null geometries, which are not parsed) take the one-feature path
     part_geometry = np.repeat(np.arange(len(chunk)), table.geometry_parts)
     outer_filled = table.ring_len[table.part_ring0] > 0
     filled = np.bincount(part_geometry[outer_filled], minlength=len(chunk)) > 0
-    # a cheap exact proof of validity spares GEOS most valid polygons (identical decisions)
-    if invalid_policy == INVALID_AS_GIVEN:
-        proven = np.zeros(len(chunk), dtype=bool)
-    else:
-        proven = proven_valid(table, filled)
+    # a cheap exact proof of validity spares GEOS most valid polygons (identical decisions);
+    # the rings of a proven polygon, or of any polygon kept as given, are used as read
+    as_read = filled if invalid_policy == INVALID_AS_GIVEN else proven_valid(table, filled)
     points = table.points
     starts, stops = table.geometry_rows()
     items = []
-    for (feature, geometry, _wkb), parts, has_z, usable, known, start, stop in zip(
+    for feature, parts, has_z, usable, known, start, stop in zip(
         chunk,
         table.polygons(),
         table.geometry_z.tolist(),
         filled.tolist(),
-        proven.tolist(),
+        as_read.tolist(),
         starts.tolist(),
         stops.tolist(),
     ):
         if parts is None or not usable:
             items.append(read_feature(feature, invalid_policy))
             continue
-        item = _checked(FeatureRings(feature, has_z=has_z), geometry, parts, invalid_policy, known)
+        if known:
+            item = FeatureRings(feature, parts, has_z=has_z)
+        else:
+            item = FeatureRings(feature, has_z=has_z)
+            item = _checked(item, feature.geometry(), parts, invalid_policy)
         if item.parts is parts:
             item.block = (points, start, stop)
         items.append(item)
