@@ -162,15 +162,13 @@ def _rings_in_question(table: PolygonTable, proven: np.ndarray) -> _Rings | None
 def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
     """Each ring closed, finite, and star-shaped around its vertex mean, winding once."""
     x, y, first, length = rings.x, rings.y, rings.first, rings.length
-    count = len(length)
     last = first + length - 1
-    ring_of = np.repeat(np.arange(count), length)
-    bad = ~(np.abs(x) <= _LARGEST) | ~(np.abs(y) <= _LARGEST)
-    reject = np.bincount(ring_of[bad], minlength=count) > 0
+    # the largest magnitude of each ring (NaN where a coordinate is NaN)
+    reject = ~(np.maximum.reduceat(np.maximum(np.abs(x), np.abs(y)), first) <= _LARGEST)
     reject |= (x[first] != x[last]) | (y[first] != y[last])
     edges = length - 1
-    cx = (np.bincount(ring_of, weights=x, minlength=count) - x[last]) / edges
-    cy = (np.bincount(ring_of, weights=y, minlength=count) - y[last]) / edges
+    cx = (np.add.reduceat(x, first) - x[last]) / edges
+    cy = (np.add.reduceat(y, first) - y[last]) / edges
     # coordinates relative to the ring's centre c: orient(a, b, c) from them is Shewchuk's
     # orient2d(a, b, c) operation for operation, so its error bound holds; signs are exact
     rx = x - np.repeat(cx, length)
@@ -180,23 +178,26 @@ def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
     right = ay * bx
     det = left - right
     bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + _UNDERFLOW_SLACK
-    # consecutive points of one ring only: the pair from a ring's last point to the next
-    # ring's first point is left out of every count
-    edge_ring = ring_of[:-1]
-    junk = last[:-1]
-    counter = np.bincount(edge_ring, weights=det > bound, minlength=count)
-    clockwise = np.bincount(edge_ring, weights=-det > bound, minlength=count)
-    counter[edge_ring[junk]] -= det[junk] > bound[junk]
-    clockwise[edge_ring[junk]] -= -det[junk] > bound[junk]
-    counter = counter == edges
-    reject |= ~counter & (clockwise != edges)
+    counter = det > bound
+    clockwise = det < -bound
     # winding number around the centre: edges crossing the horizontal ray to its right are
     # the upward ones of a counter-clockwise ring, the downward ones of a clockwise ring
     upward = (ay <= 0) & (by > 0)
     downward = (by <= 0) & (ay > 0)
-    crossing = np.where(np.repeat(counter, length)[:-1], upward, downward)
-    crossing[junk] = False
-    reject |= np.bincount(edge_ring[crossing], minlength=count) != 1
+    # pairs of consecutive points of one ring only: the pair from a ring's last point to the
+    # next ring's first point counts for nothing
+    junk = last[:-1]
+    counter[junk] = clockwise[junk] = True
+    upward[junk] = downward[junk] = False
+    counter = np.logical_and.reduceat(counter, first)
+    clockwise = np.logical_and.reduceat(clockwise, first)
+    reject |= ~counter & ~clockwise
+    crossings = np.where(
+        counter,
+        np.add.reduceat(upward, first, dtype=np.int64),
+        np.add.reduceat(downward, first, dtype=np.int64),
+    )
+    reject |= crossings != 1
     proven[rings.geometry[reject]] = False
 
 
@@ -221,38 +222,46 @@ def _check_islands(rings: _Rings, proven: np.ndarray) -> None:
     islands, outers, outer_edges = islands[keep], outers[keep], outer_edges[keep]
     if not len(islands):
         return
-    # the island's first point against every edge of the outer ring: ray crossings
+    # every edge of the outer ring with the island (its first point, its box), island by island
     pair, within = _ragged(outer_edges)
-    a = first[outers][pair] + within
+    a = np.repeat(first[outers], outer_edges) + within
     ax, ay, bx, by = x[a], y[a], x[a + 1], y[a + 1]
-    island = islands[pair]
-    point = first[island]
-    px, py = x[point], y[point]
-    straddle = (ay > py) != (by > py)
-    side = _orientation(ax, ay, bx, by, px, py)
-    crossing = straddle & np.where(by > ay, side > 0, side < 0)
-    geometry = rings.geometry[island]
-    proven[geometry[straddle & (side == 0)]] = False
-    inside = np.bincount(pair[crossing], minlength=len(islands)) % 2 == 1
+    point = first[islands]
+    py = np.repeat(y[point], outer_edges)
+    # ray crossings to the right of the point: only straddling edges need an orientation
+    straddle = np.flatnonzero((ay > py) != (by > py))
+    side = _orientation(
+        ax[straddle],
+        ay[straddle],
+        bx[straddle],
+        by[straddle],
+        x[point][pair[straddle]],
+        py[straddle],
+    )
+    crossing = np.where(by[straddle] > ay[straddle], side > 0, side < 0)
+    proven[rings.geometry[islands[pair[straddle[side == 0]]]]] = False
+    inside = np.bincount(pair[straddle[crossing]], minlength=len(islands)) % 2 == 1
     proven[rings.geometry[islands[~inside]]] = False
     # outer edges whose box meets the island's box, against every island edge
-    near = np.flatnonzero(
-        ~(
-            (np.maximum(ax, bx) < rings.lo_x[island])
-            | (rings.hi_x[island] < np.minimum(ax, bx))
-            | (np.maximum(ay, by) < rings.lo_y[island])
-            | (rings.hi_y[island] < np.minimum(ay, by))
-        )
+    near = (np.maximum(ay, by) >= np.repeat(rings.lo_y[islands], outer_edges)) & (
+        np.minimum(ay, by) <= np.repeat(rings.hi_y[islands], outer_edges)
     )
+    near = np.flatnonzero(near)
+    owner_island = islands[pair[near]]
+    near = near[
+        (np.maximum(ax[near], bx[near]) >= rings.lo_x[owner_island])
+        & (np.minimum(ax[near], bx[near]) <= rings.hi_x[owner_island])
+    ]
     if not len(near):
         return
-    owner, within = _ragged(length[island[near]] - 1)
+    island = islands[pair[near]]
+    owner, within = _ragged(length[island] - 1)
     edge = a[near][owner]
-    b = first[island[near]][owner] + within
+    b = first[island][owner] + within
     apart = _segments_apart(
         x[edge], y[edge], x[edge + 1], y[edge + 1], x[b], y[b], x[b + 1], y[b + 1]
     )
-    proven[geometry[near][owner[~apart]]] = False
+    proven[rings.geometry[island[owner[~apart]]]] = False
 
 
 def _check_boxes(rings: _Rings, proven: np.ndarray) -> None:
