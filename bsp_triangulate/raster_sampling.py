@@ -167,24 +167,32 @@ class PreparedGrid:
         r0 = np.floor(v).astype(np.int64)
         fu = u - c0
         fv = v - r0
+        gu = 1 - fu
+        gv = 1 - fv
         first = (r0 + 1) * width + (c0 + 1)
-        total = np.zeros(u.shape)
-        weight_sum = np.zeros(u.shape)
-        for offset, weight in (
-            (0, (1 - fu) * (1 - fv)),
-            (1, fu * (1 - fv)),
-            (width, (1 - fu) * fv),
-            (width + 1, fu * fv),
-        ):
-            cell = self.values[first + offset]
-            unused = np.isnan(cell) | ~(weight > 0)
-            term = weight * cell
-            if unused.any():
-                term[unused] = 0.0
-                weight[unused] = 0.0
-            total += term
-            weight_sum += weight
+        neighbours = ((0, gu * gv), (1, fu * gv), (width, gu * fv), (width + 1, fu * fv))
         with np.errstate(invalid="ignore", divide="ignore"):
+            if (gu > 0).all() and (fu > 0).all() and (gv > 0).all() and (fv > 0).all():
+                # every weight positive: where no neighbour lacks a value (no NaN comes
+                # out), every neighbour is used and no masking is needed
+                total = np.zeros(u.shape)
+                weight_sum = np.zeros(u.shape)
+                for offset, weight in neighbours:
+                    total += weight * self.values[first + offset]
+                    weight_sum += weight
+                if not np.isnan(total).any():
+                    return np.where(weight_sum > 0, total / weight_sum, np.nan)
+            total = np.zeros(u.shape)
+            weight_sum = np.zeros(u.shape)
+            for offset, weight in neighbours:
+                cell = self.values[first + offset]
+                unused = np.isnan(cell) | ~(weight > 0)
+                term = weight * cell
+                if unused.any():
+                    term[unused] = 0.0
+                    weight = np.where(unused, 0.0, weight)
+                total += term
+                weight_sum += weight
             return np.where(weight_sum > 0, total / weight_sum, np.nan)
 
 

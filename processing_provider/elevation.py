@@ -286,30 +286,28 @@ class DemElevation(ElevationSource):
 
     def apply(self, batch: list[FeatureRings]) -> None:
         usable = [item for item in batch if item.ok]
-        rings = [ring for item in usable for part in item.parts for ring in part]
-        if not rings:
+        if not usable:
             return
-        lengths = np.fromiter(map(len, rings), dtype=np.int64, count=len(rings))
         # the z columns to fill, in ring order: runs of rows of one array where the reader
         # left the rings one after another, single rings elsewhere
         targets = _z_targets(usable)
-        offsets = np.concatenate([[0], np.cumsum(lengths)])
-        if sum(len(target) for target in targets) != offsets[-1]:
-            targets = rings  # blocks that do not match the rings: ring by ring
         xy = np.concatenate([target[:, :2] for target in targets])
         values = self.sampler.sample(xy)
         position = 0
         for target in targets:
             target[:, 2] = values[position : position + len(target)]
             position += len(target)
-        # missing values per ring, counted for all rings at once; only those rings need more
-        ring_of_value = np.repeat(np.arange(len(rings)), lengths)
-        missing_counts = np.bincount(ring_of_value[np.isnan(values)], minlength=len(rings))
-        incomplete = np.flatnonzero(missing_counts).tolist()
-        if not incomplete:
+        missing_values = np.isnan(values)
+        if not missing_values.any():
             return
+        # missing values per ring, counted for all rings at once; only those rings need more
+        rings = [ring for item in usable for part in item.parts for ring in part]
         owners = [item for item in usable for part in item.parts for _ring in part]
-        for index in incomplete:
+        lengths = np.fromiter(map(len, rings), dtype=np.int64, count=len(rings))
+        offsets = np.concatenate([[0], np.cumsum(lengths)])
+        ring_of_value = np.repeat(np.arange(len(rings)), lengths)
+        missing_counts = np.bincount(ring_of_value[missing_values], minlength=len(rings))
+        for index in np.flatnonzero(missing_counts).tolist():
             item, ring = owners[index], rings[index]
             if item.error is not None:
                 continue

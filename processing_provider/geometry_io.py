@@ -28,7 +28,8 @@ class FeatureRings:
 
     ``block``: when not None, ``(points, start, stop)``: the rings are the rows
     ``points[start:stop]``, one after another in order (as the bulk reader makes them), so
-    their z can be read and written as one slice. Assigning ``parts`` clears it.
+    their z can be read and written as one slice. Assigning ``parts`` clears it; the lists
+    of parts and rings are not to be changed in place.
     """
 
     __slots__ = ("_parts", "block", "error", "feature", "has_z", "repaired")

@@ -114,8 +114,11 @@ class BatchMesh:
 
     @property
     def fid(self) -> np.ndarray:
+        if not self._kept:
+            return np.zeros(0, np.int64)
         fids = np.array([item.fid for item in self.items], dtype=np.int64)
-        return fids[self.item] if len(fids) else np.zeros(0, np.int64)
+        rows = np.fromiter((row for row, _index, _tri in self._kept), np.int64, len(self._kept))
+        return np.repeat(fids[rows], self._counts)
 
     @classmethod
     def build(cls, results: list[tuple[FeatureRings, list[Triangulation]]]) -> BatchMesh:
@@ -353,10 +356,13 @@ class MeshAccumulator:
     def add(self, mesh: BatchMesh) -> None:
         if not len(mesh):
             return
-        faces = mesh.triangles + self.vertex_count
+        offset = self.vertex_count
         self.vertex_count += len(mesh.vertices)
+        # converted first, then shifted in place: every index fits the new type
+        faces = mesh.triangles.astype(_index_type(self.vertex_count))
+        faces += offset
         self.vertices.append(mesh.vertices)
-        self.faces.append(faces.astype(_index_type(self.vertex_count)))
+        self.faces.append(faces)
         self.fids.append(mesh.fid)
         self.depths.append(mesh.depth.astype(np.int32))
 

@@ -71,3 +71,17 @@ def test_errors_match_sample_grid():
         PreparedGrid(np.zeros(3), GT)
     with pytest.raises(ValueError, match="unknown sampling method"):
         PreparedGrid(np.zeros((2, 2)), GT).sample([1005.0], [1995.0], method="cubic")
+
+
+@pytest.mark.parametrize("holes", [False, True])
+def test_points_away_from_cell_centres_take_the_unmasked_path_with_the_same_bits(holes):
+    rng = np.random.default_rng(9)
+    grid = rng.normal(100, 30, (40, 50)).astype(np.float32)
+    if holes:
+        grid[rng.random(grid.shape) < 0.02] = -9999.0
+    col = rng.uniform(0, 50, 20_000)
+    row = rng.uniform(0, 40, 20_000)
+    xs, ys = GT[0] + col * GT[1], GT[3] + row * GT[5]
+    expected = sample_grid(grid, GT, xs, ys, "bilinear", -9999.0)
+    got = PreparedGrid(grid, GT, -9999.0).sample(xs, ys, "bilinear")
+    assert _same_bits(got, expected)
