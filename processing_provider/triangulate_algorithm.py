@@ -3,13 +3,10 @@
 from __future__ import annotations
 
 import traceback
-from collections.abc import Iterator
-from contextlib import closing
 from pathlib import Path
 from typing import Any, Callable
 
 from qgis.core import (
-    QgsApplication,
     QgsCoordinateTransform,
     QgsExpression,
     QgsFeatureRequest,
@@ -55,7 +52,6 @@ from .outputs import (
     triangle_feature_chunks,
     triangle_fields,
 )
-from .prefetch import map_ahead, worker_count
 
 ICON = Path(__file__).resolve().parent.parent / "icons" / "triangulate.svg"
 APEX_RULES = ("first", "elevation")
@@ -522,59 +518,43 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         reported_warnings: set[str] = set()
         writer = SinkWriter()
         try:
+            for batch in feature_batches(
+                features, invalid_policy, self.BATCH_FEATURES, self.BATCH_VERTICES, feedback
+            ):
+                if feedback.isCanceled():
+                    break
+                if max_length > 0:
+                    _densify(batch, max_length)
+                source_of_z.apply(batch)
+                for warning in set(source_of_z.warnings) - reported_warnings:
+                    feedback.pushInfo(self.tr("Elevation: {}").format(warning))
+                    reported_warnings.add(warning)
+                elevation.scale_z(batch, z_scale, z_offset)
 
-            def prepared() -> Iterator[tuple[list[FeatureRings], int]]:
-                """Batches read, densified and given z here (QGIS calls stay in this thread),
-                with the number of features read before each."""
-                start = 0
-                for batch in feature_batches(
-                    features, invalid_policy, self.BATCH_FEATURES, self.BATCH_VERTICES, feedback
-                ):
-                    if feedback.isCanceled():
-                        return
-                    if max_length > 0:
-                        _densify(batch, max_length)
-                    source_of_z.apply(batch)
-                    for warning in set(source_of_z.warnings) - reported_warnings:
-                        feedback.pushInfo(self.tr("Elevation: {}").format(warning))
-                        reported_warnings.add(warning)
-                    elevation.scale_z(batch, z_scale, z_offset)
-                    yield batch, start
-                    start += len(batch)
+                def report(fraction: float, start: int = read, size: int = len(batch)) -> None:
+                    feedback.setProgress(min((start + fraction * size) * step, 99.0))
 
-            def triangulate_job(job: tuple[list[FeatureRings], int]) -> list:
-                """The (feature, triangulations) pairs of a batch: numpy work on plain data,
-                run in a worker thread while this thread reads and writes."""
-                batch, start = job
-
-                def report(fraction: float) -> None:
-                    feedback.setProgress(min((start + fraction * len(batch)) * step, 99.0))
-
-                return self._triangulate(batch, rule, tolerance, feedback, report)[0]
-
-            workers = worker_count(QgsApplication.maxThreads())
-            with closing(map_ahead(triangulate_job, prepared(), workers)) as done:
-                for (batch, start), pairs in done:
-                    if feedback.isCanceled():
-                        break
-                    read += len(batch)
-                    repaired.extend(item.fid for item in batch if item.repaired)
-                    for item in batch:
-                        if item.error is not None:
-                            failed += 1
-                            feedback.reportError(
-                                self.tr("Feature {}: {}").format(item.fid, item.error), False
-                            )
-                    batch_mesh = BatchMesh.build(pairs)
-                    with_triangles = batch_mesh.feature_count()
-                    triangulated += with_triangles
-                    empty += sum(1 for item in batch if item.error is None) - with_triangles
-                    triangles += len(batch_mesh)
-                    writer.write(sinks[0], triangle_feature_chunks(batch_mesh, fields))
-                    writer.write(sinks[1], tree_feature_chunks(batch_mesh, lines))
-                    if mesh is not None:
-                        mesh.add(batch_mesh)
-                    feedback.setProgress(min((start + len(batch)) * step, 99.0))
+                pairs, _done = self._triangulate(batch, rule, tolerance, feedback, report)
+                if feedback.isCanceled():
+                    break
+                read += len(batch)
+                repaired.extend(item.fid for item in batch if item.repaired)
+                for item in batch:
+                    if item.error is not None:
+                        failed += 1
+                        feedback.reportError(
+                            self.tr("Feature {}: {}").format(item.fid, item.error), False
+                        )
+                batch_mesh = BatchMesh.build(pairs)
+                with_triangles = batch_mesh.feature_count()
+                triangulated += with_triangles
+                empty += sum(1 for item in batch if item.error is None) - with_triangles
+                triangles += len(batch_mesh)
+                writer.write(sinks[0], triangle_feature_chunks(batch_mesh, fields))
+                writer.write(sinks[1], tree_feature_chunks(batch_mesh, lines))
+                if mesh is not None:
+                    mesh.add(batch_mesh)
+                report(1.0)
             writer.close(sinks)  # a GeoPackage builds its spatial index here
             if feedback.isCanceled():
                 raise self._cancelled()
