@@ -11,7 +11,7 @@ checkout (an earlier commit) in the same way, for before/after tables in one ses
 
 Usage: python bench/profile_processing.py [--count 5000] [--gpkg | --mesh-only]
        [--mesh-format 2dm|ply] [--no-profile | --stages] [--root PATH] [--repeat N]
-       [--max-threads N] [--top 30]
+       [--top 30]
 """
 
 from __future__ import annotations
@@ -70,9 +70,9 @@ class StageClock:
     """CPU and wall seconds spent in named stages of the algorithm, by wrapping its functions
     (the names exist in every version of the plugin since the Processing provider).
 
-    Each thread keeps its own stack of stages and its own CPU clock, so a stage run in a
-    worker thread (the engine, overlapped with reading) is timed on its own; the stages'
-    wall seconds then add up to more than the run's.
+    Each thread keeps its own stack of stages and its own CPU clock, so a stage that runs in
+    another thread is timed on its own (the stages' wall seconds may then add up to more than
+    the run's).
     """
 
     def __init__(self) -> None:
@@ -176,17 +176,10 @@ def main() -> None:
     timing.add_argument("--stages", action="store_true", help="CPU and wall time per stage")
     parser.add_argument("--root", type=Path, default=ROOT, help="plugin checkout to run")
     parser.add_argument("--repeat", type=int, default=1, help="runs (--stages: the fastest)")
-    parser.add_argument(
-        "--max-threads", type=int, help="QGIS's max threads setting (1: no worker thread)"
-    )
     parser.add_argument("--top", type=int, default=30, help="functions to list")
     arguments = parser.parse_args()
     polygons, dem = ensure_stars(arguments.count)
     application, provider = start_qgis(arguments.root.resolve())
-    if arguments.max_threads is not None:
-        from qgis.core import QgsApplication
-
-        QgsApplication.setMaxThreads(arguments.max_threads)
     import processing
     from qgis.core import QgsProcessingContext, QgsProcessingFeedback
 
