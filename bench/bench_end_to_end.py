@@ -16,6 +16,7 @@ import argparse
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import tempfile
@@ -106,10 +107,18 @@ def algorithm(name: str, **parameters: object) -> list[str]:
 def run(
     quick: bool = False, budget: float | None = DEFAULT_BUDGET, count: int | None = None
 ) -> list[Row]:
-    """Rows of wall time and peak RSS per algorithm run."""
+    """Rows of wall time and peak RSS per algorithm run (outputs in a folder removed after)."""
+    output = Path(tempfile.mkdtemp(prefix="bsptri-bench-e2e-"))
+    try:
+        return measure_runs(output, quick, budget, count)
+    finally:
+        shutil.rmtree(output, ignore_errors=True)
+
+
+def measure_runs(output: Path, quick: bool, budget: float | None, count: int | None) -> list[Row]:
+    """Rows of wall time and peak RSS per algorithm run, outputs written to ``output``."""
     count = count or (QUICK_COUNT if quick else DEFAULT_COUNT)
     polygons, dem = ensure_stars(count)
-    output = Path(tempfile.mkdtemp(prefix="bsptri-bench-e2e-"))
     environment = qgis_environment(plugin_dir())
     enable_plugin(environment)
     triangulate = {
