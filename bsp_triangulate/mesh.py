@@ -83,6 +83,19 @@ def _ids(start: int, stop: int) -> np.ndarray:
     return np.arange(start + 1, stop + 1, dtype=np.int64)
 
 
+def _xyz_line(vertices: np.ndarray, start: int, stop: int) -> list[Part]:
+    """Pieces of the text lines "x y z" (newline included) of vertex rows start..stop."""
+    rows = vertices[start:stop]
+    return [
+        float_field(rows[:, 0]),
+        b" ",
+        float_field(rows[:, 1]),
+        b" ",
+        float_field(rows[:, 2]),
+        b"\n",
+    ]
+
+
 def _check_mesh(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     faces = np.asarray(faces).reshape(-1, 3)
@@ -124,17 +137,7 @@ def write_2dm(
         _write_blocks(
             handle,
             len(vertices),
-            lambda a, b: [
-                b"ND ",
-                int_field(_ids(a, b)),
-                b" ",
-                float_field(vertices[a:b, 0]),
-                b" ",
-                float_field(vertices[a:b, 1]),
-                b" ",
-                float_field(vertices[a:b, 2]),
-                b"\n",
-            ],
+            lambda a, b: [b"ND ", int_field(_ids(a, b)), b" ", *_xyz_line(vertices, a, b)],
         )
         _write_blocks(
             handle,
@@ -267,14 +270,7 @@ def write_ply(
         _write_blocks(
             handle,
             len(vertices),
-            lambda a, b: [
-                float_field(vertices[a:b, 0]),
-                b" ",
-                float_field(vertices[a:b, 1]),
-                b" ",
-                float_field(vertices[a:b, 2]),
-                b"\n",
-            ],
+            lambda a, b: _xyz_line(vertices, a, b),
         )
 
         def face_rows(a: int, b: int) -> list[Part]:
