@@ -16,6 +16,10 @@ Contract of :func:`triangulate_batch`:
 - The result arrays are slices of arrays shared by the batch (disjoint per polygon).
 - Speed comes from many polygons per call: every round of the tree costs a fixed number of
   numpy calls, so calls of a few polygons gain little; thousands per call is the intent.
+- Polygons of ``max_vertices`` to ``MID_VERTICES`` vertices are batched too, in groups of their
+  own sorted by size, when a call has at least ``MID_MIN_COUNT`` of them: their trees are deep
+  (a round per fan triangle), so they pay off only in numbers (measured: 200 concave polygons
+  of 300 vertices 5x faster than the engine, 100 of 600 2.3x; 6 irregular ones 3x slower).
 
 Pipeline: ``batch_rings`` (normalisation), ``batch_bridges`` (islands), ``batch_bsp`` (tree).
 """
@@ -31,11 +35,15 @@ from .batch_bsp import build_trees
 from .batch_rings import clear_area, flatten_rings, ragged_index, touching_polygons
 from .triangulation import Triangulation
 
-# Larger polygons go to the engine (its grid index beats the all-edges tests there).
+# Larger polygons go to the engine (its grid index beats the all-edges tests there)...
 MAX_VERTICES = 256
+# ... unless a call has many of them up to this size: they are batched among themselves
+MID_VERTICES = 640
+MID_MIN_COUNT = 32
 _RULES = {"first": False, "elevation": True}
-# polygons per internal group
+# polygons per internal group; vertices per group of mid-size polygons
 _GROUP = 10_000
+_MID_GROUP_VERTICES = 200_000
 
 
 def triangulate_batch(
@@ -53,7 +61,51 @@ def triangulate_batch(
             results[first : first + len(group)] = _triangulate(
                 group, _RULES[rule], max_vertices, [None] * len(group)
             )
+        if max_vertices < MID_VERTICES:
+            _triangulate_mid_size(polygons, _RULES[rule], max_vertices, results)
     return results
+
+
+def _triangulate_mid_size(
+    polygons: Sequence[Sequence[object]],
+    exhaustive: bool,
+    max_vertices: int,
+    results: list[Triangulation | None],
+) -> None:
+    """Batch the polygons of more than ``max_vertices`` and at most ``MID_VERTICES`` points
+    left so far, in groups of similar size, if there are at least ``MID_MIN_COUNT``."""
+    sizes = {}
+    for index, done in enumerate(results):
+        if done is None:
+            count = _point_count(polygons[index])
+            if max_vertices < count <= MID_VERTICES:
+                sizes[index] = count
+    if len(sizes) < MID_MIN_COUNT:
+        return
+    order = sorted(sizes, key=sizes.__getitem__)
+    start = 0
+    while start < len(order):
+        stop, total = start, 0
+        while stop < len(order) and (stop == start or total < _MID_GROUP_VERTICES):
+            total += sizes[order[stop]]
+            stop += 1
+        chosen = order[start:stop]
+        done = _triangulate(
+            [polygons[i] for i in chosen], exhaustive, MID_VERTICES, [None] * len(chosen)
+        )
+        for index, result in zip(chosen, done):
+            results[index] = result
+        start = stop
+
+
+def _point_count(rings: object) -> int:
+    """Points in all rings of a polygon as given (closing points included), or -1."""
+    try:
+        if isinstance(rings, np.ndarray) and rings.ndim == 2:
+            return len(rings)
+        return sum(len(ring) for ring in rings)
+    except TypeError:
+        return -1
 
 
 def _twins(ext: np.ndarray, ext_start: np.ndarray) -> np.ndarray:

@@ -17,10 +17,17 @@ import numpy as np
 import pytest
 
 from bsp_triangulate import TriangulationError, triangulate
-from bsp_triangulate.batch import MAX_VERTICES, triangulate_batch
+from bsp_triangulate.batch import MAX_VERTICES, MID_MIN_COUNT, MID_VERTICES, triangulate_batch
 
 from ..conftest import SHARED_DATA
-from .random_polygons import is_valid, random_polygon, rings_are_disjoint, with_z
+from .random_polygons import (
+    add_islands,
+    is_valid,
+    random_polygon,
+    rings_are_disjoint,
+    star_ring,
+    with_z,
+)
 
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")
 FARMS = SHARED_DATA / "swellendam" / "farms_33S.shp"
@@ -165,6 +172,36 @@ def test_batch_leaves_unknown_rules_and_large_polygons_to_the_engine() -> None:
     angles = np.linspace(0.0, 2.0 * np.pi, MAX_VERTICES + 1, endpoint=False)
     big = [np.column_stack([np.cos(angles), np.sin(angles)])]
     assert triangulate_batch([big, square])[0] is None
+
+
+def mid_size_polygons(rnd: random.Random, count: int, integer: bool) -> list:
+    """Valid star-shaped polygons of MAX_VERTICES to MID_VERTICES points, 0-3 islands."""
+    polygons: list = []
+    while len(polygons) < count:
+        size = rnd.randint(MAX_VERTICES + 1, MID_VERTICES - 20)
+        outer = star_ring(rnd, size, radius=rnd.choice((200.0, 1000.0)), integer=integer)
+        if not is_valid([outer]):
+            continue
+        rings = add_islands(rnd, outer, rnd.randint(0, 3), 8.0, integer=integer)
+        if rings is not None:
+            polygons.append(rings)
+    return polygons
+
+
+@pytest.mark.parametrize("integer", [True, False])
+def test_batch_equals_engine_on_many_mid_size_polygons(integer: bool) -> None:
+    rnd = random.Random(31 + integer)
+    polygons = mid_size_polygons(rnd, MID_MIN_COUNT + 4, integer)
+    small = [random_polygon(rnd, islands=1) for _ in range(20)]
+    problems, handled = mismatches(polygons + small)
+    assert problems == []
+    assert handled >= 0.9 * (len(polygons) + len(small))
+
+
+def test_few_mid_size_polygons_are_left_to_the_engine() -> None:
+    rnd = random.Random(5)
+    polygons = mid_size_polygons(rnd, MID_MIN_COUNT - 1, integer=False)
+    assert triangulate_batch(polygons) == [None] * len(polygons)
 
 
 def without_closing_points(rings: list) -> list:
