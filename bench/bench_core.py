@@ -22,6 +22,7 @@ from generate import (
     ensure_islands,
     ensure_stars,
     footprint_polygons,
+    mid_size_polygons,
     read_rings,
 )
 
@@ -30,6 +31,8 @@ from bsp_triangulate import Triangulation, triangulate_many
 QUICK_COUNT = 5_000
 # building footprints: twice as many polygons as the star set, with far fewer vertices each
 FOOTPRINTS_PER_STAR = 2
+# polygons of a few hundred vertices: one per 50 stars
+STARS_PER_MID_SIZE = 50
 DEFAULT_BUDGET = 1_800.0  # seconds per measurement before it is abandoned
 WATER_HUGE3 = SHARED_DATA / "earcut" / "fixtures" / "water-huge3.json"
 
@@ -180,6 +183,9 @@ def run(
         f"({vertex_count(footprints):,} vertices)"
     )
     rows += compare(footprint_case, footprints, 2 if quick else 1, budget)
+    mid_size = mid_size_polygons(max(count // STARS_PER_MID_SIZE, 1))
+    mid_case = f"{len(mid_size):,} polygons of 260-600 vertices with 1 island"
+    rows += compare(f"{mid_case} ({vertex_count(mid_size):,} vertices)", mid_size, 1, budget)
     if WATER_HUGE3.exists():
         water = [earcut_fixture(WATER_HUGE3)]
         holes = len(water[0]) - 1

@@ -107,6 +107,21 @@ def footprint_polygons(count: int, seed: int = SEED) -> list[Rings]:
     return polygons
 
 
+def mid_size_polygons(count: int, seed: int = SEED) -> list[Rings]:
+    """``count`` concave star polygons of 260 to 600 vertices with a 12-vertex island each
+    (parcels with detailed boundaries), on a 300 m grid."""
+    rng = np.random.default_rng(seed)
+    polygons: list[Rings] = []
+    for index in range(count):
+        row, column = divmod(index, 40)
+        centre = (ORIGIN_X + column * 300.0, ORIGIN_Y + row * 300.0)
+        vertices = int(rng.integers(260, 601))
+        outer = star_ring(rng, centre, vertices, 140.0, 90.0, 0.15, rng.uniform(0, np.pi))
+        island = star_ring(rng, centre, 12, 20.0, 14.0, 0.1)
+        polygons.append([outer, island[::-1].copy()])
+    return polygons
+
+
 def polygon_with_islands(vertices: int, seed: int = SEED) -> Rings:
     """One concave polygon of ``vertices`` vertices in all, ``vertices // 100`` islands."""
     rng = np.random.default_rng(seed + vertices)
