@@ -117,8 +117,7 @@ class BatchMesh:
         if not self._kept:
             return np.zeros(0, np.int64)
         fids = np.array([item.fid for item in self.items], dtype=np.int64)
-        rows = np.fromiter((row for row, _index, _tri in self._kept), np.int64, len(self._kept))
-        return np.repeat(fids[rows], self._counts)
+        return fids[self.item]
 
     @classmethod
     def build(cls, results: list[tuple[FeatureRings, list[Triangulation]]]) -> BatchMesh:
