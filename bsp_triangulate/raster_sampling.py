@@ -29,20 +29,6 @@ def world_to_pixel(
     return cols, rows
 
 
-def _gather(
-    grid: np.ndarray, rows: np.ndarray, cols: np.ndarray, nodata: float | None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Cell values as float64 and whether each is valid (finite and not nodata)."""
-    values = grid[rows, cols].astype(np.float64)
-    valid = np.isfinite(values)
-    if nodata is not None and not np.isnan(nodata):
-        if grid.dtype.kind == "f":  # a float32 nodata compares equal in its own precision
-            valid &= grid[rows, cols] != grid.dtype.type(nodata)
-        else:
-            valid &= values != float(nodata)
-    return values, valid
-
-
 def sample_grid(
     array: np.ndarray,
     geotransform: Sequence[float],
@@ -60,54 +46,11 @@ def sample_grid(
       remaining weights renormalised, i.e. the weighted mean of the valid neighbours; NaN when
       no neighbour with a positive weight is valid or the point is outside the raster extent.
     """
-    grid = np.asarray(array)
-    if grid.ndim != 2:
-        raise ValueError("the raster array must be 2-D (rows, cols)")
-    rows_n, cols_n = grid.shape
-    cols, rows = world_to_pixel(geotransform, xs, ys)
-    shape = cols.shape
-    cols, rows = cols.ravel(), rows.ravel()
-    inside = (cols >= 0) & (cols <= cols_n) & (rows >= 0) & (rows <= rows_n)
-    result = np.full(cols.shape, np.nan)
-    if method == "nearest":
-        c = np.clip(np.floor(cols[inside]).astype(np.int64), 0, cols_n - 1)
-        r = np.clip(np.floor(rows[inside]).astype(np.int64), 0, rows_n - 1)
-        cell, ok = _gather(grid, r, c, nodata)
-        result[inside] = np.where(ok, cell, np.nan)
-        return result.reshape(shape)
-    if method != "bilinear":
-        raise ValueError(f"unknown sampling method {method!r}; use 'bilinear' or 'nearest'")
-    u = cols[inside] - 0.5
-    v = rows[inside] - 0.5
-    c0 = np.floor(u).astype(np.int64)
-    r0 = np.floor(v).astype(np.int64)
-    fu = u - c0
-    fv = v - r0
-    total = np.zeros(u.shape)
-    weight_sum = np.zeros(u.shape)
-    for dr, dc, weight in (
-        (0, 0, (1 - fu) * (1 - fv)),
-        (0, 1, fu * (1 - fv)),
-        (1, 0, (1 - fu) * fv),
-        (1, 1, fu * fv),
-    ):
-        r = r0 + dr
-        c = c0 + dc
-        on_grid = (r >= 0) & (r < rows_n) & (c >= 0) & (c < cols_n)
-        rc = np.clip(r, 0, rows_n - 1)
-        cc = np.clip(c, 0, cols_n - 1)
-        cell, ok = _gather(grid, rc, cc, nodata)
-        use = on_grid & ok & (weight > 0)
-        total += np.where(use, weight * np.where(use, cell, 0.0), 0.0)
-        weight_sum += np.where(use, weight, 0.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        result[inside] = np.where(weight_sum > 0, total / weight_sum, np.nan)
-    return result.reshape(shape)
+    return PreparedGrid(array, geotransform, nodata).sample(xs, ys, method)
 
 
 class PreparedGrid:
-    """A raster grid prepared for repeated sampling; ``sample`` gives exactly what
-    ``sample_grid`` gives for the same grid, geotransform and nodata.
+    """A raster grid prepared for repeated sampling (``sample``, as ``sample_grid`` describes).
 
     The values are kept as float64 with a border of one cell, and every cell without a value
     (nodata, NaN, infinite, or beyond the grid) is NaN: a neighbour's index needs no clipping
@@ -125,7 +68,7 @@ class PreparedGrid:
         values = grid.astype(np.float64)
         valid = np.isfinite(values)
         if nodata is not None and not np.isnan(nodata):
-            if grid.dtype.kind == "f":  # as _gather: nodata compared in the grid's precision
+            if grid.dtype.kind == "f":  # a float32 nodata compares equal in its own precision
                 valid &= grid != grid.dtype.type(nodata)
             else:
                 valid &= values != float(nodata)
