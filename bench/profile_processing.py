@@ -26,7 +26,6 @@ import pstats
 import resource
 import sys
 import tempfile
-import threading
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -70,34 +69,28 @@ class StageClock:
     """CPU and wall seconds spent in named stages of the algorithm, by wrapping its functions
     (the names exist in every version of the plugin since the Processing provider).
 
-    Each thread keeps its own stack of stages and its own CPU clock, so a stage that runs in
-    another thread is timed on its own (the stages' wall seconds may then add up to more than
-    the run's).
+    A stage's CPU time is that of the calling thread (QGIS's own worker threads count in the
+    rest).
     """
 
     def __init__(self) -> None:
         self.cpu: dict[str, float] = defaultdict(float)
         self.wall: dict[str, float] = defaultdict(float)
-        self.local = threading.local()
-        self.lock = threading.Lock()
+        self.active: list[str] = []
 
     def _enter(self, name: str) -> tuple[float, float]:
-        if not hasattr(self.local, "active"):
-            self.local.active = []
-        self.local.active.append(name)
+        self.active.append(name)
         return time.thread_time(), time.perf_counter()
 
     def _leave(self, name: str, started: tuple[float, float]) -> None:
         cpu = time.thread_time() - started[0]
         wall = time.perf_counter() - started[1]
-        active = self.local.active
-        active.pop()
-        with self.lock:
-            self.cpu[name] += cpu
-            self.wall[name] += wall
-            if active:  # an enclosing stage of this thread does not count this time again
-                self.cpu[active[-1]] -= cpu
-                self.wall[active[-1]] -= wall
+        self.active.pop()
+        self.cpu[name] += cpu
+        self.wall[name] += wall
+        if self.active:  # an enclosing stage does not count this time again
+            self.cpu[self.active[-1]] -= cpu
+            self.wall[self.active[-1]] -= wall
 
     def wrap(self, owner: object, attribute: str, name: str) -> None:
         function = getattr(owner, attribute)
