@@ -8,8 +8,8 @@ Usage: python bench/profile_batch.py [--counts 5000 50000] [--engine 300] [--rul
        [--profile] [--stages]
 
 ``--stages`` prints the CPU seconds of each step of the batch path (ring normalisation,
-touching search, area check, bridges, and in the tree: per-position tables, facing tests,
-blocker tests, vertex tables, the rest being the round bookkeeping).
+validity proof, touching search, area check, bridges, and in the tree: per-position tables,
+facing tests, blocker tests, vertex tables, the rest being the round bookkeeping).
 """
 
 from __future__ import annotations
@@ -109,6 +109,7 @@ def compare_with_engine(polygons: list, results: list, rule: str) -> tuple[float
 # their caller too
 STAGES = (
     (batch, "flatten_rings"),
+    (batch, "proven_valid_rings"),
     (batch, "touching_polygons"),
     (batch, "clear_area"),
     (batch, "bridge_sequences"),
@@ -157,7 +158,7 @@ def print_stages(polygons: list, rule: str) -> None:
     inner = ("of", "_facing", "_strictly_inside", "_tables")
     rows = [(name, seconds.get(name, 0.0)) for _, name in STAGES]
     rows.append(("tree bookkeeping", tree - sum(seconds.get(name, 0.0) for name in inner)))
-    rows.append(("other", total - sum(seconds.get(name, 0.0) for _, name in STAGES[:5])))
+    rows.append(("other", total - sum(seconds.get(name, 0.0) for _, name in STAGES[:6])))
     print(f"stages (CPU, total {total:.3f} s):")
     for name, value in rows:
         print(f"  {name:20s} {value:8.3f} s  {100.0 * value / total:5.1f} %")

@@ -34,6 +34,7 @@ from .batch_bridges import bridge_sequences
 from .batch_bsp import build_trees
 from .batch_rings import clear_area, flatten_rings, ragged_index, touching_polygons
 from .triangulation import Triangulation
+from .validity import proven_valid_rings
 
 # Larger polygons go to the engine (its grid index beats the all-edges tests there)...
 MAX_VERTICES = 256
@@ -135,7 +136,12 @@ def _triangulate(
     wy = flat.vy
     vertices = flat.vertices
     handled = flat.handled.copy()
-    handled &= ~touching_polygons(flat, wx) | flat.empty
+    # a polygon proven valid has no touching rings: the search is left to the others
+    undecided = handled & ~flat.empty
+    undecided &= ~proven_valid_rings(
+        flat.vx, flat.vy, flat.ring_start, flat.ring_len, flat.ring_poly, undecided
+    )
+    handled &= ~touching_polygons(flat, wx, undecided)
     # the engine gives slivers of negligible net area no triangles: left to it
     handled &= clear_area(flat, wx) | flat.empty
     for p in np.flatnonzero(handled & flat.empty).tolist():

@@ -275,18 +275,37 @@ def _band_pairs(
     return np.repeat(edges, counts), order[ragged_index(start, counts)]
 
 
-def touching_polygons(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
-    """Per polygon: two of its vertices coincide, or a vertex lies in the relative interior of
-    a ring edge (the engine then splits edges or joins rings at that point)."""
+def touching_polygons(flat: FlatRings, wx: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """Per polygon with ``wanted`` set: two of its vertices coincide, or a vertex lies in the
+    relative interior of a ring edge (the engine then splits edges or joins rings at that
+    point); False for the others."""
     count = len(flat.handled)
-    wy = flat.vy
+    rings = np.flatnonzero(wanted[flat.ring_poly])
+    if len(rings) == len(flat.ring_len):
+        return _touching(wx, flat.vy, flat.ring_start, flat.ring_len, flat.ring_poly, count)
+    ring_len = flat.ring_len[rings]
+    points = ragged_index(flat.ring_start[rings], ring_len)
+    ring_start = np.cumsum(ring_len) - ring_len
+    ring_poly = flat.ring_poly[rings]
+    return _touching(wx[points], flat.vy[points], ring_start, ring_len, ring_poly, count)
+
+
+def _touching(
+    wx: np.ndarray,
+    wy: np.ndarray,
+    ring_start: np.ndarray,
+    ring_len: np.ndarray,
+    ring_poly: np.ndarray,
+    count: int,
+) -> np.ndarray:
+    """:func:`touching_polygons` of the rings given (vertices contiguous per ring)."""
     nv = len(wx)
     touching = np.zeros(count, dtype=bool)
     if nv == 0:
         return touching
-    poly_of = np.repeat(flat.ring_poly, flat.ring_len)
+    poly_of = np.repeat(ring_poly, ring_len)
     nxt = np.arange(nv, dtype=np.int64) + 1
-    nxt[flat.ring_start + flat.ring_len - 1] = flat.ring_start
+    nxt[ring_start + ring_len - 1] = ring_start
     x0, x1 = np.minimum(wx, wx[nxt]), np.maximum(wx, wx[nxt])
     y0, y1 = np.minimum(wy, wy[nxt]), np.maximum(wy, wy[nxt])
     # candidates from the thinner slab of each edge's bounding box, then its other side

@@ -128,6 +128,48 @@ def proven_valid(table: PolygonTable, wanted: np.ndarray) -> np.ndarray:
     return proven
 
 
+def proven_valid_rings(
+    x: np.ndarray,
+    y: np.ndarray,
+    ring_start: np.ndarray,
+    ring_len: np.ndarray,
+    ring_poly: np.ndarray,
+    wanted: np.ndarray,
+) -> np.ndarray:
+    """Per polygon of open rings (first point not repeated; a polygon's outer ring first, its
+    islands after it): proven valid as ``proven_valid`` proves it, so no two of its vertices
+    coincide and none lies on an edge other than its own two. Only polygons with ``wanted``
+    set are examined; the others are False."""
+    count = len(wanted)
+    proven = np.zeros(count, dtype=bool)
+    if not len(ring_len):
+        return proven
+    rings_of = np.bincount(ring_poly, minlength=count)
+    proven[:] = wanted & (rings_of >= 1) & (rings_of <= MAX_ISLANDS + 1)
+    proven[ring_poly[ring_len < 3]] = False
+    chosen = np.flatnonzero(proven[ring_poly])
+    if not len(chosen):
+        return proven
+    # closed copies of the rings in question
+    length = ring_len[chosen] + 1
+    owner, within = _ragged(length)
+    source = ring_start[chosen][owner] + within % ring_len[chosen][owner]
+    geometry = ring_poly[chosen]
+    rings = _Rings(
+        x=x[source],
+        y=y[source],
+        first=np.cumsum(length) - length,
+        length=length,
+        geometry=geometry,
+        part=geometry,
+    )
+    with np.errstate(all="ignore"):
+        _check_rings(rings, proven)
+        _check_islands(rings, proven)
+        _check_boxes(rings, proven)
+    return proven
+
+
 def _rings_in_question(table: PolygonTable, proven: np.ndarray) -> _Rings | None:
     """The rings of the geometries still in question; rules out geometries with too many
     islands or a ring of fewer than 4 points."""
