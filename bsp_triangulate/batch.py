@@ -45,6 +45,8 @@ _RULES = {"first": False, "elevation": True}
 # polygons per internal group; vertices per group of mid-size polygons
 _GROUP = 10_000
 _MID_GROUP_VERTICES = 200_000
+# polygons with at least this many vertices are first offered to the validity proof
+_PROOF_VERTICES = 16
 
 
 def triangulate_batch(
@@ -136,10 +138,16 @@ def _triangulate(
     wy = flat.vy
     vertices = flat.vertices
     handled = flat.handled.copy()
-    # a polygon proven valid has no touching rings: the search is left to the others
+    # a polygon proven valid has no touching rings: the search is left to the others (the
+    # proof pays off where the search is costly, on polygons of more than a few vertices)
     undecided = handled & ~flat.empty
     undecided &= ~proven_valid_rings(
-        flat.vx, flat.vy, flat.ring_start, flat.ring_len, flat.ring_poly, undecided
+        flat.vx,
+        flat.vy,
+        flat.ring_start,
+        flat.ring_len,
+        flat.ring_poly,
+        undecided & (flat.poly_vcount >= _PROOF_VERTICES),
     )
     handled &= ~touching_polygons(flat, wx, undecided)
     # the engine gives slivers of negligible net area no triangles: left to it

@@ -117,6 +117,12 @@ def test_batch_leaves_touching_islands_to_the_engine_or_agrees() -> None:
     assert sum(touching) >= 40
     # rings apart from each other (no touching island was found for them) are handled
     assert all(r is not None for r, t in zip(results, touching) if not t)
+    # the touching ones go to the engine, the larger ones after the validity proof failed
+    assert all(r is None for r, t in zip(results, touching) if t)
+    assert (
+        sum(t and sum(len(ring) for ring in rings) >= 16 for rings, t in zip(polygons, touching))
+        >= 40
+    )
 
 
 def test_batch_equals_engine_with_rule_elevation_on_polygons_with_z() -> None:
