@@ -67,6 +67,14 @@ class Sequences:
     extent_y: np.ndarray
     table: np.ndarray
     exact: bool
+    starts: np.ndarray
+    runs: RunBoxes | None = None
+
+    def run_boxes(self) -> RunBoxes:
+        """The boxes of the runs of every sequence (computed once, when first needed)."""
+        if self.runs is None:
+            self.runs = RunBoxes.of(self.sx, self.sy, self.starts)
+        return self.runs
 
     @classmethod
     def of(
@@ -94,7 +102,41 @@ class Sequences:
             table[1:-1, _TURN] = turn
         extent_x, extent_y = np.repeat(extent_x, lengths), np.repeat(extent_y, lengths)
         xy = np.ascontiguousarray(table[:, :2])
-        return cls(sx, sy, xy, twin, extent_x, extent_y, table, exact)
+        return cls(sx, sy, xy, twin, extent_x, extent_y, table, exact, starts)
+
+
+@dataclass
+class RunBoxes:
+    """Each sequence cut into runs of ``_RUN`` edges from its first position (run j holds
+    positions start + _RUN j .. start + _RUN (j + 1), fewer at the end): per position the
+    start of its sequence and the index of that sequence's first run, and per run its box."""
+
+    start_of: np.ndarray
+    first_run: np.ndarray
+    x0: np.ndarray
+    x1: np.ndarray
+    y0: np.ndarray
+    y1: np.ndarray
+
+    @classmethod
+    def of(cls, sx: np.ndarray, sy: np.ndarray, starts: np.ndarray) -> RunBoxes:
+        lengths = np.diff(np.r_[starts, len(sx)])
+        count = (lengths - 1 + _RUN - 1) // _RUN
+        first_run = np.cumsum(count) - count
+        run_start = ragged_index(np.zeros(len(starts), dtype=np.int64), count) * _RUN
+        run_start += np.repeat(starts, count)
+        run_last = np.repeat(starts + lengths - 1, count)
+        index = np.arange(_RUN + 1, dtype=np.int64)[:, None] + run_start
+        np.minimum(index, run_last, out=index)
+        x, y = sx[index], sy[index]
+        return cls(
+            np.repeat(starts, lengths),
+            np.repeat(first_run, lengths),
+            x.min(axis=0),
+            x.max(axis=0),
+            y.min(axis=0),
+            y.max(axis=0),
+        )
 
 
 def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -200,6 +242,13 @@ def _tables(
     for first, stop in zip(bounds[:-1], bounds[1:]):
         idx = np.arange(first, stop)
         part = size[first:stop]
+        wide = part > _RUN_MIN
+        if wide.any():
+            rows = idx[wide]
+            bad[rows], inside[rows] = _bad_runs(seqs, lo[rows], hi[rows], c[rows])
+            idx, part = idx[~wide], part[~wide]
+            if not len(idx):
+                continue
         widths = np.minimum(np.searchsorted(_WIDTHS, part), len(_WIDTHS) - 1)
         if len(idx) * int(part.max()) <= _ONE_TABLE:
             widths[:] = widths.max()  # few items: one table, fewer numpy calls
@@ -210,6 +259,62 @@ def _tables(
                 seqs.sx, seqs.sy, lo[rows], hi[rows], c[rows], seqs.extent_x[c[rows]],
                 seqs.extent_y[c[rows]], seqs.twin, width, seqs.exact,
             )  # fmt: skip
+    return bad, inside
+
+
+# sub-polygons of more than this many vertices are tested run by run (``_bad_runs``)
+_RUN_MIN = 64
+# positions per run: a run's table column holds its _RUN + 1 vertices, the edges between them
+_RUN = 8
+
+
+def _bad_runs(
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_bad_rows` of large sub-polygons, run by run: a run of the sequence (see
+    :class:`RunBoxes`) whose bounding box lies strictly outside one side of the triangle
+    (exact sign at the box's corner nearest to that side) holds no vertex in the closed
+    triangle and no edge that meets it; only the other runs that overlap lo .. hi are tested
+    (their positions outside lo .. hi count as lo or hi)."""
+    boxes = seqs.run_boxes()
+    n = len(lo)
+    start = boxes.start_of[lo]
+    first = (lo - start) // _RUN
+    runs = (hi - 1 - start) // _RUN - first + 1
+    item = np.repeat(np.arange(n, dtype=np.int64), runs)
+    within = ragged_index(first, runs)
+    run = within + boxes.first_run[lo][item]
+    a, b, cc = hi[item], lo[item], c[item]
+    sx, sy = seqs.sx, seqs.sy
+    extent_x, extent_y = seqs.extent_x[cc], seqs.extent_y[cc]
+    # the three sides as rows: the inside is left of a -> b, b -> c and c -> a
+    u, v = np.stack([a, b, cc]), np.stack([b, cc, a])
+    ux, uy = sx[u], sy[u]
+    dx, dy = sx[v] - ux, sy[v] - uy
+    # orient(u, v, p) = dx (py - uy) - dy (px - ux) is largest at this corner of the box
+    px = np.where(dy > 0, boxes.x0[run], boxes.x1[run])
+    py = np.where(dx > 0, boxes.y1[run], boxes.y0[run])
+    py -= uy
+    px -= ux
+    det = dx * py
+    det -= dy * px
+    if seqs.exact:
+        keep = (det >= 0).all(axis=0)
+    else:
+        keep = (det >= -row_bound(dx, dy, extent_x, extent_y)).all(axis=0)
+    bad = np.zeros(n, dtype=bool)
+    inside = np.full(n, -1, dtype=np.int64)
+    tested = np.flatnonzero(keep)
+    if len(tested):
+        owner = item[tested]
+        offset = start[owner] + within[tested] * _RUN - lo[owner]
+        column_bad, found = _bad_rows(
+            sx, sy, lo[owner], hi[owner], c[owner], extent_x[tested], extent_y[tested],
+            seqs.twin, _RUN + 1, seqs.exact, offset,
+        )  # fmt: skip
+        bad[owner[column_bad]] = True
+        hit = found >= 0
+        inside[owner[hit]] = found[hit]
     return bad, inside
 
 
@@ -287,16 +392,22 @@ def _bad_rows(
     twin: np.ndarray,
     width: int,
     exact: bool,
+    offset: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Conditions 2 and 3 of the correct triangle for items of one padded width, and per
     item a position strictly inside the triangle, or -1.
 
     Tables are (width, items): column i holds the positions lo_i .. hi_i, padded with hi_i,
-    so that per-item values broadcast along long contiguous rows.
+    so that per-item values broadcast along long contiguous rows. With ``offset``, column i
+    holds only the positions from lo_i + offset_i on (one run of the sub-polygon's boundary:
+    its vertices and the edges between them).
     """
     n = len(lo)
-    pos = np.arange(width, dtype=np.int64)[:, None] + lo
+    first = lo if offset is None else lo + offset
+    pos = np.arange(width, dtype=np.int64)[:, None] + first
     np.minimum(pos, hi, out=pos)
+    if offset is not None:
+        np.maximum(pos, lo, out=pos)
     px, py = sx[pos], sy[pos]
     ax, ay, bx, by, cx, cy = sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]
     last = hi - lo
@@ -307,27 +418,40 @@ def _bad_rows(
 
     # entries known to be exactly zero: p at position lo (b), hi and the padding (a), c, and
     # the other occurrence (twin) of a corner inside the range: p is then a or b itself
-    pad_count = int((width - last).sum())
-
     def twin_col(position: np.ndarray) -> np.ndarray:
         t = twin[position]
         return np.where((t > lo) & (t < hi), t - lo, -1)
 
     ta, tb, tc = twin_col(hi), twin_col(lo), twin_col(c)
-    n_ta, n_tb, n_tc = int((ta >= 0).sum()), int((tb >= 0).sum()), int((tc >= 0).sum())
+    if offset is None:
+        # how many there are, so that tables without any other zero skip the search
+        pad_count = int((width - last).sum())
+        n_ta, n_tb, n_tc = int((ta >= 0).sum()), int((tb >= 0).sum()), int((tc >= 0).sum())
+        known_ab = n + pad_count + n_ta + n_tb
+        known_ca = n + pad_count + n_ta + n_tc
+        known_bc = 2 * n + n_tb + n_tc
+        zero_row = np.zeros(n, dtype=np.int64)
+    else:
+        # runs: rows count from lo_i + offset_i (rows before lo_i hold lo_i), and the known
+        # zeros are looked up where they are (-1: a count no table has)
+        known_ab = known_ca = known_bc = -1
+        last = last - offset
+        ccol = ccol - offset
+        ta, tb, tc = (np.where(t >= 0, t - offset, -1) for t in (ta, tb, tc))
+        zero_row = -offset
     dxa, dya = px - ax, py - ay
     pos_ab, _, _ = orient_rows(
-        ax, ay, bx, by, px, py, dxa, dya, bound(bx - ax, by - ay), n + pad_count + n_ta + n_tb,
-        lambda k, r: (k == 0) | (k >= last[r]) | (k == ta[r]) | (k == tb[r]),
+        ax, ay, bx, by, px, py, dxa, dya, bound(bx - ax, by - ay), known_ab,
+        lambda k, r: (k <= zero_row[r]) | (k >= last[r]) | (k == ta[r]) | (k == tb[r]),
     )  # fmt: skip
     # orient(a, c, p) = -orient(c, a, p), sharing p - a with the line a -> b
     _, pos_ca, zero_ca = orient_rows(
-        ax, ay, cx, cy, px, py, dxa, dya, bound(cx - ax, cy - ay), n + pad_count + n_ta + n_tc,
+        ax, ay, cx, cy, px, py, dxa, dya, bound(cx - ax, cy - ay), known_ca,
         lambda k, r: (k == ccol[r]) | (k >= last[r]) | (k == ta[r]) | (k == tc[r]),
     )  # fmt: skip
     pos_bc, _, zero_bc = orient_rows(
-        bx, by, cx, cy, px, py, px - bx, py - by, bound(cx - bx, cy - by), 2 * n + n_tb + n_tc,
-        lambda k, r: (k == 0) | (k == ccol[r]) | (k == tb[r]) | (k == tc[r]),
+        bx, by, cx, cy, px, py, px - bx, py - by, bound(cx - bx, cy - by), known_bc,
+        lambda k, r: (k <= zero_row[r]) | (k == ccol[r]) | (k == tb[r]) | (k == tc[r]),
     )  # fmt: skip
     # a vertex strictly inside: the edges at it meet the open triangle
     inside = pos_ab & pos_bc
@@ -335,7 +459,7 @@ def _bad_rows(
     bad = inside.any(axis=0)
     found = np.full(n, -1, dtype=np.int64)
     if bad.any():
-        found[bad] = lo[bad] + inside[:, bad].argmax(axis=0)
+        found[bad] = first[bad] + inside[:, bad].argmax(axis=0)
     # condition 3: a vertex in the relative interior of a new side (the known zeros are the
     # corners themselves)
     for (k, r), ux, uy in ((zero_bc, bx, by), (zero_ca, ax, ay)):

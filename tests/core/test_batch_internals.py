@@ -88,3 +88,78 @@ def test_batch_equals_engine_on_near_collinear_combs(wobble: float) -> None:
         for name in ("vertices", "triangles", "parent", "depth", "side"):
             assert np.array_equal(getattr(mine, name), getattr(expected, name)), name
     assert handled >= 0.9 * len(polygons)
+
+
+@pytest.mark.parametrize("wobble", [0.0, 1e-15, 1e-9])
+def test_batch_equals_engine_on_large_near_collinear_combs(wobble: float) -> None:
+    """Sub-polygons of more than 64 vertices are tested run by run (bounding boxes of runs
+    of the boundary first): the results stay the engine's where the sides pass within
+    rounding distance of the teeth."""
+    from bsp_triangulate import triangulate
+    from bsp_triangulate.batch import triangulate_batch
+
+    rng = np.random.default_rng(29)
+    polygons = [near_collinear_polygon(rng, int(rng.integers(40, 150)), wobble) for _ in range(40)]
+    results = triangulate_batch(polygons)
+    assert sum(r is not None for r in results) >= 30
+    for rings, mine in zip(polygons, results):
+        if mine is not None:
+            expected = triangulate(rings)
+            for name in ("vertices", "triangles", "parent", "depth", "side"):
+                assert np.array_equal(getattr(mine, name), getattr(expected, name)), name
+
+
+def bridged_star(rng: np.random.Generator, count: int, grid: bool) -> tuple:
+    """A star with an island joined by a bridge, as the batch path lays sequences out
+    (closing repeat included), and the twin of each position (the bridge ends) or -1."""
+    angles = np.sort(rng.uniform(0.0, 2.0 * np.pi, count))
+    radius = np.where(np.arange(count) % 2 == 0, 100.0, rng.uniform(20.0, 90.0, count))
+    outer = np.column_stack([radius * np.cos(angles), radius * np.sin(angles)])
+    island = 8.0 * np.column_stack([np.cos(angles[::-1][:8]), np.sin(angles[::-1][:8])])
+    if grid:
+        outer, island = np.round(outer * 4.0) / 4.0, np.round(island * 4.0) / 4.0
+    else:
+        outer += [512_345.678, 6_012_345.25]
+        island += [512_345.678, 6_012_345.25]
+    i = int(rng.integers(0, count))
+    seq = np.concatenate([outer[: i + 1], island, island[:1], outer[i:], outer[:1]])
+    twin = np.full(len(seq), -1)
+    twin[i], twin[i + len(island) + 2] = i + len(island) + 2, i
+    twin[i + 1], twin[i + len(island) + 1] = i + len(island) + 1, i + 1
+    return seq, twin
+
+
+@pytest.mark.parametrize("grid", [True, False])
+def test_runs_decide_like_the_whole_table(grid: bool) -> None:
+    from bsp_triangulate import batch_bsp
+    from bsp_triangulate.predicates import orient_many
+
+    rng = np.random.default_rng(41)
+    parts = [bridged_star(rng, int(rng.integers(70, 200)), grid) for _ in range(30)]
+    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+    seq = np.concatenate([p[0] for p in parts])
+    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
+    sx, sy = seq[:, 0].copy(), seq[:, 1].copy()
+    seqs = batch_bsp.Sequences.of(sx, sy, twin, starts, grid)
+    # random sub-polygons [lo, hi] of more than 64 vertices and counter-clockwise candidates
+    owner = rng.integers(0, len(parts), 20_000)
+    length = np.array([len(p[0]) for p in parts])[owner]
+    lo = starts[owner] + rng.integers(1, length - 66)
+    hi = np.minimum(lo + 65 + rng.integers(0, length), starts[owner] + length - 1)
+    c = lo + 1 + (rng.random(len(lo)) * (hi - lo - 1)).astype(np.int64)
+    ccw = orient_many(sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]) > 0
+    lo, hi, c = lo[ccw], hi[ccw], c[ccw]
+    width = int((hi - lo).max()) + 1
+    bad, inside = batch_bsp._bad_rows(
+        sx, sy, lo, hi, c, seqs.extent_x[c], seqs.extent_y[c], twin, width, grid
+    )
+    run_bad, run_inside = batch_bsp._bad_runs(seqs, lo, hi, c)
+    assert len(lo) > 5_000 and 0.05 < bad.mean() < 0.95
+    assert np.array_equal(run_bad, bad)
+    assert np.array_equal(run_inside >= 0, inside >= 0)
+    # a position reported inside is strictly inside its triangle
+    found = np.flatnonzero(run_inside >= 0)
+    p = run_inside[found]
+    a, b, q = hi[found], lo[found], c[found]
+    for u, v in ((a, b), (b, q), (q, a)):
+        assert (orient_many(sx[u], sy[u], sx[v], sy[v], sx[p], sy[p]) > 0).all()
