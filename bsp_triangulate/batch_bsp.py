@@ -432,13 +432,17 @@ def _bad_rows(
         known_bc = 2 * n + n_tb + n_tc
         zero_row = np.zeros(n, dtype=np.int64)
     else:
-        # runs: rows count from lo_i + offset_i (rows before lo_i hold lo_i), and the known
-        # zeros are looked up where they are (-1: a count no table has)
-        known_ab = known_ca = known_bc = -1
+        # runs: rows count from lo_i + offset_i (the rows before lo_i hold lo_i)
         last = last - offset
         ccol = ccol - offset
         ta, tb, tc = (np.where(t >= 0, t - offset, -1) for t in (ta, tb, tc))
         zero_row = -offset
+        at_b = int(np.clip(zero_row + 1, 0, width).sum())
+        at_a = int(np.clip(width - last, 0, width).sum())
+        n_ta, n_tb, n_tc, n_c = (int(((t >= 0) & (t < width)).sum()) for t in (ta, tb, tc, ccol))
+        known_ab = at_b + at_a + n_ta + n_tb
+        known_ca = n_c + at_a + n_ta + n_tc
+        known_bc = at_b + n_c + n_tb + n_tc
     dxa, dya = px - ax, py - ay
     pos_ab, _, _ = orient_rows(
         ax, ay, bx, by, px, py, dxa, dya, bound(bx - ax, by - ay), known_ab,
