@@ -85,9 +85,10 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
     BATCH_FEATURES = 10_000
     BATCH_VERTICES = 400_000
     # Engine calls within a batch: progress and cancel between them. The engine's lock-step
-    # batch path needs thousands of polygons per call to be fast (40 per call: ~30x slower).
-    CHUNK_FEATURES = 5_000
-    CHUNK_VERTICES = 100_000
+    # batch path needs thousands of polygons per call to be fast (40 per call: ~30x slower;
+    # 50,000 stars of 40 vertices in calls of 100,000 vertices: 16 % slower than of 250,000).
+    CHUNK_FEATURES = 10_000
+    CHUNK_VERTICES = 250_000
 
     def tr(self, text: str) -> str:
         return QCoreApplication.translate("TriangulateAlgorithm", text)
