@@ -320,19 +320,23 @@ def _bad_runs(
 
 # candidates tested per node and round after a node's first candidate failed
 _SPAN = 4
+# ... and in sub-polygons tested run by run, where a round costs more than a facing test
+_SPAN_LARGE = 12
 
 
 def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One round of rule "first" for the open nodes ``state``.
 
-    A node whose first candidate failed tests up to ``_SPAN`` candidates (its next ones, in
-    order) for conditions 1 and 4 and against its recorded blocker; the first that passes
-    goes on to the tables. Returns per node whether its candidate ``apex`` is correct, the
-    apex (or the next candidate to test) and the blocker to keep.
+    A node whose first candidate failed tests up to ``_SPAN`` candidates (``_SPAN_LARGE`` in
+    large sub-polygons), its next ones in order, for conditions 1 and 4 and against its
+    recorded blocker; the first that passes goes on to the tables. Returns per node whether
+    its candidate ``apex`` is correct, the apex (or the next candidate to test) and the
+    blocker to keep.
     """
     lo, hi, cand, block = state[:, _LO], state[:, _HI], state[:, _CAND], state[:, _BLOCK]
     n = len(lo)
-    span = np.where(cand == hi - 1, 1, np.minimum(cand - lo, _SPAN))
+    span = np.minimum(cand - lo, np.where(hi - lo > _RUN_MIN, _SPAN_LARGE, _SPAN))
+    span[cand == hi - 1] = 1
     starts = np.cumsum(span) - span
     index = np.arange(int(starts[-1] + span[-1]) if n else 0)
     if len(index) == n:
