@@ -322,6 +322,8 @@ def _bad_runs(
 _SPAN = 4
 # ... and in sub-polygons tested run by run, where a round costs more than a facing test
 _SPAN_LARGE = 12
+# rounds of at least this many nodes test the first of a span on its own
+_TWO_PASSES = 1024
 
 
 def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -329,34 +331,31 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
 
     A node whose first candidate failed tests up to ``_SPAN`` candidates (``_SPAN_LARGE`` in
     large sub-polygons), its next ones in order, for conditions 1 and 4 and against its
-    recorded blocker; the first that passes goes on to the tables. Returns per node whether
-    its candidate ``apex`` is correct, the apex (or the next candidate to test) and the
-    blocker to keep.
+    recorded blocker (the first of them alone, then the others where it failed); the first
+    that passes goes on to the tables. Returns per node whether its candidate ``apex`` is
+    correct, the apex (or the next candidate to test) and the blocker to keep.
     """
     lo, hi, cand, block = state[:, _LO], state[:, _HI], state[:, _CAND], state[:, _BLOCK]
     n = len(lo)
     span = np.minimum(cand - lo, np.where(hi - lo > _RUN_MIN, _SPAN_LARGE, _SPAN))
     span[cand == hi - 1] = 1
-    starts = np.cumsum(span) - span
-    index = np.arange(int(starts[-1] + span[-1]) if n else 0)
-    if len(index) == n:
-        owner = index
-        c = cand
+    nodes = np.arange(n)
+    if n < _TWO_PASSES:
+        # few nodes: every span at once (a second pass would cost more than it saves)
+        passed, apex = _first_passing(seqs, lo, hi, block, nodes, cand, span)
     else:
-        owner = np.repeat(np.arange(n), span)
-        starts_o = starts[owner]
-        c = cand[owner] - (index - starts_o)
-    lo_o, hi_o = lo[owner], hi[owner]
-    ok = _facing(seqs, lo_o, hi_o, c)
-    large = hi_o - lo_o > 2
-    tested = np.flatnonzero(ok & large & (block[owner] >= 0))
-    if len(tested):
-        inside = _strictly_inside(seqs, hi_o[tested], lo_o[tested], c[tested], block[owner[tested]])
-        ok[tested[inside]] = False
-    # the first candidate of each node that passed so far (its index in c), or len(c)
-    first = np.minimum.reduceat(np.where(ok, index, len(c)), starts)
-    passed = first < len(c)
-    apex = np.where(passed, c[np.minimum(first, len(c) - 1)], cand - span)
+        # a small sub-polygon's next candidate alone first (it usually passes), a large
+        # one's whole span at once (its rounds cost more); then the rest where it failed
+        ahead = np.where(hi - lo > _RUN_MIN, span, 1)
+        passed, apex = _first_passing(seqs, lo, hi, block, nodes, cand, ahead)
+        more = np.flatnonzero(~passed & (span > ahead))
+        if len(more):
+            hit, found = _first_passing(
+                seqs, lo, hi, block, more, cand[more] - ahead[more], span[more] - ahead[more]
+            )
+            passed[more[hit]] = True
+            apex[more[hit]] = found[hit]
+    apex = np.where(passed, apex, cand - span)
     correct = passed.copy()
     blocker = block.copy()
     table = np.flatnonzero(passed & (hi - lo > 2))
@@ -368,6 +367,38 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
         # a failed candidate: the next round starts below it
         apex[table[bad]] -= 1
     return correct, apex, blocker
+
+
+def _first_passing(
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    block: np.ndarray,
+    nodes: np.ndarray,
+    top: np.ndarray,
+    count: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per node of ``nodes``: the first of its candidates ``top``, ``top`` - 1, ... (``count``
+    of them) that passes conditions 1 and 4 and does not hold the node's recorded blocker
+    (if any) strictly inside its triangle; (whether one does, that candidate)."""
+    c = np.repeat(top, count)
+    single = len(c) == len(nodes)
+    owner = nodes
+    if not single:
+        owner = np.repeat(nodes, count)
+        c -= ragged_index(np.zeros(len(nodes), dtype=np.int64), count)
+    lo_o, hi_o = lo[owner], hi[owner]
+    ok = _facing(seqs, lo_o, hi_o, c)
+    tested = np.flatnonzero(ok & (hi_o - lo_o > 2) & (block[owner] >= 0))
+    if len(tested):
+        inside = _strictly_inside(seqs, hi_o[tested], lo_o[tested], c[tested], block[owner[tested]])
+        ok[tested[inside]] = False
+    if single:
+        return ok, c
+    index = np.arange(len(c))
+    first = np.minimum.reduceat(np.where(ok, index, len(c)), np.cumsum(count) - count)
+    hit = first < len(c)
+    return hit, c[np.minimum(first, len(c) - 1)]
 
 
 def _strictly_inside(
