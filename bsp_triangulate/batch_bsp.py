@@ -584,39 +584,52 @@ def _extents(sx: np.ndarray, sy: np.ndarray, starts: np.ndarray) -> tuple[np.nda
 _LO, _HI, _CAND, _ROW, _FIRST, _PARENT, _DEPTH, _SIDE, _AT_HI, _SEQ, _BLOCK = range(11)
 
 
-def _children(state: np.ndarray, apex: np.ndarray) -> np.ndarray:
-    """Open nodes below the nodes ``state`` (rows) with their ``apex``: the left children
-    (base V1 V3), then the right children (base V2 V3), where they have a triangle.
+def _next_state(
+    state: np.ndarray,
+    emit: np.ndarray,
+    done: np.ndarray,
+    apex: np.ndarray,
+    retry: np.ndarray,
+    blocker: np.ndarray,
+) -> np.ndarray:
+    """The open nodes of the next round: the nodes ``retry`` (rows of ``state``) with their
+    next candidate ``apex`` and ``blocker``, then below the nodes ``emit`` (their rows
+    ``done``) with their ``apex`` the left children (base V1 V3), then the right children
+    (base V2 V3), where they have a triangle.
 
     With V1 at hi the left child is the upper part [apex, hi], else the lower part [lo, apex];
     the left subtree comes first in pre-order, the right child's row is after it.
     """
-    lo, hi, row = state[:, _LO], state[:, _HI], state[:, _ROW]
-    at_hi = state[:, _AT_HI] == 1
-    left_lo = np.where(at_hi, apex, lo)
-    left_hi = np.where(at_hi, hi, apex)
-    right_lo = np.where(at_hi, lo, apex)
-    right_hi = np.where(at_hi, apex, hi)
-    left_size = left_hi - left_lo - 1
-    parent = row - state[:, _FIRST]
-    parts = []
-    for side, new_lo, new_hi, new_row, new_at in (
-        (1, left_lo, left_hi, row + 1, at_hi),
-        (2, right_lo, right_hi, row + 1 + left_size, ~at_hi),
-    ):
-        take = np.flatnonzero(new_hi - new_lo > 1)
-        part = np.take(state, take, axis=0)
-        part[:, _LO] = new_lo[take]
-        part[:, _HI] = new_hi[take]
-        part[:, _CAND] = part[:, _HI] - 1
-        part[:, _ROW] = new_row[take]
-        part[:, _PARENT] = parent[take]
-        part[:, _DEPTH] += 1
-        part[:, _SIDE] = side
-        part[:, _AT_HI] = new_at[take]
-        part[:, _BLOCK] = -1
-        parts.append(part)
-    return np.concatenate(parts)
+    lo, hi = done[:, _LO], done[:, _HI]
+    a = apex[emit]
+    at_hi = done[:, _AT_HI] == 1
+    left_lo = np.where(at_hi, a, lo)
+    left_hi = np.where(at_hi, hi, a)
+    right_lo = np.where(at_hi, lo, a)
+    right_hi = np.where(at_hi, a, hi)
+    left = np.flatnonzero(left_hi - left_lo > 1)
+    right = np.flatnonzero(right_hi - right_lo > 1)
+    rows = np.concatenate([retry, emit[left], emit[right]])
+    out = np.take(state, rows, axis=0)
+    r = len(retry)
+    out[:r, _CAND] = apex[retry]
+    out[:r, _BLOCK] = blocker[retry]
+    children = out[r:]
+    children[:, _PARENT] = children[:, _ROW] - children[:, _FIRST]
+    children[:, _DEPTH] += 1
+    children[:, _BLOCK] = -1
+    lefts, rights = out[r : r + len(left)], out[r + len(left) :]
+    lefts[:, _LO] = left_lo[left]
+    lefts[:, _HI] = left_hi[left]
+    lefts[:, _ROW] += 1
+    lefts[:, _SIDE] = 1
+    rights[:, _LO] = right_lo[right]
+    rights[:, _HI] = right_hi[right]
+    rights[:, _ROW] += (left_hi - left_lo)[right]
+    rights[:, _SIDE] = 2
+    rights[:, _AT_HI] ^= 1
+    children[:, _CAND] = children[:, _HI] - 1
+    return out
 
 
 def build_trees(
@@ -684,19 +697,23 @@ def build_trees(
             ok[state[failed, _SEQ]] = False
         # emit triangles: (base, base, apex), counter-clockwise in the output coordinates
         emit = np.flatnonzero(found)
-        done = np.take(state, emit, axis=0)
-        a = apex[emit]
-        row = done[:, _ROW]
-        first = np.where(mirrored[done[:, _SEQ]], done[:, _LO], done[:, _HI])
-        second = done[:, _LO] + done[:, _HI] - first
-        emitted.append((row, first, second, a, done[:, _PARENT], done[:, _DEPTH], done[:, _SIDE]))
-        children = _children(done, a)
-        if retry is not None and len(retry):
-            again = np.take(state, retry, axis=0)
-            again[:, _CAND] = apex[retry]
-            again[:, _BLOCK] = blocker[retry]
-            children = np.concatenate([again, children])
-        state = children
+        done = state[emit]
+        lo_e, hi_e = done[:, _LO], done[:, _HI]
+        first = np.where(mirrored[done[:, _SEQ]], lo_e, hi_e)
+        emitted.append(
+            (
+                done[:, _ROW],
+                first,
+                lo_e + hi_e - first,
+                apex[emit],
+                done[:, _PARENT],
+                done[:, _DEPTH],
+                done[:, _SIDE],
+            )
+        )
+        if retry is None:
+            retry, blocker = np.zeros(0, dtype=np.int64), apex
+        state = _next_state(state, emit, done, apex, retry, blocker)
         if not ok.all():
             state = state[ok[state[:, _SEQ]]]
     # all rows at once: one pass of scattered writes per field instead of one per round
