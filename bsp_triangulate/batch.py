@@ -50,22 +50,37 @@ _PROOF_VERTICES = 16
 
 
 def triangulate_batch(
-    polygons: Sequence[Sequence[object]], rule: str = "first", max_vertices: int = MAX_VERTICES
+    polygons: Sequence[Sequence[object]],
+    rule: str = "first",
+    max_vertices: int = MAX_VERTICES,
+    proven: Sequence[bool] | None = None,
 ) -> list[Triangulation | None]:
     """Triangulations of ``polygons`` (each ``[outer ring, island, ...]``); None where the
-    polygon is left to the engine (see the module docstring)."""
+    polygon is left to the engine (see the module docstring).
+
+    ``proven``: per polygon, True where the caller has proven it valid with
+    ``validity.proven_valid`` (no two of its vertices coincide, none lies on an edge other
+    than its own two); the batch path then does not look for touching rings in it.
+    """
     results: list[Triangulation | None] = [None] * len(polygons)
     if rule not in _RULES:
         return results
+    known = np.zeros(len(polygons), dtype=bool)
+    if proven is not None:
+        known[:] = np.asarray(proven, dtype=bool)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         # groups of moderate size keep the working arrays in the cache
         for first in range(0, len(polygons), _GROUP):
             group = polygons[first : first + _GROUP]
             results[first : first + len(group)] = _triangulate(
-                group, _RULES[rule], max_vertices, [None] * len(group)
+                group,
+                _RULES[rule],
+                max_vertices,
+                [None] * len(group),
+                known[first : first + len(group)],
             )
         if max_vertices < MID_VERTICES:
-            _triangulate_mid_size(polygons, _RULES[rule], max_vertices, results)
+            _triangulate_mid_size(polygons, _RULES[rule], max_vertices, results, known)
     return results
 
 
@@ -74,6 +89,7 @@ def _triangulate_mid_size(
     exhaustive: bool,
     max_vertices: int,
     results: list[Triangulation | None],
+    known: np.ndarray,
 ) -> None:
     """Batch the polygons of more than ``max_vertices`` and at most ``MID_VERTICES`` points
     left so far, in groups of similar size, if there are at least ``MID_MIN_COUNT``."""
@@ -94,7 +110,11 @@ def _triangulate_mid_size(
             stop += 1
         chosen = order[start:stop]
         done = _triangulate(
-            [polygons[i] for i in chosen], exhaustive, MID_VERTICES, [None] * len(chosen)
+            [polygons[i] for i in chosen],
+            exhaustive,
+            MID_VERTICES,
+            [None] * len(chosen),
+            known[chosen],
         )
         for index, result in zip(chosen, done):
             results[index] = result
@@ -132,15 +152,17 @@ def _triangulate(
     exhaustive: bool,
     max_vertices: int,
     results: list[Triangulation | None],
+    known: np.ndarray,
 ) -> list[Triangulation | None]:
     flat = flatten_rings(polygons, max_vertices)
     wx = np.where(np.repeat(flat.mirrored[flat.ring_poly], flat.ring_len), -flat.vx, flat.vx)
     wy = flat.vy
     vertices = flat.vertices
     handled = flat.handled.copy()
-    # a polygon proven valid has no touching rings: the search is left to the others (the
-    # proof pays off where the search is costly, on polygons of more than a few vertices)
-    undecided = handled & ~flat.empty
+    # a polygon proven valid (by the caller, or here) has no touching rings: the search is
+    # left to the others (the proof pays off where the search is costly, on polygons of more
+    # than a few vertices)
+    undecided = handled & ~flat.empty & ~known
     undecided &= ~proven_valid_rings(
         flat.vx,
         flat.vy,

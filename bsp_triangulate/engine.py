@@ -833,25 +833,30 @@ def triangulate_many(
     planar_tolerance: float = 0.0,
     on_error: str = "raise",
     invalid: str = "fail",
+    proven: Sequence[bool] | None = None,
 ) -> list:
     """Triangulate many polygons; results in input order, equal to :func:`triangulate`'s.
 
     Small polygons go through the vectorised batch path (``batch.py``), the rest through the
     engine one by one. With ``on_error="return"`` a polygon that fails gets its
-    ``TriangulationError`` in its slot instead of stopping the batch.
+    ``TriangulationError`` in its slot instead of stopping the batch. ``proven``: per
+    polygon, True where ``validity.proven_valid`` has proven it valid (it spares the batch
+    path its own search for touching rings).
     """
     if on_error not in ("raise", "return"):
         raise ValueError(f"on_error must be 'raise' or 'return', not {on_error!r}")
     get_rule(rule)
     _as_given(invalid)
     polygons = list(polygons)
+    if proven is not None and len(proven) != len(polygons):
+        raise ValueError(f"proven has {len(proven)} flags for {len(polygons)} polygons")
     results: list = [None] * len(polygons)
     if planar_tolerance <= 0 and len(polygons) > 1:
         # many small polygons in lock-step; it leaves (None) what it does not decide exactly
         from .batch import triangulate_batch
 
         try:
-            results = list(triangulate_batch(polygons, rule))
+            results = list(triangulate_batch(polygons, rule, proven=proven))
         except (ArithmeticError, ValueError, TypeError):
             # malformed or non-finite input broke the lock-step path: batch only the polygons
             # that normalise, the engine names the ring of the others

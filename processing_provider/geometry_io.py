@@ -32,7 +32,7 @@ class FeatureRings:
     of parts and rings are not to be changed in place.
     """
 
-    __slots__ = ("_parts", "block", "error", "feature", "has_z", "repaired")
+    __slots__ = ("_parts", "block", "error", "feature", "has_z", "proven", "repaired")
 
     def __init__(
         self,
@@ -48,6 +48,8 @@ class FeatureRings:
         self.repaired = repaired
         self.has_z = has_z
         self.block: tuple[np.ndarray, int, int] | None = None
+        # the parts as read were proven valid (validity.proven_valid)
+        self.proven = False
 
     @property
     def parts(self) -> list[Polygon]:
@@ -57,6 +59,7 @@ class FeatureRings:
     def parts(self, parts: list[Polygon]) -> None:
         self._parts = parts
         self.block = None
+        self.proven = False
 
     @property
     def fid(self) -> int:
@@ -184,16 +187,20 @@ def _read_chunk(
     filled = np.bincount(part_geometry[outer_filled], minlength=len(chunk)) > 0
     # a cheap exact proof of validity spares GEOS most valid polygons (identical decisions);
     # the rings of a proven polygon, or of any polygon kept as given, are used as read
-    as_read = filled if invalid_policy == INVALID_AS_GIVEN else proven_valid(table, filled)
+    proven = np.zeros(len(chunk), dtype=bool)
+    if invalid_policy != INVALID_AS_GIVEN:
+        proven = proven_valid(table, filled)
+    as_read = filled if invalid_policy == INVALID_AS_GIVEN else proven
     points = table.points
     starts, stops = table.geometry_rows()
     items = []
-    for feature, parts, has_z, usable, known, start, stop in zip(
+    for feature, parts, has_z, usable, known, valid, start, stop in zip(
         chunk,
         table.polygons(),
         table.geometry_z.tolist(),
         filled.tolist(),
         as_read.tolist(),
+        proven.tolist(),
         starts.tolist(),
         stops.tolist(),
     ):
@@ -202,6 +209,7 @@ def _read_chunk(
             continue
         if known:
             item = FeatureRings(feature, parts, has_z=has_z)
+            item.proven = valid
         else:
             item = FeatureRings(feature, has_z=has_z)
             item = _checked(item, feature.geometry(), parts, invalid_policy)

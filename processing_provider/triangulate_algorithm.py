@@ -651,6 +651,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
     ) -> list[tuple[FeatureRings, list]]:
         """All parts of ``items`` in one engine call; a failure goes to its feature."""
         polygons = [part for item in items for part in item.parts]
+        proven = [item.proven for item in items for _part in item.parts]
         try:
             outcome = triangulate_many(
                 polygons,
@@ -658,6 +659,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 planar_tolerance=tolerance,
                 on_error="return",
                 invalid=getattr(self, "_engine_invalid", "fail"),
+                proven=proven,
             )
         except Exception as error:  # isolate the feature that breaks the call
             if len(items) == 1:

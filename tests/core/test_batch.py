@@ -253,3 +253,40 @@ def test_batch_equals_engine_on_swellendam_farms() -> None:
     problems, handled = mismatches(polygons)
     assert problems == []
     assert handled >= 0.9 * len(polygons)
+
+
+def test_polygons_the_caller_proved_valid_skip_the_search_with_the_same_results(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from bsp_triangulate import batch, triangulate_many
+
+    rnd = random.Random(31)
+    valid = [random_polygon(rnd, islands=rnd.randint(0, 2)) for _ in range(40)]
+    touching = [random_polygon(rnd, islands=1, touching=2) for _ in range(40)]
+    polygons = valid + touching
+    plain = triangulate_batch(polygons)
+    flags = [True] * len(valid) + [False] * len(touching)
+    told = triangulate_batch(polygons, proven=flags)
+    for mine, expected in zip(told, plain):
+        assert (mine is None) == (expected is None)
+        if mine is not None:
+            for name in ("vertices", "triangles", "parent", "depth", "side"):
+                assert np.array_equal(getattr(mine, name), getattr(expected, name)), name
+    assert sum(r is not None for r in told[: len(valid)]) >= 36
+    assert all(r is None for r in told[len(valid) :])
+    # neither the proof nor the touching search sees a polygon the caller proved
+    seen = []
+    for name in ("proven_valid_rings", "touching_polygons"):
+        original = getattr(batch, name)
+
+        def wrapped(*args, _original=original):
+            seen.append(int(args[-1].sum()))
+            return _original(*args)
+
+        monkeypatch.setattr(batch, name, wrapped)
+    triangulate_batch(valid, proven=[True] * len(valid))
+    assert seen and not any(seen)
+    triangulate_batch(valid)
+    assert any(seen)
+    with pytest.raises(ValueError, match="flags"):
+        triangulate_many(polygons, proven=flags[:-1])

@@ -98,5 +98,8 @@ def test_assigning_parts_clears_the_block():
     item = FeatureRings(None, [[points[:4], points[4:]]])
     item.block = (points, 0, 8)
     assert item.vertex_count() == 8
+    item.proven = True
     item.parts = [[points[:4]]]
     assert item.block is None and item.vertex_count() == 4
+    # new parts (densified, repaired) are no longer the ones the validity proof saw
+    assert not item.proven

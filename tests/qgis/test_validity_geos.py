@@ -54,3 +54,20 @@ def test_swellendam_polygons_proven_valid_are_geos_valid(proof, name):
     assert not (proven & ~valid).any()
     if name == "farms_33S":
         assert proven.sum() > 1000 and (~valid).sum() >= 16
+
+
+@pytest.mark.parametrize("policy", [0, 1, 2])
+def test_features_read_carry_the_proof_to_the_engine(proof, policy):
+    from bsptriangulate.processing_provider.geometry_io import INVALID_AS_GIVEN, read_features
+
+    layer = QgsVectorLayer(str(SHARED_DATA / "swellendam" / "farms_33S.shp"), "farms", "ogr")
+    features = list(layer.getFeatures())
+    items = list(read_features(features, policy))
+    flags = np.array([item.proven for item in items])
+    if policy == INVALID_AS_GIVEN:
+        # nothing is proven where nothing is checked: the batch path proves for itself
+        assert not flags.any()
+    else:
+        wkbs = [bytes(feature.geometry().asWkb()) for feature in features]
+        assert np.array_equal(flags, proof(wkbs))
+        assert flags.sum() > 1000
