@@ -544,6 +544,65 @@ def _chunked_correct(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndar
     return out
 
 
+def _elevation_apex(
+    seqs: Sequences, sz: np.ndarray, state: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rule "elevation" for the open nodes ``state``: per node whether it has a correct
+    apex, and the one ``_choose_elevation`` picks among all of them (or -1).
+
+    The candidate whose elevation is closest to the base's mean (the first in candidate order
+    among equally close ones) is tested first: where it is correct and every other candidate
+    that passes conditions 1 and 4 is surely farther or at the same elevation, it is the
+    rule's choice; only the other nodes test all their candidates.
+    """
+    lo, hi = state[:, _LO], state[:, _HI]
+    n = len(lo)
+    found = np.zeros(n, dtype=bool)
+    apex = np.full(n, -1, dtype=np.int64)
+    span = hi - lo - 1
+    owner = np.repeat(np.arange(n, dtype=np.int64), span)
+    c = np.repeat(hi - 1, span) - ragged_index(np.zeros(n, np.int64), span)
+    facing = _facing(seqs, lo[owner], hi[owner], c)
+    owner, c = owner[facing], c[facing]
+    if not len(c):
+        return found, apex
+    at_hi = state[:, _AT_HI] == 1
+    v1 = np.where(at_hi, hi, lo)
+    v2 = np.where(at_hi, lo, hi)
+    z1, z2, zc = sz[v1][owner], sz[v2][owner], sz[c]
+    # as in _choose_elevation: the float distance and its error bound
+    approx = np.abs(2.0 * zc - z1 - z2)
+    error = 8.0 * 2.0**-53 * (2.0 * np.abs(zc) + np.abs(z1) + np.abs(z2)) + 1e-300
+    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    group = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(c)]))
+    index = np.arange(len(c))
+    # per node the closest candidate (the first in candidate order among equal distances)
+    best = np.lexsort((index, approx, owner))[starts]
+    # sure where every other candidate is surely farther or at the same elevation (then
+    # after the closest in candidate order: the rule's tie-break picks the closest too)
+    reach = (approx + error)[best]
+    farther = (approx - error > reach[group]) | (zc == zc[best][group])
+    sure = np.logical_and.reduceat(farther, starts)
+    nodes = owner[starts]
+    tested = np.flatnonzero(sure & (hi[nodes] - lo[nodes] > 2))
+    correct = sure.copy()
+    if len(tested):
+        t = nodes[tested]
+        bad = _tables(seqs, lo[t], hi[t], c[best[tested]])[0]
+        correct[tested[bad]] = False
+    found[nodes[correct]] = True
+    apex[nodes[correct]] = c[best[correct]]
+    # the other nodes: every candidate, then the rule's choice among the correct ones
+    rest = ~correct[group]
+    owner, c = owner[rest], c[rest]
+    good = _chunked_correct(seqs, lo[owner], hi[owner], c)
+    if good.any():
+        chosen = np.bincount(owner[good], minlength=n) > 0
+        found[chosen] = True
+        apex[chosen] = _choose_elevation(sz, owner[good], c[good], v1, v2)
+    return found, apex
+
+
 def _choose_elevation(
     sz: np.ndarray, owner: np.ndarray, cand: np.ndarray, v1: np.ndarray, v2: np.ndarray
 ) -> np.ndarray:
@@ -674,20 +733,10 @@ def build_trees(
     state[:, _SEQ] = poly
     state[:, _BLOCK] = -1
     while len(state):
-        lo, hi = state[:, _LO], state[:, _HI]
+        lo = state[:, _LO]
         retry = None
         if exhaustive:
-            span = hi - lo - 1
-            owner = np.repeat(np.arange(len(lo), dtype=np.int64), span)
-            c = np.repeat(hi - 1, span) - ragged_index(np.zeros(len(lo), np.int64), span)
-            good = _chunked_correct(seqs, lo[owner], hi[owner], c)
-            found = np.bincount(owner[good], minlength=len(lo)) > 0
-            apex = np.full(len(lo), -1, dtype=np.int64)
-            if found.any():
-                at_hi = state[:, _AT_HI] == 1
-                v1 = np.where(at_hi, hi, lo)
-                v2 = np.where(at_hi, lo, hi)
-                apex[found] = _choose_elevation(sz, owner[good], c[good], v1, v2)
+            found, apex = _elevation_apex(seqs, sz, state)
             failed = ~found
         else:
             found, apex, blocker = _first_correct(seqs, state)
