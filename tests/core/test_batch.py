@@ -290,3 +290,25 @@ def test_polygons_the_caller_proved_valid_skip_the_search_with_the_same_results(
     assert any(seen)
     with pytest.raises(ValueError, match="flags"):
         triangulate_many(polygons, proven=flags[:-1])
+
+
+@pytest.mark.parametrize("elevations", ["smooth", "near ties"])
+def test_rule_elevation_on_larger_stars_equals_engine(elevations: str) -> None:
+    """The closest candidate is taken without testing the others only where the choice is
+    sure: smooth terrain, and decimal elevations whose distances tie within rounding."""
+    rng = np.random.default_rng(37)
+    polygons = []
+    for _ in range(40):
+        count = int(rng.integers(20, 80))
+        angles = np.sort(rng.uniform(0.0, 2.0 * np.pi, count))
+        radius = np.where(np.arange(count) % 2 == 0, 100.0, rng.uniform(30.0, 90.0, count))
+        x, y = radius * np.cos(angles), radius * np.sin(angles)
+        if elevations == "smooth":
+            z = 50.0 + 0.3 * x - 0.2 * y + 5.0 * np.sin(x / 17.0)
+        else:
+            # decimal tenths: 2 zc - z1 - z2 rounds, so near-ties are decided exactly
+            z = rng.choice([0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.1 + 0.2], count)
+        polygons.append([np.column_stack([x, y, z])])
+    problems, handled = mismatches(polygons, rule="elevation")
+    assert problems == []
+    assert handled == len(polygons)
