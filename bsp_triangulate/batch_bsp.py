@@ -322,6 +322,8 @@ def _bad_runs(
 _SPAN = 4
 # ... and in sub-polygons tested run by run, where a round costs more than a facing test
 _SPAN_LARGE = 12
+# closest-first tries of rule "elevation" before a node tests all its candidates
+_ELEVATION_TRIES = 16
 # rounds of at least this many nodes test the first of a span on its own
 _TWO_PASSES = 1024
 
@@ -553,7 +555,8 @@ def _elevation_apex(
     The candidate whose elevation is closest to the base's mean (the first in candidate order
     among equally close ones) is tested first: where it is correct and every other candidate
     that passes conditions 1 and 4 is surely farther or at the same elevation, it is the
-    rule's choice; only the other nodes test all their candidates.
+    rule's choice; where it is not correct it drops out and the next closest is tried, up to
+    ``_ELEVATION_TRIES`` times. Nodes where the choice is not sure test all their candidates.
     """
     lo, hi = state[:, _LO], state[:, _HI]
     n = len(lo)
@@ -573,27 +576,40 @@ def _elevation_apex(
     # as in _choose_elevation: the float distance and its error bound
     approx = np.abs(2.0 * zc - z1 - z2)
     error = 8.0 * 2.0**-53 * (2.0 * np.abs(zc) + np.abs(z1) + np.abs(z2)) + 1e-300
-    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
-    group = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(c)]))
-    index = np.arange(len(c))
-    # per node the closest candidate (the first in candidate order among equal distances)
-    best = np.lexsort((index, approx, owner))[starts]
-    # sure where every other candidate is surely farther or at the same elevation (then
-    # after the closest in candidate order: the rule's tie-break picks the closest too)
-    reach = (approx + error)[best]
-    farther = (approx - error > reach[group]) | (zc == zc[best][group])
-    sure = np.logical_and.reduceat(farther, starts)
-    nodes = owner[starts]
-    tested = np.flatnonzero(sure & (hi[nodes] - lo[nodes] > 2))
-    correct = sure.copy()
-    if len(tested):
-        t = nodes[tested]
-        bad = _tables(seqs, lo[t], hi[t], c[best[tested]])[0]
-        correct[tested[bad]] = False
-    found[nodes[correct]] = True
-    apex[nodes[correct]] = c[best[correct]]
-    # the other nodes: every candidate, then the rule's choice among the correct ones
-    rest = ~correct[group]
+    # a few tries of closest-first (a candidate found not correct drops out), then all
+    alive = np.ones(len(c), dtype=bool)
+    trying = np.ones(len(c), dtype=bool)
+    for _ in range(_ELEVATION_TRIES):
+        left = np.flatnonzero(alive & trying)
+        if not len(left):
+            break
+        o, a, e, z = owner[left], approx[left], error[left], zc[left]
+        starts = np.flatnonzero(np.r_[True, o[1:] != o[:-1]])
+        group = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(o)]))
+        index = np.arange(len(o))
+        # per node the closest candidate (the first in candidate order among equal
+        # distances)
+        best = np.lexsort((index, a, o))[starts]
+        # sure where every other candidate is surely farther or at the same elevation
+        # (then after the closest in candidate order: the rule's tie-break picks it too)
+        farther = (a - e > (a + e)[best][group]) | (z == z[best][group])
+        sure = np.logical_and.reduceat(farther, starts)
+        nodes = o[starts]
+        tested = np.flatnonzero(sure & (hi[nodes] - lo[nodes] > 2))
+        correct = sure.copy()
+        if len(tested):
+            t = nodes[tested]
+            bad = _tables(seqs, lo[t], hi[t], c[left[best[tested]]])[0]
+            correct[tested[bad]] = False
+        found[nodes[correct]] = True
+        apex[nodes[correct]] = c[left[best[correct]]]
+        # a decided node's candidates and a closest candidate that is not correct leave;
+        # a node that is not sure keeps its candidates for the full test
+        alive[left[correct[group]]] = False
+        alive[left[best[sure & ~correct]]] = False
+        trying[left[~sure[group]]] = False
+    # the other nodes: every candidate left, then the rule's choice among the correct ones
+    rest = alive & ~found[owner]
     owner, c = owner[rest], c[rest]
     good = _chunked_correct(seqs, lo[owner], hi[owner], c)
     if good.any():
