@@ -572,10 +572,8 @@ def _elevation_apex(
     at_hi = state[:, _AT_HI] == 1
     v1 = np.where(at_hi, hi, lo)
     v2 = np.where(at_hi, lo, hi)
-    z1, z2, zc = sz[v1][owner], sz[v2][owner], sz[c]
-    # as in _choose_elevation: the float distance and its error bound
-    approx = np.abs(2.0 * zc - z1 - z2)
-    error = 8.0 * 2.0**-53 * (2.0 * np.abs(zc) + np.abs(z1) + np.abs(z2)) + 1e-300
+    zc = sz[c]
+    approx, error = _elevation_distance(zc, sz[v1][owner], sz[v2][owner])
     # a few tries of closest-first (a candidate found not correct drops out), then all
     alive = np.ones(len(c), dtype=bool)
     trying = np.ones(len(c), dtype=bool)
@@ -619,6 +617,16 @@ def _elevation_apex(
     return found, apex
 
 
+def _elevation_distance(
+    zc: np.ndarray, z1: np.ndarray, z2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Twice the elevation rule's distance of an apex at ``zc`` from the mean of ``z1`` and
+    ``z2``, in floats, and a bound on its rounding error."""
+    approx = np.abs(2.0 * zc - z1 - z2)
+    error = 8.0 * 2.0**-53 * (2.0 * np.abs(zc) + np.abs(z1) + np.abs(z2)) + 1e-300
+    return approx, error
+
+
 def _choose_elevation(
     sz: np.ndarray, owner: np.ndarray, cand: np.ndarray, v1: np.ndarray, v2: np.ndarray
 ) -> np.ndarray:
@@ -628,8 +636,7 @@ def _choose_elevation(
     z1, z2 = sz[v1][owner[starts]], sz[v2][owner[starts]]
     group = np.cumsum(np.r_[False, owner[1:] != owner[:-1]])
     zc = sz[cand]
-    approx = np.abs(2.0 * zc - z1[group] - z2[group])
-    error = 8.0 * 2.0**-53 * (2.0 * np.abs(zc) + np.abs(z1[group]) + np.abs(z2[group])) + 1e-300
+    approx, error = _elevation_distance(zc, z1[group], z2[group])
     top = np.minimum.reduceat(approx + error, starts)
     close = approx - error <= top[group]
     n = len(cand)
