@@ -211,12 +211,12 @@ _ONE_TABLE = 1 << 16
 _WIDTHS = np.array([4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024])
 
 
-def correct_mask(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Per test item: candidate position ``c`` forms a correct triangle on the base of the
-    sub-polygon [lo, hi] (the engine's facing and correct-candidate conditions)."""
-    ok = _facing(seqs, lo, hi, c)
+def _pass_tables(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Per candidate ``c`` that passes conditions 1 and 4 on the base of the sub-polygon
+    [lo, hi]: it passes conditions 2 and 3 too, so that its triangle is correct."""
+    ok = np.ones(len(c), dtype=bool)
     # a 3-vertex sub-polygon has only its corners and its own sides: conditions 2 and 3 hold
-    idx = np.flatnonzero(ok & (hi - lo > 2))
+    idx = np.flatnonzero(hi - lo > 2)
     if len(idx):
         ok[idx[_tables(seqs, lo[idx], hi[idx], c[idx])[0]]] = False
     return ok
@@ -530,22 +530,6 @@ def _bad_rows(
     return bad, found
 
 
-def _chunked_correct(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """:func:`correct_mask` in passes of bounded size."""
-    n = len(c)
-    if n == 0:
-        return np.zeros(0, dtype=bool)
-    work = np.cumsum(hi - lo + 1)
-    if work[-1] <= _CHUNK_ELEMENTS:
-        return correct_mask(seqs, lo, hi, c)
-    out = np.empty(n, dtype=bool)
-    cuts = np.searchsorted(work, np.arange(_CHUNK_ELEMENTS, work[-1], _CHUNK_ELEMENTS))
-    bounds = np.unique(np.concatenate([[0], cuts, [n]]))
-    for s, t in zip(bounds[:-1], bounds[1:]):
-        out[s:t] = correct_mask(seqs, lo[s:t], hi[s:t], c[s:t])
-    return out
-
-
 def _elevation_apex(
     seqs: Sequences, sz: np.ndarray, state: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -593,12 +577,10 @@ def _elevation_apex(
         farther = (a - e > (a + e)[best][group]) | (z == z[best][group])
         sure = np.logical_and.reduceat(farther, starts)
         nodes = o[starts]
-        tested = np.flatnonzero(sure & (hi[nodes] - lo[nodes] > 2))
+        tested = np.flatnonzero(sure)
         correct = sure.copy()
-        if len(tested):
-            t = nodes[tested]
-            bad = _tables(seqs, lo[t], hi[t], c[left[best[tested]]])[0]
-            correct[tested[bad]] = False
+        t = nodes[tested]
+        correct[tested] = _pass_tables(seqs, lo[t], hi[t], c[left[best[tested]]])
         found[nodes[correct]] = True
         apex[nodes[correct]] = c[left[best[correct]]]
         # a decided node's candidates and a closest candidate that is not correct leave;
@@ -606,10 +588,11 @@ def _elevation_apex(
         alive[left[correct[group]]] = False
         alive[left[best[sure & ~correct]]] = False
         trying[left[~sure[group]]] = False
-    # the other nodes: every candidate left, then the rule's choice among the correct ones
+    # the other nodes: every candidate left (each passed conditions 1 and 4 above), then the
+    # rule's choice among the correct ones
     rest = alive & ~found[owner]
     owner, c = owner[rest], c[rest]
-    good = _chunked_correct(seqs, lo[owner], hi[owner], c)
+    good = _pass_tables(seqs, lo[owner], hi[owner], c)
     if good.any():
         chosen = np.bincount(owner[good], minlength=n) > 0
         found[chosen] = True
