@@ -187,10 +187,10 @@ def _read_chunk(
     filled = np.bincount(part_geometry[outer_filled], minlength=len(chunk)) > 0
     # a cheap exact proof of validity spares GEOS most valid polygons (identical decisions);
     # the rings of a proven polygon, or of any polygon kept as given, are used as read
-    proven = np.zeros(len(chunk), dtype=bool)
-    if invalid_policy != INVALID_AS_GIVEN:
-        proven = proven_valid(table, filled)
-    as_read = filled if invalid_policy == INVALID_AS_GIVEN else proven
+    if invalid_policy == INVALID_AS_GIVEN:
+        proven, as_read = np.zeros(len(chunk), dtype=bool), filled
+    else:
+        proven = as_read = proven_valid(table, filled)
     points = table.points
     starts, stops = table.geometry_rows()
     items = []
