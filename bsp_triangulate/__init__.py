@@ -3,17 +3,21 @@
 Pure Python (numpy); no QGIS import anywhere in this package.
 """
 
-from .engine import triangulate, triangulate_many
+from .engine import triangulate, triangulate_many, triangulate_packed
+from .packed import PackedPolygons, PackedTriangulations
 from .rules import RULES, ApexRule, get_rule, register_rule
 from .triangulation import Triangulation, TriangulationError
 
 __all__ = [
     "RULES",
     "ApexRule",
+    "PackedPolygons",
+    "PackedTriangulations",
     "Triangulation",
     "TriangulationError",
     "get_rule",
     "register_rule",
     "triangulate",
     "triangulate_many",
+    "triangulate_packed",
 ]

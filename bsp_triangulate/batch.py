@@ -26,13 +26,21 @@ Pipeline: ``batch_rings`` (normalisation), ``batch_bridges`` (islands), ``batch_
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from .batch_bridges import bridge_sequences
-from .batch_bsp import build_trees
-from .batch_rings import clear_area, flatten_rings, ragged_index, touching_polygons
+from .batch_bsp import Trees, build_trees
+from .batch_rings import (
+    FlatRings,
+    clear_area,
+    flatten_points,
+    flatten_rings,
+    ragged_index,
+    touching_polygons,
+)
+from .packed import PackedPolygons, Piece, assemble
 from .triangulation import Triangulation
 from .validity import proven_valid_rings
 
@@ -63,62 +71,140 @@ def triangulate_batch(
     than its own two); the batch path then does not look for touching rings in it.
     """
     results: list[Triangulation | None] = [None] * len(polygons)
-    if rule not in _RULES:
-        return results
-    known = np.zeros(len(polygons), dtype=bool)
-    if proven is not None:
-        known[:] = np.asarray(proven, dtype=bool)
-    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        # groups of moderate size keep the working arrays in the cache
-        for first in range(0, len(polygons), _GROUP):
-            group = polygons[first : first + _GROUP]
-            results[first : first + len(group)] = _triangulate(
-                group,
-                _RULES[rule],
-                max_vertices,
-                [None] * len(group),
-                known[first : first + len(group)],
-            )
-        if max_vertices < MID_VERTICES:
-            _triangulate_mid_size(polygons, _RULES[rule], max_vertices, results, known)
+
+    def flatten(index: np.ndarray, limit: int) -> FlatRings:
+        if len(index) and index[-1] - index[0] == len(index) - 1:
+            return flatten_rings(polygons[int(index[0]) : int(index[-1]) + 1], limit)
+        return flatten_rings([polygons[i] for i in index.tolist()], limit)
+
+    def point_counts(index: np.ndarray) -> np.ndarray:
+        return np.array([_point_count(polygons[i]) for i in index.tolist()], dtype=np.int64)
+
+    pieces = batch_pieces(len(polygons), flatten, point_counts, rule, max_vertices, proven)
+    for piece in pieces:
+        done = assemble(len(piece.index), [_local(piece)], {}).to_list()
+        for index, result in zip(piece.index.tolist(), done):
+            results[index] = result
     return results
 
 
+def triangulate_batch_packed(
+    polygons: PackedPolygons,
+    rule: str = "first",
+    max_vertices: int = MAX_VERTICES,
+    proven: Sequence[bool] | None = None,
+) -> list[Piece]:
+    """:func:`triangulate_batch` of packed polygons: the results of the polygons it decides,
+    as pieces (the others are left to the engine)."""
+    ring_start = polygons.ring_start
+    first_ring = polygons.first_ring
+    # a polygon with an empty ring or no ring at all is left to the engine
+    empty_ring = np.zeros(len(polygons), dtype=bool)
+    owner = np.repeat(np.arange(len(polygons)), polygons.ring_count)
+    empty_ring[owner[polygons.ring_len == 0]] = True
+    usable_counts = np.where(empty_ring | (polygons.ring_count == 0), -1, polygons.ring_count)
+    points = polygons.points
+    if points.shape[1] != 3:
+        padded = np.zeros((len(points), 3))
+        width = min(points.shape[1], 3)
+        padded[:, :width] = points[:, :width]
+        points = padded
+
+    def flatten(index: np.ndarray, limit: int) -> FlatRings:
+        counts = usable_counts[index]
+        rings = ragged_index(first_ring[index], np.maximum(counts, 0))
+        lengths = polygons.ring_len[rings]
+        if len(rings) and rings[-1] - rings[0] == len(rings) - 1:
+            start = int(ring_start[rings[0]])
+            raw = points[start : start + int(lengths.sum())]
+        else:
+            raw = points[ragged_index(ring_start[rings], lengths)]
+        return flatten_points(raw, lengths, counts, limit)
+
+    sizes = np.bincount(owner, weights=polygons.ring_len, minlength=len(polygons))
+
+    def point_counts(index: np.ndarray) -> np.ndarray:
+        return np.where(usable_counts[index] > 0, sizes[index].astype(np.int64), -1)
+
+    return batch_pieces(len(polygons), flatten, point_counts, rule, max_vertices, proven)
+
+
+def batch_pieces(
+    count: int,
+    flatten: Callable[[np.ndarray, int], FlatRings],
+    point_counts: Callable[[np.ndarray], np.ndarray],
+    rule: str,
+    max_vertices: int,
+    proven: Sequence[bool] | None,
+) -> list[Piece]:
+    """The batch path over ``count`` polygons: ``flatten(index, max_vertices)`` normalises
+    the polygons ``index`` (increasing), ``point_counts(index)`` gives their points as given
+    (-1: unusual). Returns the pieces of the polygons decided here (indices of the call)."""
+    pieces: list[Piece] = []
+    if rule not in _RULES:
+        return pieces
+    known = np.zeros(count, dtype=bool)
+    if proven is not None:
+        known[:] = np.asarray(proven, dtype=bool)
+    decided = np.zeros(count, dtype=bool)
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        # groups of moderate size keep the working arrays in the cache
+        for first in range(0, count, _GROUP):
+            index = np.arange(first, min(first + _GROUP, count), dtype=np.int64)
+            done = _triangulate(flatten(index, max_vertices), _RULES[rule], known[index])
+            pieces.append(_globalised(done, index))
+            decided[pieces[-1].index] = True
+        if max_vertices < MID_VERTICES:
+            pieces += _triangulate_mid_size(
+                np.flatnonzero(~decided), flatten, point_counts, _RULES[rule], max_vertices, known
+            )
+    return pieces
+
+
+def _globalised(piece: Piece, index: np.ndarray) -> Piece:
+    piece.index = index[piece.index]
+    return piece
+
+
+def _local(piece: Piece) -> Piece:
+    """The piece with indices 0, 1, ... (for assembling it on its own)."""
+    return Piece(
+        np.arange(len(piece.index), dtype=np.int64), piece.vertices, piece.vertex_count,
+        piece.triangles, piece.triangle_count, piece.parent, piece.depth, piece.side,
+    )  # fmt: skip
+
+
 def _triangulate_mid_size(
-    polygons: Sequence[Sequence[object]],
+    left: np.ndarray,
+    flatten: Callable[[np.ndarray, int], FlatRings],
+    point_counts: Callable[[np.ndarray], np.ndarray],
     exhaustive: bool,
     max_vertices: int,
-    results: list[Triangulation | None],
     known: np.ndarray,
-) -> None:
+) -> list[Piece]:
     """Batch the polygons of more than ``max_vertices`` and at most ``MID_VERTICES`` points
-    left so far, in groups of similar size, if there are at least ``MID_MIN_COUNT``."""
-    sizes = {}
-    for index, done in enumerate(results):
-        if done is None:
-            count = _point_count(polygons[index])
-            if max_vertices < count <= MID_VERTICES:
-                sizes[index] = count
-    if len(sizes) < MID_MIN_COUNT:
-        return
-    order = sorted(sizes, key=sizes.__getitem__)
+    among ``left``, in groups of similar size, if there are at least ``MID_MIN_COUNT``."""
+    counts = point_counts(left)
+    mid = (counts > max_vertices) & (counts <= MID_VERTICES)
+    if int(mid.sum()) < MID_MIN_COUNT:
+        return []
+    chosen_all = left[mid]
+    sizes = counts[mid]
+    order = np.argsort(sizes, kind="stable")
+    chosen_all, sizes = chosen_all[order], sizes[order].tolist()
+    pieces = []
     start = 0
-    while start < len(order):
+    while start < len(chosen_all):
         stop, total = start, 0
-        while stop < len(order) and (stop == start or total < _MID_GROUP_VERTICES):
-            total += sizes[order[stop]]
+        while stop < len(chosen_all) and (stop == start or total < _MID_GROUP_VERTICES):
+            total += sizes[stop]
             stop += 1
-        chosen = order[start:stop]
-        done = _triangulate(
-            [polygons[i] for i in chosen],
-            exhaustive,
-            MID_VERTICES,
-            [None] * len(chosen),
-            known[chosen],
-        )
-        for index, result in zip(chosen, done):
-            results[index] = result
+        # each group in polygon order (flatten wants increasing indices)
+        chosen = np.sort(chosen_all[start:stop])
+        done = _triangulate(flatten(chosen, MID_VERTICES), exhaustive, known[chosen])
+        pieces.append(_globalised(done, chosen))
         start = stop
+    return pieces
 
 
 def _point_count(rings: object) -> int:
@@ -147,17 +233,10 @@ def _twins(ext: np.ndarray, ext_start: np.ndarray) -> np.ndarray:
     return twin
 
 
-def _triangulate(
-    polygons: Sequence[Sequence[object]],
-    exhaustive: bool,
-    max_vertices: int,
-    results: list[Triangulation | None],
-    known: np.ndarray,
-) -> list[Triangulation | None]:
-    flat = flatten_rings(polygons, max_vertices)
+def _triangulate(flat: FlatRings, exhaustive: bool, known: np.ndarray) -> Piece:
+    """The polygons of ``flat`` that the batch path decides (indices into ``flat``)."""
     wx = np.where(np.repeat(flat.mirrored[flat.ring_poly], flat.ring_len), -flat.vx, flat.vx)
     wy = flat.vy
-    vertices = flat.vertices
     handled = flat.handled.copy()
     # a polygon proven valid (by the caller, or here) has no touching rings: the search is
     # left to the others (the proof pays off where the search is costly, on polygons of more
@@ -174,12 +253,10 @@ def _triangulate(
     handled &= ~touching_polygons(flat, wx, undecided)
     # the engine gives slivers of negligible net area no triangles: left to it
     handled &= clear_area(flat, wx) | flat.empty
-    for p in np.flatnonzero(handled & flat.empty).tolist():
-        s = int(flat.poly_vstart[p])
-        results[p] = Triangulation(vertices=vertices[s : s + int(flat.poly_vcount[p])])
+    empties = np.flatnonzero(handled & flat.empty)
     polys = np.flatnonzero(handled & ~flat.empty)
     if len(polys) == 0:
-        return results
+        return _piece(flat, empties, np.zeros(0, np.int64), None)
     seq, seq_start, seq_len, bridged = bridge_sequences(flat, wx, wy, polys)
     polys_ok = polys[bridged]
     seq_start, seq_len = seq_start[bridged], seq_len[bridged]
@@ -202,20 +279,33 @@ def _triangulate(
         flat.mirrored[polys_ok],
         exhaustive,
     )
-    starts = trees.start.tolist()
-    counts = trees.count.tolist()
-    vstarts = flat.poly_vstart[polys_ok].tolist()
-    vcounts = flat.poly_vcount[polys_ok].tolist()
-    good = trees.ok.tolist()
-    for i, p in enumerate(polys_ok.tolist()):
-        if not good[i]:
-            continue
-        s, n, vs = starts[i], counts[i], vstarts[i]
-        results[p] = Triangulation(
-            vertices=vertices[vs : vs + vcounts[i]],
-            triangles=trees.triangles[s : s + n],
-            parent=trees.parent[s : s + n],
-            depth=trees.depth[s : s + n],
-            side=trees.side[s : s + n],
-        )
-    return results
+    return _piece(flat, empties, polys_ok[trees.ok], trees)
+
+
+def _piece(
+    flat: FlatRings, empties: np.ndarray, tree_polys: np.ndarray, trees: Trees | None
+) -> Piece:
+    """The results of the polygons ``empties`` (no triangles) and ``tree_polys`` (the ok
+    sequences of ``trees``, in order)."""
+    decided = np.zeros(len(flat.handled), dtype=bool)
+    decided[empties] = True
+    decided[tree_polys] = True
+    index = np.flatnonzero(decided)
+    vertex_count = flat.poly_vcount[index]
+    if len(index) == len(decided):
+        vertices = flat.vertices
+    else:
+        vertices = flat.vertices[ragged_index(flat.poly_vstart[index], vertex_count)]
+    triangle_count = np.zeros(len(index), dtype=np.int64)
+    if trees is None or not len(tree_polys):
+        none = np.zeros(0, dtype=np.int64)
+        return Piece(
+            index, vertices, vertex_count, np.zeros((0, 3), np.int64), triangle_count,
+            none, none, np.zeros(0, np.int8),
+        )  # fmt: skip
+    triangle_count[np.searchsorted(index, tree_polys)] = trees.count[trees.ok]
+    fields = (trees.triangles, trees.parent, trees.depth, trees.side)
+    if not trees.ok.all():
+        rows = ragged_index(trees.start[trees.ok], trees.count[trees.ok])
+        fields = tuple(f[rows] for f in fields)
+    return Piece(index, vertices, vertex_count, fields[0], triangle_count, *fields[1:])

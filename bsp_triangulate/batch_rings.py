@@ -151,13 +151,22 @@ def _area_signs(x: np.ndarray, y: np.ndarray, starts: np.ndarray, counts: np.nda
 
 def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> FlatRings:
     """Parse, clean and orient the rings of ``polygons`` (see the module docstring)."""
-    count = len(polygons)
+    arrays, ring_counts, widths = _parse(polygons)
+    counts = np.array(ring_counts, dtype=np.int64)
+    raw_len = np.array([len(a) for a in arrays], dtype=np.int64)
+    return flatten_points(_stack(arrays, widths), raw_len, counts, max_vertices)
+
+
+def flatten_points(
+    raw: np.ndarray, raw_len: np.ndarray, ring_counts: np.ndarray, max_vertices: int
+) -> FlatRings:
+    """:func:`flatten_rings` of rings given as one (N, 3) array of their points one after
+    another, ``raw_len`` points per ring (none empty), ``ring_counts`` rings per polygon
+    (-1: the polygon is not handled, and has no rings here)."""
+    count = len(ring_counts)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        arrays, ring_counts, widths = _parse(polygons)
-        raw = _stack(arrays, widths)
-        handled = np.array([c > 0 for c in ring_counts], dtype=bool)
-        poly_rings = np.array([max(c, 0) for c in ring_counts], dtype=np.int64)
-        raw_len = np.array([len(a) for a in arrays], dtype=np.int64)
+        handled = ring_counts > 0
+        poly_rings = np.maximum(ring_counts, 0)
         ring_poly = np.repeat(np.arange(count, dtype=np.int64), poly_rings)
         poly_ring0 = np.cumsum(poly_rings) - poly_rings
         raw_start = np.cumsum(raw_len) - raw_len

@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .bridges import bridge_islands, remove_spikes, split_touching
+from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
 from .predicates import (
     grid_exact,
     orient,
@@ -876,6 +877,53 @@ def triangulate_many(
                 raise
             results[index] = exc
     return results
+
+
+def triangulate_packed(
+    polygons: PackedPolygons,
+    *,
+    rule: str = "first",
+    planar_tolerance: float = 0.0,
+    on_error: str = "raise",
+    invalid: str = "fail",
+    proven: Sequence[bool] | None = None,
+) -> PackedTriangulations:
+    """:func:`triangulate_many` of packed polygons, with packed results: the same vertices,
+    triangles and trees, in flat arrays (no object per polygon). A polygon that fails with
+    ``on_error="return"`` has no vertices or triangles and its error in ``errors``."""
+    if on_error not in ("raise", "return"):
+        raise ValueError(f"on_error must be 'raise' or 'return', not {on_error!r}")
+    get_rule(rule)
+    _as_given(invalid)
+    if proven is not None and len(proven) != len(polygons):
+        raise ValueError(f"proven has {len(proven)} flags for {len(polygons)} polygons")
+    pieces: list[Piece] = []
+    if planar_tolerance <= 0 and len(polygons) > 1:
+        from .batch import triangulate_batch_packed
+
+        try:
+            pieces = triangulate_batch_packed(polygons, rule, proven=proven)
+        except (ArithmeticError, ValueError, TypeError):
+            pieces = []  # the engine takes every polygon and names what is wrong
+    decided = np.zeros(len(polygons), dtype=bool)
+    for piece in pieces:
+        decided[piece.index] = True
+    errors: dict[int, TriangulationError] = {}
+    for index in np.flatnonzero(~decided).tolist():
+        try:
+            result = triangulate(
+                polygons.rings(index),
+                rule=rule,
+                planar_tolerance=planar_tolerance,
+                invalid=invalid,
+            )
+        except TriangulationError as exc:
+            if on_error == "raise":
+                raise
+            errors[index] = exc
+            continue
+        pieces.append(Piece.of(index, result))
+    return assemble(len(polygons), pieces, errors)
 
 
 def _batch_well_formed(polygons: list, rule: str, batch) -> list:

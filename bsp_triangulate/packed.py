@@ -1,0 +1,206 @@
+"""Many polygons and their triangulations as flat arrays, with no Python object per polygon.
+
+``PackedPolygons`` is the input of ``engine.triangulate_packed`` and ``PackedTriangulations``
+its output: the same polygons and results as lists of rings and of :class:`Triangulation`,
+laid out one after another, so that a whole layer goes in and out with a few numpy arrays.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .batch_rings import ragged_index
+from .triangulation import Triangulation, TriangulationError
+
+
+@dataclass
+class PackedPolygons:
+    """Polygons as flat arrays.
+
+    - ``points``: (N, 2, 3 or 4) float64, x, y[, z[, m]] of every ring, one ring after
+      another (a closing point is optional, as in lists of rings);
+    - ``ring_len``: (R,) points of each ring;
+    - ``ring_count``: (P,) rings of each polygon, its outer ring first.
+    """
+
+    points: np.ndarray
+    ring_len: np.ndarray
+    ring_count: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.points = np.asarray(self.points, dtype=np.float64)
+        self.ring_len = np.asarray(self.ring_len, dtype=np.int64).reshape(-1)
+        self.ring_count = np.asarray(self.ring_count, dtype=np.int64).reshape(-1)
+        if self.points.ndim != 2 or self.points.shape[1] not in (2, 3, 4):
+            raise ValueError("points must be an (N, 2), (N, 3) or (N, 4) array")
+        if (self.ring_len < 0).any() or int(self.ring_len.sum()) != len(self.points):
+            raise ValueError("ring_len must be non-negative and add up to the points")
+        if (self.ring_count < 0).any() or int(self.ring_count.sum()) != len(self.ring_len):
+            raise ValueError("ring_count must be non-negative and add up to the rings")
+        self._ring_start = np.cumsum(self.ring_len) - self.ring_len
+        self._first_ring = np.cumsum(self.ring_count) - self.ring_count
+
+    @classmethod
+    def of(cls, polygons: Sequence[Sequence[np.ndarray]]) -> PackedPolygons:
+        """Pack lists of rings ((n, 2) to (n, 4) arrays; missing z becomes 0)."""
+        rings = [np.asarray(ring, dtype=np.float64) for rings in polygons for ring in rings]
+        width = max((ring.shape[1] for ring in rings if ring.ndim == 2), default=3)
+        blocks = []
+        for ring in rings:
+            block = np.zeros((len(ring), width))
+            block[:, : ring.shape[1]] = ring
+            blocks.append(block)
+        points = np.concatenate(blocks) if blocks else np.zeros((0, width))
+        ring_len = np.array([len(ring) for ring in rings], dtype=np.int64)
+        return cls(points, ring_len, np.array([len(rings) for rings in polygons], np.int64))
+
+    def __len__(self) -> int:
+        return len(self.ring_count)
+
+    @property
+    def ring_start(self) -> np.ndarray:
+        """(R,) the first point of each ring."""
+        return self._ring_start
+
+    @property
+    def first_ring(self) -> np.ndarray:
+        """(P,) the first ring of each polygon."""
+        return self._first_ring
+
+    def rings(self, index: int) -> list[np.ndarray]:
+        """The rings of polygon ``index`` (views of ``points``)."""
+        first = int(self._first_ring[index])
+        rings = range(first, first + int(self.ring_count[index]))
+        starts, lengths = self._ring_start, self.ring_len
+        return [self.points[starts[r] : starts[r] + lengths[r]] for r in rings]
+
+
+@dataclass
+class PackedTriangulations:
+    """Triangulations of many polygons, one after another in polygon order.
+
+    Polygon i has the vertices ``vertices[vertex_start[i]:][:vertex_count[i]]`` and the
+    triangles ``triangles[triangle_start[i]:][:triangle_count[i]]`` (indices into its own
+    vertices), with their ``parent``, ``depth`` and ``side``, all as in
+    :class:`Triangulation`. A polygon that failed has no vertices and no triangles and its
+    error in ``errors``.
+    """
+
+    vertices: np.ndarray
+    vertex_count: np.ndarray
+    triangles: np.ndarray
+    triangle_count: np.ndarray
+    parent: np.ndarray
+    depth: np.ndarray
+    side: np.ndarray
+    errors: dict[int, TriangulationError] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.vertex_count)
+
+    @property
+    def vertex_start(self) -> np.ndarray:
+        return np.cumsum(self.vertex_count) - self.vertex_count
+
+    @property
+    def triangle_start(self) -> np.ndarray:
+        return np.cumsum(self.triangle_count) - self.triangle_count
+
+    def __getitem__(self, index: int) -> Triangulation | TriangulationError:
+        if index in self.errors:
+            return self.errors[index]
+        v, t = int(self.vertex_start[index]), int(self.triangle_start[index])
+        n, m = int(self.vertex_count[index]), int(self.triangle_count[index])
+        return Triangulation(
+            vertices=self.vertices[v : v + n],
+            triangles=self.triangles[t : t + m],
+            parent=self.parent[t : t + m],
+            depth=self.depth[t : t + m],
+            side=self.side[t : t + m],
+        )
+
+    def to_list(self) -> list[Triangulation | TriangulationError]:
+        """One :class:`Triangulation` (slices of these arrays) or error per polygon."""
+        starts, counts = self.vertex_start.tolist(), self.vertex_count.tolist()
+        tri_starts, tri_counts = self.triangle_start.tolist(), self.triangle_count.tolist()
+        out: list[Triangulation | TriangulationError] = []
+        for index, (v, n, t, m) in enumerate(zip(starts, counts, tri_starts, tri_counts)):
+            error = self.errors.get(index) if self.errors else None
+            if error is not None:
+                out.append(error)
+                continue
+            out.append(
+                Triangulation(
+                    vertices=self.vertices[v : v + n],
+                    triangles=self.triangles[t : t + m],
+                    parent=self.parent[t : t + m],
+                    depth=self.depth[t : t + m],
+                    side=self.side[t : t + m],
+                )
+            )
+        return out
+
+
+@dataclass
+class Piece:
+    """Results of some polygons (``index``, increasing), their arrays one after another."""
+
+    index: np.ndarray
+    vertices: np.ndarray
+    vertex_count: np.ndarray
+    triangles: np.ndarray
+    triangle_count: np.ndarray
+    parent: np.ndarray
+    depth: np.ndarray
+    side: np.ndarray
+
+    @classmethod
+    def of(cls, index: int, result: Triangulation) -> Piece:
+        return cls(
+            np.array([index], dtype=np.int64),
+            np.asarray(result.vertices, dtype=np.float64).reshape(-1, 3),
+            np.array([len(result.vertices)], dtype=np.int64),
+            np.asarray(result.triangles, dtype=np.int64).reshape(-1, 3),
+            np.array([len(result.triangles)], dtype=np.int64),
+            np.asarray(result.parent, dtype=np.int64),
+            np.asarray(result.depth, dtype=np.int64),
+            np.asarray(result.side, dtype=np.int8),
+        )
+
+
+def assemble(
+    count: int, pieces: list[Piece], errors: dict[int, TriangulationError]
+) -> PackedTriangulations:
+    """The pieces (each polygon in one of them, or failed in ``errors``) in polygon order."""
+    vertex_count = np.zeros(count, dtype=np.int64)
+    triangle_count = np.zeros(count, dtype=np.int64)
+    pieces = [piece for piece in pieces if len(piece.index)]
+    if not pieces:
+        return PackedTriangulations(
+            np.zeros((0, 3)), vertex_count, np.zeros((0, 3), np.int64), triangle_count,
+            np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int8), errors,
+        )  # fmt: skip
+    index = np.concatenate([piece.index for piece in pieces])
+    vcount = np.concatenate([piece.vertex_count for piece in pieces])
+    tcount = np.concatenate([piece.triangle_count for piece in pieces])
+    vertex_count[index] = vcount
+    triangle_count[index] = tcount
+    fields = [
+        np.concatenate([getattr(piece, name) for piece in pieces]) if len(pieces) > 1 else
+        getattr(pieces[0], name)
+        for name in ("vertices", "triangles", "parent", "depth", "side")
+    ]  # fmt: skip
+    vertices, triangles, parent, depth, side = fields
+    if len(index) > 1 and (np.diff(index) < 0).any():
+        # pieces out of polygon order: one gather per field
+        order = np.argsort(index, kind="stable")
+        rows = ragged_index((np.cumsum(vcount) - vcount)[order], vcount[order])
+        vertices = vertices[rows]
+        rows = ragged_index((np.cumsum(tcount) - tcount)[order], tcount[order])
+        triangles, parent, depth, side = triangles[rows], parent[rows], depth[rows], side[rows]
+    return PackedTriangulations(
+        vertices, vertex_count, triangles, triangle_count, parent, depth, side, errors
+    )
