@@ -137,7 +137,13 @@ class StageClock:
         for source in ("FlatElevation", "GeometryElevation", "ExpressionElevation"):
             self.wrap(getattr(elevation, source), "apply", "elevation")
         self.wrap(elevation.DemElevation, "apply", "elevation")
-        self.wrap(algorithm, "triangulate_many", "engine (triangulate_many)")
+        # the engine entry: packed since the algorithm hands over flat arrays, a list before
+        entry = (
+            "triangulate_packed"
+            if hasattr(algorithm, "triangulate_packed")
+            else ("triangulate_many")
+        )
+        self.wrap(algorithm, entry, "engine (triangulate_many)")
         self.wrap(outputs.BatchMesh, "build", "batch mesh arrays")
         self.wrap(outputs.MeshAccumulator, "add", "batch mesh arrays")
         self.wrap(outputs, "merge_identical_vertices", "mesh: vertex merge")

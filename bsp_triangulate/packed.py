@@ -122,6 +122,10 @@ class PackedTriangulations:
             side=self.side[t : t + m],
         )
 
+    def tree(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(parent, depth, side) of every triangle."""
+        return self.parent, self.depth, self.side
+
     def to_list(self) -> list[Triangulation | TriangulationError]:
         """One :class:`Triangulation` (slices of these arrays) or error per polygon."""
         starts, counts = self.vertex_start.tolist(), self.vertex_count.tolist()

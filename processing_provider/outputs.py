@@ -35,8 +35,9 @@ from qgis.core import (
 from qgis.PyQt.QtCore import QMetaType, QVariant
 
 from ..bsp_triangulate import metrics
+from ..bsp_triangulate.batch_rings import ragged_index
 from ..bsp_triangulate.mesh import merge_meshes, write_2dm, write_ply
-from ..bsp_triangulate.triangulation import Triangulation
+from ..bsp_triangulate.packed import PackedTriangulations
 from ..bsp_triangulate.wkb import triangles_to_multipolygon_wkb
 from .geometry_io import FeatureRings
 
@@ -74,89 +75,103 @@ _LINE_DTYPE = np.dtype(
 )
 
 
+@dataclass
+class EngineChunk:
+    """One engine call's results: ``packed`` holds the parts of ``items`` (in order,
+    ``part_count`` each); ``item_kept`` marks the items none of whose parts failed."""
+
+    items: list[FeatureRings]
+    part_count: np.ndarray
+    packed: PackedTriangulations
+    item_kept: np.ndarray
+
+    @property
+    def kept(self) -> np.ndarray:
+        """Per part: its item is kept."""
+        return np.repeat(self.item_kept, self.part_count)
+
+
 class BatchMesh:
     """The triangles of a batch of features, concatenated, with their tree attributes.
 
     - ``vertices`` (V, 3), ``triangles`` (M, 3) into ``vertices``, ``item`` (M,) index into
       ``items``;
     - ``part``, ``order`` (index in the part's BSP pre-order), ``parent`` (the parent's
-      order, -1 for the root), ``depth``, ``side``: (M,) columns made when first read (a
-      mesh-only run needs only ``depth``).
+      order, -1 for the root), ``depth``, ``side``: (M,) columns.
     """
 
     def __init__(
-        self, items: list[FeatureRings], kept: list[tuple[int, int, Triangulation]]
+        self,
+        items: list[FeatureRings],
+        vertices: np.ndarray,
+        triangles: np.ndarray,
+        item: np.ndarray,
+        part: np.ndarray,
+        counts: np.ndarray,
+        tree: tuple[np.ndarray, np.ndarray, np.ndarray],
     ) -> None:
         self.items = items
-        self._kept = kept
-        if not kept:
-            self._counts = np.zeros(0, np.int64)
-            self.vertices = np.zeros((0, 3))
-            self.triangles = np.zeros((0, 3), np.int64)
-            self.item = np.zeros(0, np.int64)
-            return
-        counts = np.fromiter((len(tri.triangles) for _r, _i, tri in kept), np.int64, len(kept))
-        vertex_counts = np.fromiter(
-            (len(tri.vertices) for _r, _i, tri in kept), np.int64, len(kept)
-        )
-        vertex_offsets = np.cumsum(vertex_counts) - vertex_counts
-        triangles = np.concatenate([tri.triangles for _row, _index, tri in kept]).astype(
-            np.int64, copy=False
-        )
-        triangles += np.repeat(vertex_offsets, counts)[:, None]
-        self._counts = counts
-        self.vertices = np.concatenate([tri.vertices for _row, _index, tri in kept]).astype(
-            np.float64, copy=False
-        )
+        self.vertices = vertices
         self.triangles = triangles
-        rows = np.fromiter((row for row, _index, _tri in kept), np.int64, len(kept))
-        self.item = np.repeat(rows, counts)
+        self.item = item
+        self.part = part
+        self._counts = counts
+        self.parent, self.depth, self.side = tree
 
     @property
     def fid(self) -> np.ndarray:
-        if not self._kept:
+        if not len(self.item):
             return np.zeros(0, np.int64)
         fids = np.array([item.fid for item in self.items], dtype=np.int64)
         return fids[self.item]
 
     @classmethod
-    def build(cls, results: list[tuple[FeatureRings, list[Triangulation]]]) -> BatchMesh:
-        """Concatenate the triangulations of the parts of each feature."""
-        kept = [
-            (row, index, tri)
-            for row, (_feature, parts) in enumerate(results)
-            for index, tri in enumerate(parts)
-            if len(tri.triangles)
-        ]
-        return cls([feature for feature, _parts in results], kept)
-
-    def _joined(self, name: str) -> np.ndarray:
-        if not self._kept:
-            return np.zeros(0, np.int64)
-        arrays = [getattr(tri, name) for _row, _index, tri in self._kept]
-        return np.concatenate(arrays).astype(np.int64, copy=False)
-
-    @functools.cached_property
-    def part(self) -> np.ndarray:
-        indexes = np.fromiter((index for _r, index, _t in self._kept), np.int64, len(self._kept))
-        return np.repeat(indexes, self._counts)
+    def build(cls, chunks: list[EngineChunk]) -> BatchMesh:
+        """The triangles of the kept parts of every chunk, items one after another."""
+        items: list[FeatureRings] = []
+        blocks: list[tuple[np.ndarray, ...]] = []
+        vertex_offset = 0
+        for chunk in chunks:
+            packed = chunk.packed
+            owner = np.repeat(np.arange(len(chunk.part_count)), chunk.part_count)
+            part = np.arange(len(owner)) - np.repeat(
+                np.cumsum(chunk.part_count) - chunk.part_count, chunk.part_count
+            )
+            # the kept items' rows in this mesh
+            row = np.cumsum(chunk.item_kept) - 1 + len(items)
+            items += [item for item, keep in zip(chunk.items, chunk.item_kept.tolist()) if keep]
+            keep = chunk.kept & (packed.triangle_count > 0)
+            counts = packed.triangle_count[keep]
+            vertices, triangles, tree = packed.vertices, packed.triangles, packed.tree()
+            if not keep.all():
+                rows = ragged_index(packed.triangle_start[keep], counts)
+                triangles = triangles[rows]
+                tree = tuple(column[rows] for column in tree)
+                vertex_rows = ragged_index(packed.vertex_start[keep], packed.vertex_count[keep])
+                vertices = vertices[vertex_rows]
+                vertex_count = packed.vertex_count[keep]
+            else:
+                vertex_count = packed.vertex_count
+            # local indices to indices into this mesh's vertices
+            shift = np.cumsum(vertex_count) - vertex_count + vertex_offset
+            triangles = triangles + np.repeat(shift, counts)[:, None]
+            vertex_offset += len(vertices)
+            blocks.append(
+                (vertices, triangles, np.repeat(row[owner[keep]], counts),
+                 np.repeat(part[keep], counts), counts, *tree)
+            )  # fmt: skip
+        if not blocks:
+            none = np.zeros(0, np.int64)
+            return cls(items, np.zeros((0, 3)), np.zeros((0, 3), np.int64), none, none, none,
+                       (none, none, np.zeros(0, np.int8)))  # fmt: skip
+        columns = [np.concatenate(column) for column in zip(*blocks)]
+        vertices, triangles, item, part, counts, parent, depth, side = columns
+        return cls(items, vertices, triangles, item, part, counts, (parent, depth, side))
 
     @functools.cached_property
     def order(self) -> np.ndarray:
         first = np.cumsum(self._counts) - self._counts
         return np.arange(len(self), dtype=np.int64) - np.repeat(first, self._counts)
-
-    @functools.cached_property
-    def parent(self) -> np.ndarray:
-        return self._joined("parent")
-
-    @functools.cached_property
-    def depth(self) -> np.ndarray:
-        return self._joined("depth")
-
-    @functools.cached_property
-    def side(self) -> np.ndarray:
-        return self._joined("side")
 
     def __len__(self) -> int:
         return len(self.triangles)

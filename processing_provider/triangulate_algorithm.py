@@ -6,6 +6,7 @@ import traceback
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
 from qgis.core import (
     QgsCoordinateTransform,
     QgsExpression,
@@ -35,13 +36,14 @@ from qgis.core import (
 from qgis.PyQt.QtCore import QCoreApplication
 from qgis.PyQt.QtGui import QIcon
 
-from ..bsp_triangulate import triangulate_many
+from ..bsp_triangulate import PackedPolygons, triangulate_packed
 from ..bsp_triangulate.densify import densify_ring
 from . import elevation
 from .geometry_io import INVALID_AS_GIVEN, FeatureRings, feature_batches
 from .outputs import (
     MESH_EXTENSIONS,
     BatchMesh,
+    EngineChunk,
     MeshAccumulator,
     SinkCleanup,
     SinkWriter,
@@ -535,7 +537,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 def report(fraction: float, start: int = read, size: int = len(batch)) -> None:
                     feedback.setProgress(min((start + fraction * size) * step, 99.0))
 
-                pairs, _done = self._triangulate(batch, rule, tolerance, feedback, report)
+                chunks, _done = self._triangulate(batch, rule, tolerance, feedback, report)
                 if feedback.isCanceled():
                     break
                 read += len(batch)
@@ -546,7 +548,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                         feedback.reportError(
                             self.tr("Feature {}: {}").format(item.fid, item.error), False
                         )
-                batch_mesh = BatchMesh.build(pairs)
+                batch_mesh = BatchMesh.build(chunks)
                 with_triangles = batch_mesh.feature_count()
                 triangulated += with_triangles
                 empty += sum(1 for item in batch if item.error is None) - with_triangles
@@ -618,13 +620,13 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         tolerance: float,
         feedback: QgsProcessingFeedback,
         report: Callable[[float], None],
-    ) -> tuple[list[tuple[FeatureRings, list]], int]:
+    ) -> tuple[list[EngineChunk], int]:
         """Triangulate the batch in engine calls of bounded size, with progress and cancel.
 
-        Returns the (feature, triangulations) pairs and how many features of the batch were
-        handled (fewer than all only when cancelled).
+        Returns the engine calls' results and how many features of the batch were handled
+        (fewer than all only when cancelled).
         """
-        results: list[tuple[FeatureRings, list]] = []
+        results: list[EngineChunk] = []
         chunk: list[FeatureRings] = []
         vertices = 0
         for index, item in enumerate(batch):
@@ -648,12 +650,20 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         rule: str,
         tolerance: float,
         feedback: QgsProcessingFeedback,
-    ) -> list[tuple[FeatureRings, list]]:
+    ) -> list[EngineChunk]:
         """All parts of ``items`` in one engine call; a failure goes to its feature."""
-        polygons = [part for item in items for part in item.parts]
-        proven = [item.proven for item in items for _part in item.parts]
+        rings = [ring for item in items for part in item.parts for ring in part]
+        part_count = np.fromiter((len(item.parts) for item in items), np.int64, len(items))
+        polygons = PackedPolygons(
+            np.concatenate(rings) if rings else np.zeros((0, 3)),
+            np.fromiter((len(ring) for ring in rings), np.int64, len(rings)),
+            np.fromiter(
+                (len(part) for item in items for part in item.parts), np.int64, part_count.sum()
+            ),
+        )
+        proven = np.repeat([item.proven for item in items], part_count)
         try:
-            outcome = triangulate_many(
+            outcome = triangulate_packed(
                 polygons,
                 rule=rule,
                 planar_tolerance=tolerance,
@@ -671,22 +681,23 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 if not feedback.isCanceled()
                 for result in self._run_engine([item], rule, tolerance, feedback)
             ]
-        # the parts that failed, found in one pass (usually none)
-        failed = {i for i, result in enumerate(outcome) if isinstance(result, Exception)}
-        results = []
-        position = 0
-        for item in items:
-            count = len(item.parts)
-            parts = outcome[position : position + count]
-            if failed and not failed.isdisjoint(range(position, position + count)):
-                index = min(failed.intersection(range(position, position + count))) - position
+        item_kept = np.ones(len(items), dtype=bool)
+        if outcome.errors:
+            # the parts that failed (usually none): the first one names its feature's error
+            first_part = np.cumsum(part_count) - part_count
+            owner = np.repeat(np.arange(len(items)), part_count)
+            for part in sorted(outcome.errors):
+                row = int(owner[part])
+                if not item_kept[row]:
+                    continue
+                item_kept[row] = False
+                count = int(part_count[row])
+                index = part - int(first_part[row])
                 where = self.tr(" (part {})").format(index) if count > 1 else ""
-                item.error = self.tr("cannot be triangulated{}: {}").format(where, parts[index])
-                position += count
-                continue
-            position += count
-            results.append((item, parts))
-        return results
+                items[row].error = self.tr("cannot be triangulated{}: {}").format(
+                    where, outcome.errors[part]
+                )
+        return [EngineChunk(items, part_count, outcome, item_kept)]
 
 
 def _densify(batch: list[FeatureRings], max_length: float) -> None:
