@@ -1,7 +1,8 @@
 """Core triangulation speed: ours vs mapbox_earcut vs GEOS constrained Delaunay (shapely 2).
 
-All three triangulate the same polygons, read once into numpy rings; only the triangulation
-call is timed (each library's input is prepared beforehand).
+All triangulate the same polygons, read once into numpy rings; only the triangulation call is
+timed (each library's input is prepared beforehand). Ours twice: ``triangulate_many`` on
+lists of rings, ``triangulate_packed`` on the same polygons packed into flat arrays.
 
 Usage: python bench/bench_core.py [--quick]
 """
@@ -26,7 +27,7 @@ from generate import (
     read_rings,
 )
 
-from bsp_triangulate import Triangulation, triangulate_many
+from bsp_triangulate import PackedPolygons, Triangulation, triangulate_many, triangulate_packed
 
 QUICK_COUNT = 5_000
 # building footprints: twice as many polygons as the star set, with far fewer vertices each
@@ -67,6 +68,15 @@ def time_ours(polygons: list[Rings], repeat: int = 1, rule: str = "first") -> Ti
     return Timing(seconds, sum(len(r) for r in results if isinstance(r, Triangulation)))
 
 
+def time_ours_packed(polygons: list[Rings], repeat: int = 1) -> Timing:
+    """``triangulate_packed``: the polygons packed beforehand, as earcut and GEOS get theirs."""
+    packed = PackedPolygons.of(polygons)
+    seconds, results = timed(lambda: triangulate_packed(packed, on_error="return"), repeat)
+    if results.errors:
+        print(f"bsp_triangulate packed: {len(results.errors)} of {len(packed)} polygons failed")
+    return Timing(seconds, len(results.triangles))
+
+
 def time_earcut(polygons: list[Rings], repeat: int = 1) -> Timing:
     inputs = earcut_inputs(polygons)
     triangulate = mapbox_earcut.triangulate_float64
@@ -94,6 +104,7 @@ def vertex_count(polygons: list[Rings]) -> int:
 
 LIBRARIES: dict[str, Callable[[list[Rings], int], Timing]] = {
     "bsp_triangulate (first)": time_ours,
+    "bsp_triangulate packed (first)": time_ours_packed,
     "mapbox_earcut": time_earcut,
     "GEOS constrained Delaunay": time_geos,
 }
@@ -130,9 +141,11 @@ def compare(
         seconds[name] = timing.seconds
         note = f"{vertices / timing.seconds:,.0f} vertices/s, {timing.triangles:,} triangles"
         rows.append(Row(case, f"{name}: time", timing.seconds, "s", note))
-    ours = seconds["bsp_triangulate (first)"]
-    rows.append(Row(case, "ours / earcut time", ours / seconds["mapbox_earcut"], "x"))
-    rows.append(Row(case, "ours / GEOS time", ours / seconds["GEOS constrained Delaunay"], "x"))
+    for api, label in (("", "ours"), (" packed", "ours packed")):
+        ours = seconds[f"bsp_triangulate{api} (first)"]
+        rows.append(Row(case, f"{label} / earcut time", ours / seconds["mapbox_earcut"], "x"))
+        geos = seconds["GEOS constrained Delaunay"]
+        rows.append(Row(case, f"{label} / GEOS time", ours / geos, "x"))
     return rows
 
 
