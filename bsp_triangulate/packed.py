@@ -112,8 +112,13 @@ class PackedTriangulations:
     def __getitem__(self, index: int) -> Triangulation | TriangulationError:
         if index in self.errors:
             return self.errors[index]
-        v, t = int(self.vertex_start[index]), int(self.triangle_start[index])
-        n, m = int(self.vertex_count[index]), int(self.triangle_count[index])
+        return self._slice(
+            int(self.vertex_start[index]), int(self.vertex_count[index]),
+            int(self.triangle_start[index]), int(self.triangle_count[index]),
+        )  # fmt: skip
+
+    def _slice(self, v: int, n: int, t: int, m: int) -> Triangulation:
+        """The polygon of ``n`` vertices from row ``v`` and ``m`` triangles from row ``t``."""
         return Triangulation(
             vertices=self.vertices[v : v + n],
             triangles=self.triangles[t : t + m],
@@ -136,15 +141,7 @@ class PackedTriangulations:
             if error is not None:
                 out.append(error)
                 continue
-            out.append(
-                Triangulation(
-                    vertices=self.vertices[v : v + n],
-                    triangles=self.triangles[t : t + m],
-                    parent=self.parent[t : t + m],
-                    depth=self.depth[t : t + m],
-                    side=self.side[t : t + m],
-                )
-            )
+            out.append(self._slice(v, n, t, m))
         return out
 
 
