@@ -654,15 +654,17 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         """All parts of ``items`` in one engine call; a failure goes to its feature."""
         rings = [ring for item in items for part in item.parts for ring in part]
         part_count = np.fromiter((len(item.parts) for item in items), np.int64, len(items))
-        polygons = PackedPolygons(
-            np.concatenate(rings) if rings else np.zeros((0, 3)),
-            np.fromiter((len(ring) for ring in rings), np.int64, len(rings)),
-            np.fromiter(
-                (len(part) for item in items for part in item.parts), np.int64, part_count.sum()
-            ),
-        )
         proven = np.repeat([item.proven for item in items], part_count)
         try:
+            polygons = PackedPolygons(
+                np.concatenate(rings) if rings else np.zeros((0, 3)),
+                np.fromiter((len(ring) for ring in rings), np.int64, len(rings)),
+                np.fromiter(
+                    (len(part) for item in items for part in item.parts),
+                    np.int64,
+                    part_count.sum(),
+                ),
+            )
             outcome = triangulate_packed(
                 polygons,
                 rule=rule,
