@@ -256,7 +256,8 @@ def write_ply(
     with open(path, "wb") as handle:
         handle.write(("\n".join(header) + "\n").encode("ascii"))
         if binary:
-            vertices.astype("<f8").tofile(handle)
+            # no copy where the vertices are little-endian doubles already
+            np.ascontiguousarray(vertices, dtype="<f8").tofile(handle)
             fields = [("count", "u1"), ("indices", "<i4", (3,))]
             fields += [(f"p{i}", v.dtype) for i, v in enumerate(properties.values())]
             records = np.empty(len(faces), dtype=np.dtype(fields))
