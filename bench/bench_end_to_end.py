@@ -5,7 +5,9 @@ polygons (GeoPackage) and DEM: QGIS's ``3d:tessellate``, ``bsptriangulate:triang
 DEM elevation and a mesh (.2dm or .ply alone, then with the per-triangle output to memory and
 to a GeoPackage), ``native:setzfromraster`` and ``native:multiparttosingleparts`` on the
 tessellated layer (QGIS writing one feature per triangle) for reference. Times include
-qgis_process's start-up (first row).
+qgis_process's start-up (first row). Then a layer of building footprints (twice as many
+polygons, z from the geometry): ``3d:tessellate`` and our mesh-only runs, alternated, best of
+three each.
 
 Usage: python bench/bench_end_to_end.py [--quick]
 """
@@ -33,9 +35,11 @@ from common import (
     qgis_process_binary,
     rows_table,
 )
-from generate import DEFAULT_COUNT, ensure_stars
+from generate import DEFAULT_COUNT, ensure_footprints, ensure_stars
 
 QUICK_COUNT = 5_000
+# the building layer: twice as many polygons as the star set (as in bench_core)
+FOOTPRINTS_PER_STAR = 2
 DEFAULT_BUDGET = 1_800.0  # seconds per run before it is stopped
 TIME_BINARY = "/usr/bin/time"
 MESH_ONLY_2DM = "bsptriangulate:triangulate DEM -> .2dm only (triangles skipped)"
@@ -110,7 +114,9 @@ def run(
     """Rows of wall time and peak RSS per algorithm run (outputs in a folder removed after)."""
     output = Path(tempfile.mkdtemp(prefix="bsptri-bench-e2e-"))
     try:
-        return measure_runs(output, quick, budget, count)
+        rows = measure_runs(output, quick, budget, count)
+        count = count or (QUICK_COUNT if quick else DEFAULT_COUNT)
+        return rows + footprint_rows(output, FOOTPRINTS_PER_STAR * count, budget)
     finally:
         shutil.rmtree(output, ignore_errors=True)
 
@@ -225,6 +231,40 @@ def measure_runs(output: Path, quick: bool, budget: float | None, count: int | N
             f"{added:.1f} s vs {copying:.1f} s",
         )
     )
+    return rows
+
+
+def footprint_rows(output: Path, count: int, budget: float | None) -> list[Row]:
+    """A building layer (``count`` footprints, z from the geometry): mesh-only runs of ours
+    against ``3d:tessellate``, alternated, best of three each."""
+    layer = ensure_footprints(count)
+    environment = qgis_environment(plugin_dir())
+    enable_plugin(environment)
+    cases = {
+        "3d:tessellate -> gpkg": algorithm(
+            "3d:tessellate", INPUT=layer, OUTPUT=output / "footprints_tessellated.gpkg"
+        ),
+        "bsptriangulate:triangulate -> .ply mesh only": algorithm(
+            "bsptriangulate:triangulate", INPUT=layer, OUTPUT_MESH=output / "footprints.ply"
+        ),
+        "bsptriangulate:triangulate -> .2dm mesh only": algorithm(
+            "bsptriangulate:triangulate", INPUT=layer, OUTPUT_MESH=output / "footprints.2dm"
+        ),
+    }
+    case = f"qgis_process, {count:,} building footprints (z from the geometry)"
+    best = dict.fromkeys(cases, float("inf"))
+    for _ in range(3):
+        for name, arguments in cases.items():
+            best[name] = min(best[name], run_measured(arguments, environment, budget).seconds)
+    rows = [
+        Row(case, f"{name}: wall time (best of 3)", seconds, "s") for name, seconds in best.items()
+    ]
+    tessellate = best["3d:tessellate -> gpkg"]
+    for name in list(cases)[1:]:
+        label = name.split("-> ")[1]
+        rows.append(
+            Row(case, f"ours ({label}) / 3d:tessellate wall time", best[name] / tessellate, "x")
+        )
     return rows
 
 

@@ -233,6 +233,14 @@ def ensure_stars(count: int = DEFAULT_COUNT, force: bool = False) -> tuple[Path,
     return gpkg, dem
 
 
+def ensure_footprints(count: int, force: bool = False) -> Path:
+    """The building footprints' GeoPackage, generated unless already cached."""
+    path = BENCH_DIR / f"footprints_{count}.gpkg"
+    if force or not path.exists():
+        write_gpkg(path, footprint_polygons(count), "footprints")
+    return path
+
+
 def ensure_islands(vertices: int, force: bool = False) -> Path:
     """The large polygon's GeoPackage, generated unless already cached."""
     path = islands_path(vertices)
