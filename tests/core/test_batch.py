@@ -49,12 +49,19 @@ def mismatches(polygons: list, rule: str = "first") -> tuple[list[str], int]:
         except TriangulationError as exc:
             problems.append(f"polygon {number}: engine raises {exc}, batch gives a result")
             continue
-        for name in FIELDS:
-            got, want = getattr(mine, name), getattr(expected, name)
-            if got.dtype != want.dtype or not np.array_equal(got, want):
-                problems.append(f"polygon {number}: {name} differs")
-                break
+        differing = first_differing_field(mine, expected)
+        if differing is not None:
+            problems.append(f"polygon {number}: {differing} differs")
     return problems, handled
+
+
+def first_differing_field(got: object, want: object) -> str | None:
+    """The first of ``FIELDS`` whose array (values or dtype) differs, or None."""
+    for name in FIELDS:
+        mine, theirs = getattr(got, name), getattr(want, name)
+        if mine.dtype != theirs.dtype or not np.array_equal(mine, theirs):
+            return name
+    return None
 
 
 def with_duplicates(rnd: random.Random, rings: list) -> list:

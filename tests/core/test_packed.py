@@ -24,7 +24,7 @@ from bsp_triangulate.batch import MID_MIN_COUNT
 
 from ..conftest import SHARED_DATA
 from .random_polygons import random_polygon, with_z
-from .test_batch import FIELDS, farm_polygons, mid_size_polygons
+from .test_batch import farm_polygons, first_differing_field, mid_size_polygons
 
 EARCUT = SHARED_DATA / "earcut" / "fixtures"
 
@@ -44,11 +44,9 @@ def differences(polygons: list, **options) -> list[str]:
             if type(want) is not type(got) or str(want) != str(got):
                 problems.append(f"polygon {number}: {want!r} against {got!r}")
             continue
-        for name in FIELDS:
-            mine, theirs = getattr(got, name), getattr(want, name)
-            if mine.dtype != theirs.dtype or not np.array_equal(mine, theirs):
-                problems.append(f"polygon {number}: {name} differs")
-                break
+        differing = first_differing_field(got, want)
+        if differing is not None:
+            problems.append(f"polygon {number}: {differing} differs")
     return problems
 
 
