@@ -45,8 +45,10 @@ class PackedPolygons:
 
     @classmethod
     def of(cls, polygons: Sequence[Sequence[np.ndarray]]) -> PackedPolygons:
-        """Pack lists of rings ((n, 2) to (n, 4) arrays; missing z becomes 0)."""
+        """Pack lists of rings ((n, 2) to (n, 4) arrays or point lists, empty rings too;
+        missing z becomes 0)."""
         rings = [np.asarray(ring, dtype=np.float64) for rings in polygons for ring in rings]
+        rings = [ring.reshape(0, 2) if ring.size == 0 else ring for ring in rings]
         width = max((ring.shape[1] for ring in rings if ring.ndim == 2), default=3)
         blocks = []
         for ring in rings:

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import shapely
 
-from bsp_triangulate import triangulate, triangulate_many
+from bsp_triangulate import PackedPolygons, triangulate, triangulate_many, triangulate_packed
 from bsp_triangulate.triangulation import Triangulation, TriangulationError
 from tests.core.checks import check_triangulation, check_vertices
 
@@ -283,6 +283,29 @@ def test_triangulate_many_matches_triangulate_on_every_row_of_the_matrix(invalid
         assert isinstance(got, Triangulation), (rings, got)
         np.testing.assert_array_equal(got.triangles, alone.triangles)
         np.testing.assert_array_equal(got.vertices, alone.vertices)
+
+
+@pytest.mark.parametrize("invalid", MODES)
+def test_triangulate_packed_matches_triangulate_many_on_every_row_of_the_matrix(invalid: str):
+    rows = [
+        *DEGENERATE.values(),
+        *VALID.values(),
+        *SPIKES.values(),
+        *(rings for rings, _ in INVALID.values()),
+        *(rings for rings, _ in NON_FINITE.values()),
+    ]
+    many = triangulate_many(rows, invalid=invalid, on_error="return")
+    packed = triangulate_packed(PackedPolygons.of(rows), invalid=invalid, on_error="return")
+    assert len(packed) == len(rows)
+    for index, (rings, want) in enumerate(zip(rows, many)):
+        got = packed[index]
+        if isinstance(want, TriangulationError):
+            assert isinstance(got, TriangulationError), (rings, got)
+            assert str(got) == str(want)
+            continue
+        assert isinstance(got, Triangulation), (rings, got)
+        for name in ("vertices", "triangles", "parent", "depth", "side"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
 
 
 def test_triangulate_many_raises_the_first_error_by_default():
