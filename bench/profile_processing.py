@@ -9,9 +9,9 @@ decisions, elevation, the engine, the per-batch mesh arrays, the mesh file: vert
 writer) are timed in CPU and wall seconds instead, and ``--root`` runs the plugin of another
 checkout (an earlier commit) in the same way, for before/after tables in one session.
 
-Usage: python bench/profile_processing.py [--count 5000] [--gpkg | --mesh-only]
-       [--mesh-format 2dm|ply] [--no-profile | --stages] [--root PATH] [--repeat N]
-       [--top 30]
+Usage: python bench/profile_processing.py [--count 5000] [--footprints]
+       [--gpkg | --mesh-only] [--mesh-format 2dm|ply] [--no-profile | --stages] [--root PATH]
+       [--repeat N] [--top 30]
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from common import BUILD, ROOT
-from generate import ensure_stars
+from generate import ensure_footprints, ensure_stars
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 os.environ.setdefault("QGIS_CUSTOM_CONFIG_PATH", tempfile.mkdtemp(prefix="bsptri-profile-"))
@@ -170,6 +170,11 @@ def main() -> None:
     outputs.add_argument("--gpkg", action="store_true", help="triangles to a GeoPackage")
     outputs.add_argument("--mesh-only", action="store_true", help="no per-triangle output")
     parser.add_argument("--mesh-format", choices=("2dm", "ply"), default="2dm")
+    parser.add_argument(
+        "--footprints",
+        action="store_true",
+        help="the building layer (twice --count footprints, z from the geometry) instead",
+    )
     timing = parser.add_mutually_exclusive_group()
     timing.add_argument("--no-profile", action="store_true", help="wall time only")
     timing.add_argument("--stages", action="store_true", help="CPU and wall time per stage")
@@ -177,7 +182,10 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=1, help="runs (--stages: the fastest)")
     parser.add_argument("--top", type=int, default=30, help="functions to list")
     arguments = parser.parse_args()
-    polygons, dem = ensure_stars(arguments.count)
+    if arguments.footprints:
+        polygons, dem = ensure_footprints(2 * arguments.count), None
+    else:
+        polygons, dem = ensure_stars(arguments.count)
     application, provider = start_qgis(arguments.root.resolve())
     import processing
     from qgis.core import QgsProcessingContext, QgsProcessingFeedback
@@ -185,13 +193,12 @@ def main() -> None:
     output = Path(tempfile.mkdtemp(prefix="bsptri-profile-out-"))
     parameters = {
         "INPUT": str(polygons),
-        "ELEVATION_SOURCE": 3,
-        "DEM": str(dem),
-        "DEM_BAND": 1,
         "APEX_RULE": 0,
         "OUTPUT_MESH": str(output / f"mesh.{arguments.mesh_format}"),
         "OUTPUT_TRIANGLES": str(output / "triangles.gpkg") if arguments.gpkg else "memory:",
     }
+    if dem is not None:
+        parameters.update({"ELEVATION_SOURCE": 3, "DEM": str(dem), "DEM_BAND": 1})
     if arguments.mesh_only:
         parameters["OUTPUT_TRIANGLES"] = None
     if arguments.stages:

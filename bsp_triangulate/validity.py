@@ -8,7 +8,10 @@ valid when
   (|x|, |y| <= 1e150), and is star-shaped around its vertex mean ``c``: every edge turns
   strictly the same way around ``c`` and the ring winds around ``c`` exactly once. Such a ring
   is simple: each ray from ``c`` meets it exactly once, so no two edges meet except adjacent
-  ones at their common vertex, and it has no repeated point and no zero area;
+  ones at their common vertex, and it has no repeated point and no zero area. A ring of at
+  most ``SMALL_RING_EDGES`` edges that is not star-shaped (an L, T or U building outline) is
+  simple too where every two edges that are not neighbours surely have no common point and
+  every two neighbours surely turn at their common vertex;
 - every island's first point lies strictly inside the outer ring (ray crossing), and no edge
   of the island meets an edge of the outer ring: then the island lies in the interior;
 - the islands' bounding boxes are pairwise disjoint (no two islands meet or nest), and so are
@@ -36,6 +39,8 @@ _UNDERFLOW_SLACK = 1e-300
 MAX_ISLANDS = 32
 MAX_PARTS = 32
 MAX_PAIRS = 1 << 20
+# Rings of at most this many edges that are not star-shaped are tested edge pair by edge pair.
+SMALL_RING_EDGES = 16
 
 
 def _orientation(ax, ay, bx, by, cx, cy) -> np.ndarray:
@@ -233,14 +238,47 @@ def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
     upward[junk] = downward[junk] = False
     counter = np.logical_and.reduceat(counter, first)
     clockwise = np.logical_and.reduceat(clockwise, first)
-    reject |= ~counter & ~clockwise
     crossings = np.where(
         counter,
         np.add.reduceat(upward, first, dtype=np.int64),
         np.add.reduceat(downward, first, dtype=np.int64),
     )
-    reject |= crossings != 1
+    star = (counter | clockwise) & (crossings == 1)
+    # a small ring that is not star-shaped (an L, T or U outline) may still be proven simple
+    small = np.flatnonzero(~star & ~reject & (edges <= SMALL_RING_EDGES) & proven[rings.geometry])
+    if len(small):
+        star[small] = _small_rings_simple(rings, small)
+    reject |= ~star
     proven[rings.geometry[reject]] = False
+
+
+def _small_rings_simple(rings: _Rings, chosen: np.ndarray) -> np.ndarray:
+    """Per ring of ``chosen`` (closed, finite): surely simple, by every pair of its edges.
+
+    Each two edges that are not neighbours surely have no point in common, and each two
+    neighbours surely turn (their common vertex is the only point they share): then no two
+    edges meet except neighbours at their common vertex, which makes the closed polyline a
+    simple ring."""
+    x, y = rings.x, rings.y
+    edges = rings.length[chosen] - 1
+    first = rings.first[chosen]
+    # the turn at every vertex: edge i and edge i + 1 (the last with the first)
+    ring, i = _ragged(edges)
+    a = first[ring] + i
+    b = a + 1
+    c = np.where(i + 1 < edges[ring], b + 1, first[ring] + 1)
+    simple = np.logical_and.reduceat(
+        _orientation(x[a], y[a], x[b], y[b], x[c], y[c]) != 0, np.cumsum(edges) - edges
+    )
+    # every pair i < j of edges that are not neighbours: j from i + 2 to the last edge, but
+    # not the last edge when i is the first (they meet at the ring's first point)
+    count = np.maximum(edges[ring] - i - 2 - (i == 0), 0)
+    pair, k = _ragged(count)
+    p = a[pair]
+    q = first[ring[pair]] + i[pair] + 2 + k
+    apart = _segments_apart(x[p], y[p], x[p + 1], y[p + 1], x[q], y[q], x[q + 1], y[q + 1])
+    broken = np.bincount(ring[pair[~apart]], minlength=len(chosen)) > 0
+    return simple & ~broken
 
 
 def _check_islands(rings: _Rings, proven: np.ndarray) -> None:

@@ -97,6 +97,49 @@ def convex_cases(seed: int = 3, count: int = 1000) -> list[bytes]:
     return cases
 
 
+# building outlines in a unit square: L, T, U (not star-shaped around their vertex mean)
+OUTLINES = (
+    [(0, 0), (1, 0), (1, 0.45), (0.5, 0.45), (0.5, 1), (0, 1)],
+    [(0.3, 0), (0.7, 0), (0.7, 0.6), (1, 0.6), (1, 1), (0, 1), (0, 0.6), (0.3, 0.6)],
+    [(0, 0), (1, 0), (1, 1), (0.7, 1), (0.7, 0.4), (0.3, 0.4), (0.3, 1), (0, 1)],
+)
+
+
+def footprint_cases(seed: int = 4, count: int = 1500) -> tuple[list[bytes], list[bool]]:
+    """Rotated L, T and U outlines, some with a courtyard, and broken copies: a vertex moved
+    onto another edge, onto another vertex or across an edge. Returns the WKBs and which of
+    them are intact (unbroken)."""
+    rng = np.random.default_rng(seed)
+    cases, intact = [], []
+    for _ in range(count):
+        shape = np.array(OUTLINES[int(rng.integers(len(OUTLINES)))], dtype=np.float64)
+        angle = rng.uniform(0, 2 * np.pi)
+        rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+        scale = rng.uniform(5, 40) * 10.0 ** rng.integers(-3, 4)
+        origin = rng.uniform(-1e6, 1e6, 2)
+        outline = shape * scale
+        broken = rng.random() < 0.4
+        if broken:
+            i = int(rng.integers(len(shape)))
+            j = int(rng.integers(len(shape)))
+            k = (j + 1) % len(shape)
+            where = rng.choice(["vertex", "edge", "across"])
+            if where == "vertex":
+                outline[i] = outline[j]
+            elif where == "edge":
+                outline[i] = 0.5 * (outline[j] + outline[k])
+            else:
+                outline[i] = outline[j] + 1.5 * (outline[k] - outline[j])
+        rings = [outline @ rotation.T + origin]
+        if rng.random() < 0.3:
+            # a small square courtyard where all three outlines are solid
+            yard = np.array([[0.4, 0.05], [0.4, 0.2], [0.55, 0.2], [0.55, 0.05]]) * scale
+            rings.append(yard @ rotation.T + origin)
+        cases.append(polygon_wkb(rings if rng.random() < 0.5 else [r[::-1] for r in rings]))
+        intact.append(not broken)
+    return cases, intact
+
+
 def special_cases() -> list[bytes]:
     """Hand-made cases: unclosed rings, NaN, huge and tiny coordinates, spikes, bow ties."""
     square = np.array([[0, 0], [10, 0], [10, 10], [0, 10]], dtype=np.float64)
@@ -143,4 +186,4 @@ def special_cases() -> list[bytes]:
 
 
 def all_cases() -> list[bytes]:
-    return special_cases() + star_cases() + grid_cases() + convex_cases()
+    return special_cases() + star_cases() + grid_cases() + convex_cases() + footprint_cases()[0]
