@@ -50,9 +50,10 @@ MAX_VERTICES = 256
 MID_VERTICES = 640
 MID_MIN_COUNT = 32
 _RULES = {"first": False, "elevation": True}
-# polygons per internal group; vertices per group of mid-size polygons
+# polygons per internal group; vertices per group of mid-size polygons (their trees take a
+# round per fan triangle, hundreds of rounds of fixed cost: fewer, larger groups pay off)
 _GROUP = 10_000
-_MID_GROUP_VERTICES = 200_000
+_MID_GROUP_VERTICES = 500_000
 # polygons with at least this many vertices are first offered to the validity proof
 _PROOF_VERTICES = 16
 
