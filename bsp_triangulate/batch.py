@@ -40,7 +40,7 @@ from .batch_rings import (
     ragged_index,
     touching_polygons,
 )
-from .packed import PackedPolygons, Piece, assemble
+from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
 from .triangulation import Triangulation
 from .validity import proven_valid_rings
 
@@ -71,7 +71,6 @@ def triangulate_batch(
     ``validity.proven_valid`` (no two of its vertices coincide, none lies on an edge other
     than its own two); the batch path then does not look for touching rings in it.
     """
-    results: list[Triangulation | None] = [None] * len(polygons)
 
     def flatten(index: np.ndarray, limit: int) -> FlatRings:
         if len(index) and index[-1] - index[0] == len(index) - 1:
@@ -82,11 +81,11 @@ def triangulate_batch(
         return np.array([_point_count(polygons[i]) for i in index.tolist()], dtype=np.int64)
 
     pieces = batch_pieces(len(polygons), flatten, point_counts, rule, max_vertices, proven)
+    decided = np.zeros(len(polygons), dtype=bool)
     for piece in pieces:
-        done = assemble(len(piece.index), [_local(piece)], {}).to_list()
-        for index, result in zip(piece.index.tolist(), done):
-            results[index] = result
-    return results
+        decided[piece.index] = True
+    listed = assemble(len(polygons), pieces, {}).to_list()
+    return [result if done else None for result, done in zip(listed, decided.tolist())]
 
 
 def triangulate_batch_packed(
@@ -165,14 +164,6 @@ def batch_pieces(
 def _globalised(piece: Piece, index: np.ndarray) -> Piece:
     piece.index = index[piece.index]
     return piece
-
-
-def _local(piece: Piece) -> Piece:
-    """The piece with indices 0, 1, ... (for assembling it on its own)."""
-    return Piece(
-        np.arange(len(piece.index), dtype=np.int64), piece.vertices, piece.vertex_count,
-        piece.triangles, piece.triangle_count, piece.parent, piece.depth, piece.side,
-    )  # fmt: skip
 
 
 def _triangulate_mid_size(
@@ -297,16 +288,17 @@ def _piece(
         vertices = flat.vertices
     else:
         vertices = flat.vertices[ragged_index(flat.poly_vstart[index], vertex_count)]
-    triangle_count = np.zeros(len(index), dtype=np.int64)
     if trees is None or not len(tree_polys):
-        none = np.zeros(0, dtype=np.int64)
-        return Piece(
-            index, vertices, vertex_count, np.zeros((0, 3), np.int64), triangle_count,
-            none, none, np.zeros(0, np.int8),
-        )  # fmt: skip
+        return Piece(index, PackedTriangulations.without_triangles(vertices, vertex_count))
+    triangle_count = np.zeros(len(index), dtype=np.int64)
     triangle_count[np.searchsorted(index, tree_polys)] = trees.count[trees.ok]
-    fields = (trees.triangles, trees.parent, trees.depth, trees.side)
+    triangles, parent, depth, side = trees.triangles, trees.parent, trees.depth, trees.side
     if not trees.ok.all():
         rows = ragged_index(trees.start[trees.ok], trees.count[trees.ok])
-        fields = tuple(f[rows] for f in fields)
-    return Piece(index, vertices, vertex_count, fields[0], triangle_count, *fields[1:])
+        triangles, parent, depth, side = triangles[rows], parent[rows], depth[rows], side[rows]
+    return Piece(
+        index,
+        PackedTriangulations(
+            vertices, vertex_count, triangles, triangle_count, parent, depth, side
+        ),
+    )

@@ -100,6 +100,22 @@ class PackedTriangulations:
     side: np.ndarray
     errors: dict[int, TriangulationError] = field(default_factory=dict)
 
+    @classmethod
+    def without_triangles(
+        cls,
+        vertices: np.ndarray,
+        vertex_count: np.ndarray,
+        errors: dict[int, TriangulationError] | None = None,
+    ) -> PackedTriangulations:
+        """Polygons with ``vertex_count`` of ``vertices`` each and no triangle (empty or
+        failed results)."""
+        none = np.zeros(0, dtype=np.int64)
+        return cls(
+            vertices, vertex_count, np.zeros((0, 3), np.int64),
+            np.zeros(len(vertex_count), np.int64), none, none, np.zeros(0, np.int8),
+            errors or {},
+        )  # fmt: skip
+
     def __len__(self) -> int:
         return len(self.vertex_count)
 
@@ -149,28 +165,25 @@ class PackedTriangulations:
 
 @dataclass
 class Piece:
-    """Results of some polygons (``index``, increasing), their arrays one after another."""
+    """The results of some polygons of a call: their indices (increasing) and their
+    triangulations, packed in that order."""
 
     index: np.ndarray
-    vertices: np.ndarray
-    vertex_count: np.ndarray
-    triangles: np.ndarray
-    triangle_count: np.ndarray
-    parent: np.ndarray
-    depth: np.ndarray
-    side: np.ndarray
+    results: PackedTriangulations
 
     @classmethod
     def of(cls, index: int, result: Triangulation) -> Piece:
         return cls(
             np.array([index], dtype=np.int64),
-            np.asarray(result.vertices, dtype=np.float64).reshape(-1, 3),
-            np.array([len(result.vertices)], dtype=np.int64),
-            np.asarray(result.triangles, dtype=np.int64).reshape(-1, 3),
-            np.array([len(result.triangles)], dtype=np.int64),
-            np.asarray(result.parent, dtype=np.int64),
-            np.asarray(result.depth, dtype=np.int64),
-            np.asarray(result.side, dtype=np.int8),
+            PackedTriangulations(
+                np.asarray(result.vertices, dtype=np.float64).reshape(-1, 3),
+                np.array([len(result.vertices)], dtype=np.int64),
+                np.asarray(result.triangles, dtype=np.int64).reshape(-1, 3),
+                np.array([len(result.triangles)], dtype=np.int64),
+                np.asarray(result.parent, dtype=np.int64),
+                np.asarray(result.depth, dtype=np.int64),
+                np.asarray(result.side, dtype=np.int8),
+            ),
         )
 
 
@@ -178,22 +191,21 @@ def assemble(
     count: int, pieces: list[Piece], errors: dict[int, TriangulationError]
 ) -> PackedTriangulations:
     """The pieces (each polygon in one of them, or failed in ``errors``) in polygon order."""
-    vertex_count = np.zeros(count, dtype=np.int64)
-    triangle_count = np.zeros(count, dtype=np.int64)
     pieces = [piece for piece in pieces if len(piece.index)]
     if not pieces:
-        return PackedTriangulations(
-            np.zeros((0, 3)), vertex_count, np.zeros((0, 3), np.int64), triangle_count,
-            np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int8), errors,
-        )  # fmt: skip
+        return PackedTriangulations.without_triangles(
+            np.zeros((0, 3)), np.zeros(count, dtype=np.int64), errors
+        )
     index = np.concatenate([piece.index for piece in pieces])
-    vcount = np.concatenate([piece.vertex_count for piece in pieces])
-    tcount = np.concatenate([piece.triangle_count for piece in pieces])
+    vcount = np.concatenate([piece.results.vertex_count for piece in pieces])
+    tcount = np.concatenate([piece.results.triangle_count for piece in pieces])
+    vertex_count = np.zeros(count, dtype=np.int64)
+    triangle_count = np.zeros(count, dtype=np.int64)
     vertex_count[index] = vcount
     triangle_count[index] = tcount
     fields = [
-        np.concatenate([getattr(piece, name) for piece in pieces]) if len(pieces) > 1 else
-        getattr(pieces[0], name)
+        np.concatenate([getattr(piece.results, name) for piece in pieces]) if len(pieces) > 1
+        else getattr(pieces[0].results, name)
         for name in ("vertices", "triangles", "parent", "depth", "side")
     ]  # fmt: skip
     vertices, triangles, parent, depth, side = fields
