@@ -34,6 +34,7 @@ from .batch_bridges import bridge_sequences
 from .batch_bsp import Trees, build_trees
 from .batch_rings import (
     FlatRings,
+    as_xyz,
     clear_area,
     flatten_points,
     flatten_rings,
@@ -103,12 +104,7 @@ def triangulate_batch_packed(
     owner = np.repeat(np.arange(len(polygons)), polygons.ring_count)
     empty_ring[owner[polygons.ring_len == 0]] = True
     usable_counts = np.where(empty_ring | (polygons.ring_count == 0), -1, polygons.ring_count)
-    points = polygons.points
-    if points.shape[1] != 3:
-        padded = np.zeros((len(points), 3))
-        width = min(points.shape[1], 3)
-        padded[:, :width] = points[:, :width]
-        points = padded
+    points = as_xyz(polygons.points)
 
     def flatten(index: np.ndarray, limit: int) -> FlatRings:
         counts = usable_counts[index]

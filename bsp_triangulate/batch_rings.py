@@ -92,21 +92,26 @@ def _parse(polygons: Sequence[Sequence[object]]) -> tuple[list[np.ndarray], list
     return arrays, counts, np.array(widths, dtype=np.int64)
 
 
-def _stack(arrays: list[np.ndarray], widths: np.ndarray) -> np.ndarray:
-    """All rings as one (N, 3) array, z = 0 where absent."""
+def as_xyz(points: np.ndarray) -> np.ndarray:
+    """Points of 2 to 4 columns as (N, 3): z = 0 where absent, a 4th column (m) dropped; the
+    array itself when it has 3 columns."""
+    width = points.shape[1]
+    if width == 3:
+        return points
+    if width > 3:
+        return np.ascontiguousarray(points[:, :3])
+    out = np.zeros((len(points), 3))
+    out[:, :width] = points
+    return out
+
+
+def stack_rings(arrays: list[np.ndarray], widths: np.ndarray) -> np.ndarray:
+    """All rings (``widths`` columns each) as one (N, 3) array, z = 0 where absent."""
     if not arrays:
         return np.zeros((0, 3))
-    if (widths == 2).all():
-        xy = np.concatenate(arrays)
-        out = np.zeros((len(xy), 3))
-        out[:, :2] = xy
-        return out
-    if (widths == 3).all():
-        return np.concatenate(arrays)
-    padded = [
-        np.column_stack([a, np.zeros(len(a))]) if a.shape[1] == 2 else a[:, :3] for a in arrays
-    ]
-    return np.concatenate(padded)
+    if (widths == widths[0]).all():
+        return as_xyz(np.concatenate(arrays))
+    return np.concatenate([as_xyz(a) for a in arrays])
 
 
 def _sum_with_bound(terms: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> tuple:
@@ -154,7 +159,7 @@ def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> Fl
     arrays, ring_counts, widths = _parse(polygons)
     counts = np.array(ring_counts, dtype=np.int64)
     raw_len = np.array([len(a) for a in arrays], dtype=np.int64)
-    return flatten_points(_stack(arrays, widths), raw_len, counts, max_vertices)
+    return flatten_points(stack_rings(arrays, widths), raw_len, counts, max_vertices)
 
 
 def flatten_points(

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .batch_rings import ragged_index
+from .batch_rings import ragged_index, stack_rings
 from .triangulation import Triangulation, TriangulationError
 
 
@@ -45,19 +45,14 @@ class PackedPolygons:
 
     @classmethod
     def of(cls, polygons: Sequence[Sequence[np.ndarray]]) -> PackedPolygons:
-        """Pack lists of rings ((n, 2) to (n, 4) arrays or point lists, empty rings too;
-        missing z becomes 0)."""
+        """Pack lists of rings ((n, 2) to (n, 4) arrays or point lists, empty rings too) as
+        (N, 3) points: missing z becomes 0, m is dropped."""
         rings = [np.asarray(ring, dtype=np.float64) for rings in polygons for ring in rings]
         rings = [ring.reshape(0, 2) if ring.size == 0 else ring for ring in rings]
-        width = max((ring.shape[1] for ring in rings if ring.ndim == 2), default=3)
-        blocks = []
-        for ring in rings:
-            block = np.zeros((len(ring), width))
-            block[:, : ring.shape[1]] = ring
-            blocks.append(block)
-        points = np.concatenate(blocks) if blocks else np.zeros((0, width))
+        widths = np.array([ring.shape[1] for ring in rings], dtype=np.int64)
         ring_len = np.array([len(ring) for ring in rings], dtype=np.int64)
-        return cls(points, ring_len, np.array([len(rings) for rings in polygons], np.int64))
+        ring_count = np.array([len(rings) for rings in polygons], dtype=np.int64)
+        return cls(stack_rings(rings, widths), ring_len, ring_count)
 
     def __len__(self) -> int:
         return len(self.ring_count)
