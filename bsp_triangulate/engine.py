@@ -844,13 +844,8 @@ def triangulate_many(
     polygon, True where ``validity.proven_valid`` has proven it valid (it spares the batch
     path its own search for touching rings).
     """
-    if on_error not in ("raise", "return"):
-        raise ValueError(f"on_error must be 'raise' or 'return', not {on_error!r}")
-    get_rule(rule)
-    _as_given(invalid)
     polygons = list(polygons)
-    if proven is not None and len(proven) != len(polygons):
-        raise ValueError(f"proven has {len(proven)} flags for {len(polygons)} polygons")
+    _check_many_options(rule, invalid, on_error, proven, len(polygons))
     results: list = [None] * len(polygons)
     if planar_tolerance <= 0 and len(polygons) > 1:
         # many small polygons in lock-step; it leaves (None) what it does not decide exactly
@@ -868,15 +863,33 @@ def triangulate_many(
             if isinstance(done, TriangulationError) and on_error == "raise":
                 raise done
             continue
-        try:
-            results[index] = triangulate(
-                rings, rule=rule, planar_tolerance=planar_tolerance, invalid=invalid
-            )
-        except TriangulationError as exc:
-            if on_error == "raise":
-                raise
-            results[index] = exc
+        results[index] = _engine_result(rings, rule, planar_tolerance, invalid, on_error)
     return results
+
+
+def _check_many_options(
+    rule: str, invalid: str, on_error: str, proven: Sequence[bool] | None, count: int
+) -> None:
+    """The options of :func:`triangulate_many` and :func:`triangulate_packed`, or ValueError."""
+    if on_error not in ("raise", "return"):
+        raise ValueError(f"on_error must be 'raise' or 'return', not {on_error!r}")
+    get_rule(rule)
+    _as_given(invalid)
+    if proven is not None and len(proven) != count:
+        raise ValueError(f"proven has {len(proven)} flags for {count} polygons")
+
+
+def _engine_result(
+    rings: Sequence[object], rule: str, planar_tolerance: float, invalid: str, on_error: str
+) -> Triangulation | TriangulationError:
+    """:func:`triangulate` of one polygon of many: its error is returned (``on_error`` is
+    "return") or raised."""
+    try:
+        return triangulate(rings, rule=rule, planar_tolerance=planar_tolerance, invalid=invalid)
+    except TriangulationError as exc:
+        if on_error == "raise":
+            raise
+        return exc
 
 
 def triangulate_packed(
@@ -891,12 +904,7 @@ def triangulate_packed(
     """:func:`triangulate_many` of packed polygons, with packed results: the same vertices,
     triangles and trees, in flat arrays (no object per polygon). A polygon that fails with
     ``on_error="return"`` has no vertices or triangles and its error in ``errors``."""
-    if on_error not in ("raise", "return"):
-        raise ValueError(f"on_error must be 'raise' or 'return', not {on_error!r}")
-    get_rule(rule)
-    _as_given(invalid)
-    if proven is not None and len(proven) != len(polygons):
-        raise ValueError(f"proven has {len(proven)} flags for {len(polygons)} polygons")
+    _check_many_options(rule, invalid, on_error, proven, len(polygons))
     pieces: list[Piece] = []
     if planar_tolerance <= 0 and len(polygons) > 1:
         from .batch import triangulate_batch_packed
@@ -910,19 +918,12 @@ def triangulate_packed(
         decided[piece.index] = True
     errors: dict[int, TriangulationError] = {}
     for index in np.flatnonzero(~decided).tolist():
-        try:
-            result = triangulate(
-                polygons.rings(index),
-                rule=rule,
-                planar_tolerance=planar_tolerance,
-                invalid=invalid,
-            )
-        except TriangulationError as exc:
-            if on_error == "raise":
-                raise
-            errors[index] = exc
-            continue
-        pieces.append(Piece.of(index, result))
+        rings = polygons.rings(index)
+        result = _engine_result(rings, rule, planar_tolerance, invalid, on_error)
+        if isinstance(result, TriangulationError):
+            errors[index] = result
+        else:
+            pieces.append(Piece.of(index, result))
     return assemble(len(polygons), pieces, errors)
 
 
