@@ -134,9 +134,8 @@ class BatchMesh:
         for chunk in chunks:
             packed = chunk.packed
             owner = np.repeat(np.arange(len(chunk.part_count)), chunk.part_count)
-            part = np.arange(len(owner)) - np.repeat(
-                np.cumsum(chunk.part_count) - chunk.part_count, chunk.part_count
-            )
+            # each part's index within its feature
+            part = ragged_index(np.zeros(len(chunk.part_count), np.int64), chunk.part_count)
             # the kept items' rows in this mesh
             row = np.cumsum(chunk.item_kept) - 1 + len(items)
             items += [item for item, keep in zip(chunk.items, chunk.item_kept.tolist()) if keep]
