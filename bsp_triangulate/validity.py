@@ -275,7 +275,7 @@ def _small_rings_simple(rings: _Rings, chosen: np.ndarray) -> np.ndarray:
     count = np.maximum(edges[ring] - i - 2 - (i == 0), 0)
     pair, k = _ragged(count)
     p = a[pair]
-    q = first[ring[pair]] + i[pair] + 2 + k
+    q = p + 2 + k
     apart = _segments_apart(x[p], y[p], x[p + 1], y[p + 1], x[q], y[q], x[q + 1], y[q + 1])
     broken = np.bincount(ring[pair[~apart]], minlength=len(chosen)) > 0
     return simple & ~broken
