@@ -113,20 +113,23 @@ def run(
 ) -> list[Row]:
     """Rows of wall time and peak RSS per algorithm run (outputs in a folder removed after)."""
     output = Path(tempfile.mkdtemp(prefix="bsptri-bench-e2e-"))
+    count = count or (QUICK_COUNT if quick else DEFAULT_COUNT)
+    environment = qgis_environment(plugin_dir())
+    enable_plugin(environment)
     try:
-        rows = measure_runs(output, quick, budget, count)
-        count = count or (QUICK_COUNT if quick else DEFAULT_COUNT)
-        return rows + footprint_rows(output, FOOTPRINTS_PER_STAR * count, budget)
+        rows = measure_runs(output, count, budget, environment)
+        footprints = FOOTPRINTS_PER_STAR * count
+        return rows + footprint_rows(output, footprints, budget, environment)
     finally:
         shutil.rmtree(output, ignore_errors=True)
 
 
-def measure_runs(output: Path, quick: bool, budget: float | None, count: int | None) -> list[Row]:
-    """Rows of wall time and peak RSS per algorithm run, outputs written to ``output``."""
-    count = count or (QUICK_COUNT if quick else DEFAULT_COUNT)
+def measure_runs(
+    output: Path, count: int, budget: float | None, environment: dict[str, str]
+) -> list[Row]:
+    """Rows of wall time and peak RSS per algorithm run on ``count`` stars, outputs written to
+    ``output``, qgis_process in ``environment`` (the plugin enabled)."""
     polygons, dem = ensure_stars(count)
-    environment = qgis_environment(plugin_dir())
-    enable_plugin(environment)
     triangulate = {
         "INPUT": polygons,
         "ELEVATION_SOURCE": 3,
@@ -234,12 +237,12 @@ def measure_runs(output: Path, quick: bool, budget: float | None, count: int | N
     return rows
 
 
-def footprint_rows(output: Path, count: int, budget: float | None) -> list[Row]:
+def footprint_rows(
+    output: Path, count: int, budget: float | None, environment: dict[str, str]
+) -> list[Row]:
     """A building layer (``count`` footprints, z from the geometry): mesh-only runs of ours
     against ``3d:tessellate``, alternated, best of three each."""
     layer = ensure_footprints(count)
-    environment = qgis_environment(plugin_dir())
-    enable_plugin(environment)
     cases = {
         "3d:tessellate -> gpkg": algorithm(
             "3d:tessellate", INPUT=layer, OUTPUT=output / "footprints_tessellated.gpkg"
