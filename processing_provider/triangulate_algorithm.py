@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import traceback
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-import numpy as np
 from qgis.core import (
+    QgsApplication,
     QgsCoordinateTransform,
     QgsExpression,
     QgsFeatureRequest,
@@ -36,14 +38,13 @@ from qgis.core import (
 from qgis.PyQt.QtCore import QCoreApplication
 from qgis.PyQt.QtGui import QIcon
 
-from ..bsp_triangulate import PackedPolygons, triangulate_packed
 from ..bsp_triangulate.densify import densify_ring
 from . import elevation
+from .engine_runs import BatchJob, EngineOptions, EngineRunner
 from .geometry_io import INVALID_AS_GIVEN, FeatureRings, feature_batches
 from .outputs import (
     MESH_EXTENSIONS,
     BatchMesh,
-    EngineChunk,
     MeshAccumulator,
     SinkCleanup,
     SinkWriter,
@@ -58,6 +59,7 @@ from .outputs import (
 ICON = Path(__file__).resolve().parent.parent / "icons" / "triangulate.svg"
 APEX_RULES = ("first", "elevation")
 MAX_LISTED_IDS = 200
+MAX_WORKERS = 64
 
 
 class TriangulateAlgorithm(QgsProcessingAlgorithm):
@@ -76,6 +78,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
     APEX_RULE = "APEX_RULE"
     PLANAR_TOLERANCE = "PLANAR_TOLERANCE"
     INVALID_POLYGONS = "INVALID_POLYGONS"
+    WORKERS = "WORKERS"
     OUTPUT_MESH = "OUTPUT_MESH"
     OUTPUT_TRIANGLES = "OUTPUT_TRIANGLES"
     OUTPUT_TREE = "OUTPUT_TREE"
@@ -150,6 +153,11 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "over terrain).</p>"
             "<p><b>Planar tolerance</b>: near-planar polygons (roofs) are snapped onto one "
             "plane when no vertex moves by more than this (paper §4.2). 0 = off.</p>"
+            "<p><b>Worker processes</b>: large layers are triangulated in this many Python "
+            "processes at once, one per core by default (QGIS's <i>max cores</i> setting "
+            "limits it); 1 keeps all the work in QGIS's process. A layer of one engine call "
+            "(up to 250,000 vertices) always stays in QGIS's process. Results are the same "
+            "either way.</p>"
             "<p><b>Invalid polygons</b>: <i>repair</i> them with make valid, then triangulate "
             "(default; repaired feature ids are reported); <i>fail</i> the feature; or "
             "<i>triangulate the rings as given</i>.</p>"
@@ -269,6 +277,14 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 defaultValue=0.0,
                 minValue=0.0,
             ),
+            QgsProcessingParameterNumber(
+                self.WORKERS,
+                self.tr("Worker processes (0 = one per core QGIS may use, 1 = none)"),
+                QgsProcessingParameterNumber.Integer,
+                defaultValue=0,
+                minValue=0,
+                maxValue=MAX_WORKERS,
+            ),
         ]
         for parameter in advanced:
             parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
@@ -361,6 +377,15 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         if parameters.get(self.DEM_BAND) is None:
             return 1
         return self.parameterAsInt(parameters, self.DEM_BAND, context)
+
+    def _worker_count(self, parameters: dict[str, Any], context: QgsProcessingContext) -> int:
+        """Worker processes of the run: as asked, or one per core QGIS may use (its
+        "max cores" setting)."""
+        count = self.parameterAsInt(parameters, self.WORKERS, context)
+        if count <= 0:
+            allowed = QgsApplication.maxThreads()
+            count = allowed if allowed > 0 else os.cpu_count() or 1
+        return min(count, MAX_WORKERS)
 
     def prepareAlgorithm(  # noqa: N802 - QGIS API name
         self,
@@ -504,7 +529,13 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         z_offset = self.parameterAsDouble(parameters, self.Z_OFFSET, context)
         invalid_policy = self.parameterAsEnum(parameters, self.INVALID_POLYGONS, context)
         # rings kept as given: the engine triangulates them even where no correct triangle exists
-        self._engine_invalid = "as_given" if invalid_policy == INVALID_AS_GIVEN else "fail"
+        options = EngineOptions(
+            rule, tolerance, "as_given" if invalid_policy == INVALID_AS_GIVEN else "fail"
+        )
+        runner = EngineRunner(
+            options, self._worker_count(parameters, context), feedback, self.tr,
+            self.CHUNK_FEATURES, self.CHUNK_VERTICES,
+        )  # fmt: skip
 
         total = source.featureCount()
         step = 100.0 / total if total > 0 else 0.0
@@ -516,10 +547,43 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             request, QgsProcessingFeatureSource.FlagSkipGeometryValidityChecks
         )
         mesh = MeshAccumulator() if mesh_path else None
-        read = triangulated = triangles = failed = empty = 0
-        repaired: list[int] = []
+        tally = _Tally()
         reported_warnings: set[str] = set()
         writer = SinkWriter()
+
+        def write(job: BatchJob) -> bool:
+            """The job's results to the outputs; False when the run was cancelled."""
+            start, size = tally.read, len(job.batch)
+
+            def report(fraction: float) -> None:
+                feedback.setProgress(min((start + fraction * size) * step, 99.0))
+
+            chunks = runner.finish(job, report)
+            if chunks is None:
+                return False
+            batch = job.batch
+            tally.read += size
+            tally.repaired.extend(item.fid for item in batch if item.repaired)
+            for item in batch:
+                if item.error is not None:
+                    tally.failed += 1
+                    feedback.reportError(
+                        self.tr("Feature {}: {}").format(item.fid, item.error), False
+                    )
+            batch_mesh = BatchMesh.build(chunks)
+            with_triangles = batch_mesh.feature_count()
+            tally.triangulated += with_triangles
+            tally.empty += sum(1 for item in batch if item.error is None) - with_triangles
+            tally.triangles += len(batch_mesh)
+            writer.write(sinks[0], triangle_feature_chunks(batch_mesh, fields))
+            writer.write(sinks[1], tree_feature_chunks(batch_mesh, lines))
+            if mesh is not None:
+                mesh.add(batch_mesh)
+            report(1.0)
+            return True
+
+        # with workers, a batch is written once the next one is read and submitted
+        pending: list[BatchJob] = []
         try:
             for batch in feature_batches(
                 features, invalid_policy, self.BATCH_FEATURES, self.BATCH_VERTICES, feedback
@@ -533,31 +597,20 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                     feedback.pushInfo(self.tr("Elevation: {}").format(warning))
                     reported_warnings.add(warning)
                 elevation.scale_z(batch, z_scale, z_offset)
-
-                def report(fraction: float, start: int = read, size: int = len(batch)) -> None:
-                    feedback.setProgress(min((start + fraction * size) * step, 99.0))
-
-                chunks, _done = self._triangulate(batch, rule, tolerance, feedback, report)
+                pending.append(runner.submit(batch))
+                while len(pending) > runner.parallel and write(pending.pop(0)):
+                    pass
                 if feedback.isCanceled():
                     break
-                read += len(batch)
-                repaired.extend(item.fid for item in batch if item.repaired)
-                for item in batch:
-                    if item.error is not None:
-                        failed += 1
-                        feedback.reportError(
-                            self.tr("Feature {}: {}").format(item.fid, item.error), False
-                        )
-                batch_mesh = BatchMesh.build(chunks)
-                with_triangles = batch_mesh.feature_count()
-                triangulated += with_triangles
-                empty += sum(1 for item in batch if item.error is None) - with_triangles
-                triangles += len(batch_mesh)
-                writer.write(sinks[0], triangle_feature_chunks(batch_mesh, fields))
-                writer.write(sinks[1], tree_feature_chunks(batch_mesh, lines))
-                if mesh is not None:
-                    mesh.add(batch_mesh)
-                report(1.0)
+            while pending and not feedback.isCanceled() and write(pending.pop(0)):
+                pass
+            runner.close()
+            if runner.calls_in_workers:
+                feedback.pushInfo(
+                    self.tr("{} of {} engine calls ran in {} worker processes.").format(
+                        runner.calls_in_workers, runner.calls, runner.workers_seen
+                    )
+                )
             writer.close(sinks)  # a GeoPackage builds its spatial index here
             if feedback.isCanceled():
                 raise self._cancelled()
@@ -567,8 +620,11 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 raise self._cancelled()
             written = staged.commit() if staged is not None else None
         finally:
+            runner.close(cancel=True)
             writer.finish()
 
+        read, triangulated, triangles = tally.read, tally.triangulated, tally.triangles
+        failed, empty, repaired = tally.failed, tally.empty, tally.repaired
         if repaired:
             self._report_repaired(repaired, feedback)
         results: dict[str, Any] = {
@@ -613,93 +669,17 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             )
         )
 
-    def _triangulate(
-        self,
-        batch: list[FeatureRings],
-        rule: str,
-        tolerance: float,
-        feedback: QgsProcessingFeedback,
-        report: Callable[[float], None],
-    ) -> tuple[list[EngineChunk], int]:
-        """Triangulate the batch in engine calls of bounded size, with progress and cancel.
 
-        Returns the engine calls' results and how many features of the batch were handled
-        (fewer than all only when cancelled).
-        """
-        results: list[EngineChunk] = []
-        chunk: list[FeatureRings] = []
-        vertices = 0
-        for index, item in enumerate(batch):
-            if item.ok:
-                chunk.append(item)
-                vertices += item.vertex_count()
-            last = index == len(batch) - 1
-            if chunk and (
-                last or len(chunk) >= self.CHUNK_FEATURES or vertices >= self.CHUNK_VERTICES
-            ):
-                results += self._run_engine(chunk, rule, tolerance, feedback)
-                chunk, vertices = [], 0
-                report((index + 1) / len(batch))
-                if feedback.isCanceled():
-                    return results, index + 1
-        return results, len(batch)
+@dataclass
+class _Tally:
+    """Counts of a run so far."""
 
-    def _run_engine(
-        self,
-        items: list[FeatureRings],
-        rule: str,
-        tolerance: float,
-        feedback: QgsProcessingFeedback,
-    ) -> list[EngineChunk]:
-        """All parts of ``items`` in one engine call; a failure goes to its feature."""
-        rings = [ring for item in items for part in item.parts for ring in part]
-        part_count = np.fromiter((len(item.parts) for item in items), np.int64, len(items))
-        proven = np.repeat([item.proven for item in items], part_count)
-        try:
-            polygons = PackedPolygons(
-                np.concatenate(rings) if rings else np.zeros((0, 3)),
-                np.fromiter((len(ring) for ring in rings), np.int64, len(rings)),
-                np.fromiter(
-                    (len(part) for item in items for part in item.parts),
-                    np.int64,
-                    part_count.sum(),
-                ),
-            )
-            outcome = triangulate_packed(
-                polygons,
-                rule=rule,
-                planar_tolerance=tolerance,
-                on_error="return",
-                invalid=getattr(self, "_engine_invalid", "fail"),
-                proven=proven,
-            )
-        except Exception as error:  # isolate the feature that breaks the call
-            if len(items) == 1:
-                items[0].error = self.tr("cannot be triangulated: {}").format(error)
-                return []
-            return [
-                result
-                for item in items
-                if not feedback.isCanceled()
-                for result in self._run_engine([item], rule, tolerance, feedback)
-            ]
-        item_kept = np.ones(len(items), dtype=bool)
-        if outcome.errors:
-            # the parts that failed (usually none): the first one names its feature's error
-            first_part = np.cumsum(part_count) - part_count
-            owner = np.repeat(np.arange(len(items)), part_count)
-            for part in sorted(outcome.errors):
-                row = int(owner[part])
-                if not item_kept[row]:
-                    continue
-                item_kept[row] = False
-                count = int(part_count[row])
-                index = part - int(first_part[row])
-                where = self.tr(" (part {})").format(index) if count > 1 else ""
-                items[row].error = self.tr("cannot be triangulated{}: {}").format(
-                    where, outcome.errors[part]
-                )
-        return [EngineChunk(items, part_count, outcome, item_kept)]
+    read: int = 0
+    triangulated: int = 0
+    triangles: int = 0
+    failed: int = 0
+    empty: int = 0
+    repaired: list[int] = field(default_factory=list)
 
 
 def _densify(batch: list[FeatureRings], max_length: float) -> None:

@@ -31,6 +31,7 @@ TRIANGULATE_PARAMETERS = frozenset(
         "APEX_RULE",
         "PLANAR_TOLERANCE",
         "INVALID_POLYGONS",
+        "WORKERS",
         "OUTPUT_MESH",
         "OUTPUT_TRIANGLES",
         "OUTPUT_TREE",

@@ -136,3 +136,34 @@ def test_leaving_out_the_triangles_output_gives_a_mesh_only_run(
     _vertices, faces = read_mesh(mesh_path)
     assert len(faces) == 7
     assert sorted(path.name for path in tmp_path.iterdir()) == ["square.geojson", "square.ply"]
+
+
+def test_worker_processes_started_by_qgis_process_write_the_mesh_of_one_process(
+    qgis_process: QgisProcess, tmp_path: Path
+) -> None:
+    # one polygon more than an engine call takes: two calls, so the workers start (under
+    # qgis_process, Python is embedded and sys.executable is not its interpreter)
+    square_with_hole = [
+        closed([(0, 0), (10, 0), (10, 10), (0, 10)]),
+        closed([(3, 3), (7, 3), (5, 6)]),
+    ]
+    polygons = [
+        [[(x + 20.0 * (i % 100), y + 20.0 * (i // 100), z) for x, y, z in ring] for ring in rings]
+        for i, rings in enumerate([square_with_hole] * 10_001)
+    ]
+    source = write_geojson(tmp_path / "squares.geojson", polygons, 32733)
+    meshes, logs = [], []
+    for workers in (1, 2):
+        mesh_path = tmp_path / f"squares_{workers}.2dm"
+        run = qgis_process.run(
+            "run", "bsptriangulate:triangulate", "--", f"INPUT={source}",
+            "ELEVATION_SOURCE=1", f"WORKERS={workers}", f"OUTPUT_MESH={mesh_path}",
+        )  # fmt: skip
+        meshes.append(mesh_path.read_bytes())
+        logs.append(run.stdout + run.stderr)
+    assert "worker processes" not in logs[0]
+    assert "2 of 2 engine calls ran in 2 worker processes" in logs[1]
+    assert "stopped" not in logs[1]
+    assert meshes[0] == meshes[1]
+    _vertices, faces = read_mesh(tmp_path / "squares_2.2dm")
+    assert len(faces) == 7 * 10_001

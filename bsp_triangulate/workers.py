@@ -1,0 +1,263 @@
+"""``triangulate_packed`` in worker processes, so that a large layer uses every core.
+
+The engine is numpy code driven by Python, so one process uses one core. A
+:class:`WorkerPool` runs calls of :func:`~bsp_triangulate.engine.triangulate_packed` in other
+Python processes of the same version (this interpreter's own executable, found with
+:func:`python_interpreter`), each started once and fed one call after another through its
+standard input and output. Calls and results cross as pickles of plain arrays, so the results
+are the same arrays, bit for bit, as in this process.
+
+The worker side is :func:`serve`: it imports this package by its own name from the folder
+that holds it, whatever name the caller imported it under (a QGIS plugin imports it as a
+sub-package of the plugin).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import pickle
+import queue
+import subprocess
+import sys
+import tempfile
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from .packed import PackedPolygons, PackedTriangulations
+from .triangulation import TriangulationError
+
+# the folder that holds this package: the worker imports it from there
+_PACKAGE_DIR = str(Path(__file__).resolve().parent.parent)
+_PACKAGE = Path(__file__).resolve().parent.name
+_BOOT = (
+    "import json, sys; sys.path[:] = json.loads(sys.argv[1]); "
+    f"from {_PACKAGE}.workers import serve; serve()"
+)
+# seconds a worker may take to exit after its input closes before it is killed
+_EXIT_WAIT = 2.0
+_RESULT_FIELDS = (
+    "vertices", "vertex_count", "triangles", "triangle_count", "parent", "depth", "side",
+)  # fmt: skip
+
+
+class WorkerError(RuntimeError):
+    """A worker process could not start, or stopped before it answered."""
+
+
+class WorkerCallError(RuntimeError):
+    """The call raised in the worker process (the message names the exception); a
+    :class:`TriangulationError` is raised as itself."""
+
+
+def python_interpreter() -> str | None:
+    """An executable of the running Python's version, or None.
+
+    Embedded interpreters (QGIS) report their own program or a guess from ``PATH`` as
+    ``sys.executable``, so the interpreter beside this Python's installation comes first.
+    The worker checks the version when it starts.
+    """
+    major, minor = sys.version_info[:2]
+    prefix = Path(sys.exec_prefix)
+    if os.name == "nt":
+        # pythonw: no console window per worker
+        candidates = [prefix / "pythonw.exe", prefix / "python.exe"]
+    else:
+        candidates = [prefix / "bin" / f"python{major}.{minor}", prefix / "bin" / "python3"]
+    for name in (getattr(sys, "_base_executable", None), sys.executable):
+        if name and Path(name).name.lower().startswith("python"):
+            candidates.append(Path(name))
+    for candidate in candidates:
+        if candidate.is_file() and os.access(candidate, os.X_OK):
+            return str(candidate)
+    return None
+
+
+class _Worker:
+    """One worker process and its pipes."""
+
+    def __init__(self, python: str) -> None:
+        # the worker's messages, read when it fails (a pipe nobody reads could fill up)
+        self._errors = tempfile.TemporaryFile()  # noqa: SIM115 - closed in kill()
+        paths = [_PACKAGE_DIR, *sys.path]
+        flags = getattr(subprocess, "CREATE_NO_WINDOW", 0)
+        try:
+            self.process = subprocess.Popen(
+                [python, "-c", _BOOT, json.dumps(paths)],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=self._errors,
+                creationflags=flags,
+            )
+        except OSError as error:
+            self._errors.close()
+            raise WorkerError(f"cannot start {python}: {error}") from error
+        hello = self._receive()
+        if hello != ("ready", tuple(sys.version_info[:2])):
+            self.kill()
+            raise WorkerError(f"{python} is not Python {sys.version_info[0]}.{sys.version_info[1]}")
+
+    def call(self, request: tuple) -> Any:
+        try:
+            pickle.dump(request, self.process.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            self.process.stdin.flush()
+        except OSError as error:
+            raise WorkerError(f"the worker stopped: {self._stderr() or error}") from error
+        return self._receive()
+
+    def _receive(self) -> Any:
+        try:
+            return pickle.load(self.process.stdout)
+        except (EOFError, OSError, pickle.UnpicklingError) as error:
+            self.kill()
+            raise WorkerError(f"the worker stopped: {self._stderr() or error!r}") from error
+
+    def _stderr(self) -> str:
+        try:
+            self._errors.seek(0)
+            return self._errors.read().decode(errors="replace").strip()[-2000:]
+        except (OSError, ValueError):
+            return ""
+
+    def close(self) -> None:
+        """Close the worker's input (it exits), kill it if it does not."""
+        try:
+            self.process.stdin.close()
+            self.process.wait(_EXIT_WAIT)
+        except (OSError, subprocess.TimeoutExpired):
+            pass
+        self.kill()
+
+    def kill(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+        for stream in (self.process.stdin, self.process.stdout, self._errors):
+            with contextlib.suppress(OSError):
+                stream.close()
+
+
+class WorkerPool:
+    """Up to ``count`` worker processes running ``triangulate_packed`` calls.
+
+    ``submit`` returns a future of the call's :class:`PackedTriangulations`. A worker starts
+    with the first call that needs it and serves calls until :meth:`close`. A call fails
+    with :class:`WorkerError` when its worker cannot start or stops (it is replaced for the
+    next call), with :class:`WorkerCallError` when ``triangulate_packed`` raises.
+    """
+
+    def __init__(self, count: int, python: str | None = None) -> None:
+        if count < 1:
+            raise ValueError("a pool needs at least one worker")
+        self.count = count
+        self.python = python or python_interpreter()
+        self._threads = ThreadPoolExecutor(count, thread_name_prefix="bsp-triangulate-worker")
+        self._idle: queue.SimpleQueue[_Worker] = queue.SimpleQueue()
+        self._workers: list[_Worker] = []
+        self._lock = threading.Lock()
+        self._closed = False
+
+    def submit(self, polygons: PackedPolygons, **options: Any) -> Future:
+        """``triangulate_packed(polygons, **options)`` in a worker."""
+        request = (polygons.points, polygons.ring_len, polygons.ring_count, options)
+        return self._threads.submit(self._run, request)
+
+    def _run(self, request: tuple) -> PackedTriangulations:
+        worker = self._take()
+        try:
+            status, payload = worker.call(request)
+        except BaseException:
+            self._drop(worker)
+            raise
+        self._idle.put(worker)
+        if status != "ok":
+            kind, message = payload
+            if kind == TriangulationError.__name__:
+                raise TriangulationError(message)
+            raise WorkerCallError(f"{kind}: {message}")
+        arrays, errors = payload
+        return PackedTriangulations(
+            *arrays, errors={index: TriangulationError(text) for index, text in errors.items()}
+        )
+
+    def _take(self) -> _Worker:
+        try:
+            return self._idle.get_nowait()
+        except queue.Empty:
+            pass
+        if self.python is None:
+            raise WorkerError("no Python executable of this version was found")
+        with self._lock:
+            if self._closed:
+                raise WorkerError("the pool is closed")
+        worker = _Worker(self.python)
+        with self._lock:
+            if self._closed:
+                worker.kill()
+                raise WorkerError("the pool is closed")
+            self._workers.append(worker)
+        return worker
+
+    def _drop(self, worker: _Worker) -> None:
+        worker.kill()
+        with self._lock:
+            if worker in self._workers:
+                self._workers.remove(worker)
+
+    def processes(self) -> list[subprocess.Popen]:
+        """The worker processes running now."""
+        with self._lock:
+            return [w.process for w in self._workers if w.process.poll() is None]
+
+    def close(self, cancel: bool = False) -> None:
+        """Stop the workers: after their calls (``cancel``: at once, calls not started are
+        dropped and running ones fail)."""
+        with self._lock:
+            self._closed = True
+            workers, self._workers = self._workers, []
+        if cancel:
+            for worker in workers:
+                worker.kill()
+        self._threads.shutdown(wait=True, cancel_futures=cancel)
+        for worker in workers:
+            worker.close()
+
+    def __enter__(self) -> WorkerPool:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close(cancel=exc_info[0] is not None)
+
+
+def _send(channel: IO[bytes], message: object) -> None:
+    pickle.dump(message, channel, protocol=pickle.HIGHEST_PROTOCOL)
+    channel.flush()
+
+
+def serve() -> None:
+    """The worker's loop: one call from standard input, its reply to standard output, until
+    the input closes. Anything else printed goes to standard error."""
+    from .engine import triangulate_packed
+
+    requests = sys.stdin.buffer
+    replies = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
+    _send(replies, ("ready", tuple(sys.version_info[:2])))
+    while True:
+        try:
+            points, ring_len, ring_count, options = pickle.load(requests)
+        except EOFError:
+            return
+        try:
+            result = triangulate_packed(PackedPolygons(points, ring_len, ring_count), **options)
+            arrays = tuple(np.asarray(getattr(result, name)) for name in _RESULT_FIELDS)
+            errors = {index: str(error) for index, error in result.errors.items()}
+            reply: tuple = ("ok", (arrays, errors))
+        except Exception as error:  # the caller decides what a failed call means
+            reply = ("error", (type(error).__name__, str(error)))
+        _send(replies, reply)

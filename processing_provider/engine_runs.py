@@ -1,0 +1,241 @@
+"""The engine calls of the triangulate algorithm: each batch of features is cut into calls of
+bounded size, run in QGIS's process or in worker processes, and its results come back in
+feature order, with a failure named on its own feature."""
+
+from __future__ import annotations
+
+import concurrent.futures
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from qgis.core import QgsProcessingFeedback
+
+from ..bsp_triangulate import PackedPolygons, PackedTriangulations, triangulate_packed
+from ..bsp_triangulate.workers import WorkerError, WorkerPool
+from .geometry_io import FeatureRings
+from .outputs import EngineChunk
+
+# seconds between cancel checks while waiting for a worker
+_POLL = 0.1
+
+
+@dataclass
+class EngineOptions:
+    """The engine's options of one run: apex rule, planar tolerance, what to do with rings
+    that are not valid (``fail`` or ``as_given``)."""
+
+    rule: str
+    tolerance: float
+    invalid: str
+
+    def keywords(self) -> dict:
+        return {
+            "rule": self.rule,
+            "planar_tolerance": self.tolerance,
+            "on_error": "return",
+            "invalid": self.invalid,
+        }
+
+
+@dataclass(eq=False)
+class _Call:
+    """One engine call: its features, their parts packed (None if they cannot be), and where
+    its result comes from."""
+
+    items: list[FeatureRings]
+    part_count: np.ndarray
+    polygons: PackedPolygons | None
+    proven: np.ndarray
+    future: concurrent.futures.Future | None = None
+
+
+@dataclass
+class BatchJob:
+    """The engine calls of one batch of features."""
+
+    batch: list[FeatureRings]
+    calls: list[_Call] = field(default_factory=list)
+
+
+def _pack(items: list[FeatureRings]) -> tuple[np.ndarray, PackedPolygons, np.ndarray]:
+    """Parts per item, all parts packed and their proven flags (raises when the rings
+    cannot be packed)."""
+    rings = [ring for item in items for part in item.parts for ring in part]
+    part_count = np.fromiter((len(item.parts) for item in items), np.int64, len(items))
+    proven = np.repeat([item.proven for item in items], part_count)
+    polygons = PackedPolygons(
+        np.concatenate(rings) if rings else np.zeros((0, 3)),
+        np.fromiter((len(ring) for ring in rings), np.int64, len(rings)),
+        np.fromiter(
+            (len(part) for item in items for part in item.parts), np.int64, part_count.sum()
+        ),
+    )
+    return part_count, polygons, proven
+
+
+def _call(items: list[FeatureRings]) -> _Call:
+    """The call of ``items``; one whose rings cannot be packed runs in this process, which
+    names the feature."""
+    try:
+        return _Call(items, *_pack(items))
+    except Exception:
+        return _Call(items, np.zeros(0, np.int64), None, np.zeros(0, bool))
+
+
+class EngineRunner:
+    """Runs the engine calls of batches, in up to ``workers`` worker processes.
+
+    With more than one worker, the pool starts once two calls are waiting (a layer of one
+    call stays in QGIS's process); :meth:`submit` then returns at once and :meth:`finish`
+    waits for the results, so that the next batch is read while the workers triangulate.
+    A worker that cannot start or stops ends the use of workers for the run (a warning says
+    why); a call that fails in a worker is run again here, which names the failing feature.
+    """
+
+    def __init__(
+        self,
+        options: EngineOptions,
+        workers: int,
+        feedback: QgsProcessingFeedback,
+        tr: Callable[[str], str],
+        chunk_features: int,
+        chunk_vertices: int,
+    ) -> None:
+        self.options = options
+        self.workers = workers
+        self.feedback = feedback
+        self.tr = tr
+        self.chunk_features = chunk_features
+        self.chunk_vertices = chunk_vertices
+        self._pool: WorkerPool | None = None
+        self._waiting: list[_Call] = []
+        # engine calls run, of them in workers, and the most workers running at once
+        self.calls = 0
+        self.calls_in_workers = 0
+        self.workers_seen = 0
+
+    @property
+    def parallel(self) -> bool:
+        """Calls may run in workers: finish a batch after submitting the next one."""
+        return self.workers > 1
+
+    def submit(self, batch: list[FeatureRings]) -> BatchJob:
+        """The batch cut into engine calls, started in the workers when they are used."""
+        job = BatchJob(batch)
+        chunk: list[FeatureRings] = []
+        vertices = 0
+        for index, item in enumerate(batch):
+            if item.ok:
+                chunk.append(item)
+                vertices += item.vertex_count()
+            last = index == len(batch) - 1
+            if chunk and (
+                last or len(chunk) >= self.chunk_features or vertices >= self.chunk_vertices
+            ):
+                job.calls.append(_call(chunk))
+                chunk, vertices = [], 0
+        if self.parallel:
+            self._waiting += [call for call in job.calls if call.polygons is not None]
+            if self._pool is None and len(self._waiting) > 1:
+                self._pool = WorkerPool(self.workers)
+            if self._pool is not None:
+                for call in self._waiting:
+                    call.future = self._pool.submit(call.polygons, proven=call.proven,
+                                                    **self.options.keywords())  # fmt: skip
+                self._waiting = []
+        return job
+
+    def finish(self, job: BatchJob, report: Callable[[float], None]) -> list[EngineChunk] | None:
+        """The results of the job's calls in order (None when the run was cancelled)."""
+        results: list[EngineChunk] = []
+        done = 0
+        for call in job.calls:
+            outcome = self._worker_result(call)
+            if self.feedback.isCanceled():
+                return None
+            self.calls += 1
+            if outcome is None:
+                results += self.run_here(call.items)
+            else:
+                self.calls_in_workers += 1
+                results.append(self._chunk(call.items, call.part_count, outcome))
+            self._waiting = [other for other in self._waiting if other is not call]
+            done += len(call.items)
+            report(done / max(len(job.batch), 1))
+            if self.feedback.isCanceled():
+                return None
+        return results
+
+    def _worker_result(self, call: _Call) -> PackedTriangulations | None:
+        """The call's result from its worker; None when it has none (run it here)."""
+        if call.future is None:
+            return None
+        while not self.feedback.isCanceled():
+            if self._pool is not None:
+                self.workers_seen = max(self.workers_seen, len(self._pool.processes()))
+            try:
+                return call.future.result(timeout=_POLL)
+            except concurrent.futures.TimeoutError:
+                continue
+            except (WorkerError, concurrent.futures.CancelledError) as error:
+                self._stop_workers(error)
+                return None
+            except Exception:  # the call raised in the worker: here it names the feature
+                return None
+        return None
+
+    def _stop_workers(self, error: BaseException) -> None:
+        if self._pool is None:
+            return
+        self.feedback.pushWarning(
+            self.tr("Worker processes stopped ({}); triangulating in this process.").format(error)
+        )
+        self._pool.close(cancel=True)
+        self._pool = None
+        self.workers = 1
+
+    def close(self, cancel: bool = False) -> None:
+        """Stop the workers (at once when ``cancel``)."""
+        if self._pool is not None:
+            self._pool.close(cancel=cancel)
+            self._pool = None
+
+    def run_here(self, items: list[FeatureRings]) -> list[EngineChunk]:
+        """All parts of ``items`` in one engine call in this process; a failure goes to its
+        feature."""
+        try:
+            part_count, polygons, proven = _pack(items)
+            outcome = triangulate_packed(polygons, proven=proven, **self.options.keywords())
+        except Exception as error:  # isolate the feature that breaks the call
+            if len(items) == 1:
+                items[0].error = self.tr("cannot be triangulated: {}").format(error)
+                return []
+            return [
+                result
+                for item in items
+                if not self.feedback.isCanceled()
+                for result in self.run_here([item])
+            ]
+        return [self._chunk(items, part_count, outcome)]
+
+    def _chunk(
+        self, items: list[FeatureRings], part_count: np.ndarray, outcome: PackedTriangulations
+    ) -> EngineChunk:
+        """The call's results; the first failed part of an item names its error."""
+        item_kept = np.ones(len(items), dtype=bool)
+        if outcome.errors:
+            first_part = np.cumsum(part_count) - part_count
+            owner = np.repeat(np.arange(len(items)), part_count)
+            for part in sorted(outcome.errors):
+                row = int(owner[part])
+                if not item_kept[row]:
+                    continue
+                item_kept[row] = False
+                count = int(part_count[row])
+                index = part - int(first_part[row])
+                where = self.tr(" (part {})").format(index) if count > 1 else ""
+                items[row].error = self.tr("cannot be triangulated{}: {}").format(
+                    where, outcome.errors[part]
+                )
+        return EngineChunk(items, part_count, outcome, item_kept)

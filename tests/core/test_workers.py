@@ -1,0 +1,138 @@
+"""``triangulate_packed`` in worker processes: the same results as in this process, and
+workers that fail, stop or cannot start fail their calls without hanging the caller."""
+
+from __future__ import annotations
+
+import json
+import random
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from bsp_triangulate import PackedPolygons, TriangulationError, triangulate_packed
+from bsp_triangulate.workers import WorkerCallError, WorkerError, WorkerPool, python_interpreter
+
+from ..conftest import SHARED_DATA
+from .random_polygons import random_polygon, with_z
+from .test_batch import farm_polygons
+from .test_packed import as_arrays
+
+EARCUT = SHARED_DATA / "earcut" / "fixtures"
+FIELDS = ("vertices", "vertex_count", "triangles", "triangle_count", "parent", "depth", "side")
+TRIANGLE = [[(0.0, 0.0), (2.0, 0.0), (0.0, 2.0)]]
+BOWTIE = [[(0.0, 0.0), (4.0, 4.0), (4.0, 0.0), (0.0, 4.0)]]
+
+
+def packed_differences(got, want) -> list[str]:
+    """Fields (values or dtypes) and errors that differ between two packed results."""
+    problems = [
+        name
+        for name in FIELDS
+        if getattr(got, name).dtype != getattr(want, name).dtype
+        or not np.array_equal(getattr(got, name), getattr(want, name))
+    ]
+    mine = {index: (type(error), str(error)) for index, error in got.errors.items()}
+    theirs = {index: (type(error), str(error)) for index, error in want.errors.items()}
+    if mine != theirs:
+        problems.append("errors")
+    return problems
+
+
+def in_calls(polygons: list, calls: int) -> list[PackedPolygons]:
+    size = -(-len(polygons) // calls)
+    return [PackedPolygons.of(polygons[i : i + size]) for i in range(0, len(polygons), size)]
+
+
+def test_workers_give_the_results_of_this_process_on_earcut_fixtures_and_farms() -> None:
+    polygons = as_arrays(json.loads(path.read_text()) for path in sorted(EARCUT.glob("*.json")))
+    polygons += farm_polygons(120)
+    calls = in_calls(polygons, 5)
+    with WorkerPool(2) as pool:
+        futures = [pool.submit(call, on_error="return") for call in calls]
+        results = [future.result(timeout=300) for future in futures]
+    failed = 0
+    for call, result in zip(calls, results):
+        expected = triangulate_packed(call, on_error="return")
+        assert packed_differences(result, expected) == []
+        failed += len(result.errors)
+    # the fixtures include self-intersecting rings: their errors come back with their messages
+    assert 0 < failed < 20
+
+
+def test_workers_pass_the_options_and_proven_flags() -> None:
+    rnd = random.Random(12)
+    polygons = [with_z(rnd, random_polygon(rnd, islands=rnd.randint(0, 2))) for _ in range(60)]
+    call = PackedPolygons.of(polygons)
+    proven = np.zeros(len(polygons), dtype=bool)
+    with WorkerPool(1) as pool:
+        for options in (
+            {"rule": "elevation"},
+            {"planar_tolerance": 0.5},
+            {"invalid": "as_given", "proven": proven},
+        ):
+            got = pool.submit(call, on_error="return", **options).result(timeout=300)
+            want = triangulate_packed(call, on_error="return", **options)
+            assert packed_differences(got, want) == [], options
+
+
+def test_a_call_that_raises_fails_with_its_error_and_the_worker_serves_the_next() -> None:
+    call = PackedPolygons.of(as_arrays([TRIANGLE, BOWTIE]))
+    with WorkerPool(1) as pool:
+        with pytest.raises(WorkerCallError, match=r"ValueError: .*nope"):
+            pool.submit(call, rule="nope").result(timeout=120)
+        with pytest.raises(TriangulationError) as raised:
+            pool.submit(call).result(timeout=120)
+        with pytest.raises(TriangulationError) as here:
+            triangulate_packed(call)
+        assert str(raised.value) == str(here.value)
+        assert len(pool.submit(call, on_error="return").result(timeout=120).errors) == 1
+        assert len(pool.processes()) == 1
+
+
+def test_a_worker_that_stops_fails_its_call_and_the_next_call_gets_a_new_worker() -> None:
+    call = PackedPolygons.of(as_arrays([TRIANGLE]))
+    with WorkerPool(1) as pool:
+        pool.submit(call).result(timeout=120)
+        (first,) = pool.processes()
+        first.kill()
+        first.wait()
+        with pytest.raises(WorkerError, match="stopped"):
+            pool.submit(call).result(timeout=120)
+        assert len(pool.submit(call).result(timeout=120).triangles) == 1
+        (second,) = pool.processes()
+        assert second.pid != first.pid
+
+
+@pytest.mark.parametrize("python", ["/bin/true", "/nonexistent/python3"])
+def test_an_executable_that_is_not_a_worker_fails_the_call(python: str) -> None:
+    with WorkerPool(1, python=python) as pool:
+        with pytest.raises(WorkerError):
+            pool.submit(PackedPolygons.of(as_arrays([TRIANGLE]))).result(timeout=120)
+        assert pool.processes() == []
+
+
+def test_close_ends_every_worker() -> None:
+    call = PackedPolygons.of(as_arrays([TRIANGLE] * 4))
+    pool = WorkerPool(2)
+    futures = [pool.submit(call) for _ in range(6)]
+    [future.result(timeout=120) for future in futures]
+    processes = pool.processes()
+    assert 1 <= len(processes) <= 2
+    pool.close()
+    assert all(process.poll() is not None for process in processes)
+    with pytest.raises(RuntimeError):
+        pool.submit(call)
+
+
+def test_the_interpreter_found_is_this_python_version() -> None:
+    python = python_interpreter()
+    assert python is not None
+    answer = subprocess.run(
+        [python, "-c", "import sys; print(sys.version_info[:2])"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert answer.stdout.strip() == str(tuple(sys.version_info[:2]))
