@@ -2,12 +2,13 @@
 
 Each run is one ``qgis_process.bin run`` under ``/usr/bin/time -v`` on the benchmark's star
 polygons (GeoPackage) and DEM: QGIS's ``3d:tessellate``, ``bsptriangulate:triangulate`` with
-DEM elevation and a mesh (.2dm or .ply alone, then with the per-triangle output to memory and
-to a GeoPackage), ``native:setzfromraster`` and ``native:multiparttosingleparts`` on the
-tessellated layer (QGIS writing one feature per triangle) for reference. Times include
+DEM elevation and a mesh (.2dm or .ply alone, in worker processes as by default and in one
+process, then with the per-triangle output to memory and to a GeoPackage),
+``native:setzfromraster`` and ``native:multiparttosingleparts`` on the tessellated layer (QGIS
+writing one feature per triangle) for reference. Times include
 qgis_process's start-up (first row). Then a layer of building footprints (twice as many
 polygons, z from the geometry): ``3d:tessellate`` and our mesh-only runs, alternated, best of
-three each.
+three each. Peak memory adds the peaks of the worker processes to qgis_process's own.
 
 Usage: python bench/bench_end_to_end.py [--quick]
 """
@@ -22,6 +23,7 @@ import shutil
 import signal
 import subprocess
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +46,8 @@ DEFAULT_BUDGET = 1_800.0  # seconds per run before it is stopped
 TIME_BINARY = "/usr/bin/time"
 MESH_ONLY_2DM = "bsptriangulate:triangulate DEM -> .2dm only (triangles skipped)"
 MESH_ONLY_PLY = "bsptriangulate:triangulate DEM -> .ply only (triangles skipped)"
+MESH_ONLY_2DM_ONE = "bsptriangulate:triangulate DEM -> .2dm only, WORKERS=1 (one process)"
+MESH_ONLY_PLY_ONE = "bsptriangulate:triangulate DEM -> .ply only, WORKERS=1 (one process)"
 SPLIT_TRIANGLES = (
     "native:multiparttosingleparts tessellated -> gpkg (QGIS writing a feature per triangle)"
 )
@@ -56,11 +60,57 @@ COPY_OURS = (
 
 @dataclass
 class ProcessRun:
-    """Wall time, peak resident memory and JSON results of one qgis_process run."""
+    """Wall time, peak resident memory and JSON results of one qgis_process run; ``peak_mib``
+    adds the peaks of the worker processes it started (each process's own peak, so at least
+    the peak of all of them at once)."""
 
     seconds: float
     peak_mib: float
     results: dict
+    worker_peaks_mib: list[float]
+
+
+def _group_peaks(group: int) -> dict[int, tuple[int, float]]:
+    """Per process of the process group but its leader: its parent and its peak RSS so far
+    (MiB)."""
+    peaks = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit() or int(entry) == group:
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as stat:
+                fields = stat.read().rsplit(")", 1)[1].split()
+            if int(fields[2]) != group:
+                continue
+            with open(f"/proc/{entry}/status") as status:
+                for line in status:
+                    if line.startswith("VmHWM:"):
+                        peaks[int(entry)] = (int(fields[1]), int(line.split()[1]) / 1024)
+        except (OSError, ValueError, IndexError):
+            continue
+    return peaks
+
+
+class PeakWatcher(threading.Thread):
+    """Polls the peak RSS (a high-water mark, so no peak between polls is lost) of every
+    process of a process group until stopped."""
+
+    def __init__(self, group: int) -> None:
+        super().__init__(daemon=True)
+        self.group = group
+        self.peaks: dict[int, float] = {}
+        self.parents: dict[int, int] = {}
+        self.done = threading.Event()
+
+    def run(self) -> None:
+        while not self.done.wait(0.05):
+            for pid, (parent, peak) in _group_peaks(self.group).items():
+                self.parents[pid] = parent
+                self.peaks[pid] = max(self.peaks.get(pid, 0.0), peak)
+
+    def worker_peaks(self) -> list[float]:
+        """The peaks of the processes that GNU time's child (qgis_process) started."""
+        return [peak for pid, peak in self.peaks.items() if self.parents.get(pid) != self.group]
 
 
 def parse_peak_mib(report: str) -> float:
@@ -85,14 +135,21 @@ def run_measured(
             text=True,
             start_new_session=True,
         )
+        watcher = PeakWatcher(process.pid)
+        watcher.start()
         try:
             stdout, stderr = process.communicate(timeout=budget)
         except subprocess.TimeoutExpired:
             os.killpg(process.pid, signal.SIGKILL)
             process.communicate()
             raise BudgetExceededError(f"> {budget:.0f} s (stopped)") from None
+        finally:
+            watcher.done.set()
+            watcher.join()
         seconds = time.perf_counter() - start
+        # qgis_process's own peak from GNU time (exact); the others are its workers
         peak = parse_peak_mib(Path(report.name).read_text())
+        others = watcher.worker_peaks()
     if process.returncode != 0:
         raise RuntimeError(
             f"{' '.join(arguments[:3])} failed ({process.returncode}):\n"
@@ -101,7 +158,7 @@ def run_measured(
     results = {}
     if "--json" in arguments:
         results = json.loads(stdout[stdout.index("{") :]).get("results", {})
-    return ProcessRun(seconds, peak, results)
+    return ProcessRun(seconds, peak + sum(others), results, others)
 
 
 def algorithm(name: str, **parameters: object) -> list[str]:
@@ -159,6 +216,12 @@ def measure_runs(
         MESH_ONLY_PLY: algorithm(
             "bsptriangulate:triangulate", **{**triangulate, "OUTPUT_MESH": output / "mesh.ply"}
         ),
+        MESH_ONLY_PLY_ONE: algorithm(
+            "bsptriangulate:triangulate",
+            **{**triangulate, "OUTPUT_MESH": output / "mesh.ply"},
+            WORKERS=1,
+        ),
+        MESH_ONLY_2DM_ONE: algorithm("bsptriangulate:triangulate", **triangulate, WORKERS=1),
         "bsptriangulate:triangulate DEM -> .2dm (+ triangles in memory)": algorithm(
             "bsptriangulate:triangulate", **triangulate, OUTPUT_TRIANGLES="TEMPORARY_OUTPUT"
         ),
@@ -190,11 +253,17 @@ def measure_runs(
             if key.endswith("_COUNT") and isinstance(value, (int, float))
         )
         rows.append(Row(case, f"{name}: wall time", measured.seconds, "s", counts))
-        rows.append(Row(case, f"{name}: peak RSS", measured.peak_mib, "MiB"))
+        workers = measured.worker_peaks_mib
+        note = f"with {len(workers)} workers ({', '.join(f'{w:.0f}' for w in workers)} MiB)"
+        rows.append(
+            Row(case, f"{name}: peak RSS", measured.peak_mib, "MiB", note if workers else "")
+        )
     tessellate = timings["3d:tessellate -> gpkg"]
     for name, label in (
         (MESH_ONLY_PLY, "DEM, .ply mesh only"),
         (MESH_ONLY_2DM, "DEM, .2dm mesh only"),
+        (MESH_ONLY_PLY_ONE, "DEM, .ply mesh only, one process"),
+        (MESH_ONLY_2DM_ONE, "DEM, .2dm mesh only, one process"),
     ):
         rows.append(
             Row(case, f"ours ({label}) / 3d:tessellate wall time", timings[name] / tessellate, "x")
@@ -252,6 +321,12 @@ def footprint_rows(
         ),
         "bsptriangulate:triangulate -> .2dm mesh only": algorithm(
             "bsptriangulate:triangulate", INPUT=layer, OUTPUT_MESH=output / "footprints.2dm"
+        ),
+        "bsptriangulate:triangulate -> .ply mesh only, one process": algorithm(
+            "bsptriangulate:triangulate",
+            INPUT=layer,
+            OUTPUT_MESH=output / "footprints.ply",
+            WORKERS=1,
         ),
     }
     case = f"qgis_process, {count:,} building footprints (z from the geometry)"

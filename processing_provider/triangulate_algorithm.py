@@ -154,10 +154,11 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "<p><b>Planar tolerance</b>: near-planar polygons (roofs) are snapped onto one "
             "plane when no vertex moves by more than this (paper §4.2). 0 = off.</p>"
             "<p><b>Worker processes</b>: large layers are triangulated in this many Python "
-            "processes at once, one per core by default (QGIS's <i>max cores</i> setting "
-            "limits it); 1 keeps all the work in QGIS's process. A layer of one engine call "
-            "(up to 250,000 vertices) always stays in QGIS's process. Results are the same "
-            "either way.</p>"
+            "processes at once; 1 keeps all the work in QGIS's process. By default (0): one "
+            "per core (QGIS's <i>max cores</i> setting limits it) for a mesh-only run, none "
+            "when the triangles or the tree are written (writing those features takes most "
+            "of such a run). A layer of one engine call (up to 250,000 vertices) always stays "
+            "in QGIS's process. Results are the same either way.</p>"
             "<p><b>Invalid polygons</b>: <i>repair</i> them with make valid, then triangulate "
             "(default; repaired feature ids are reported); <i>fail</i> the feature; or "
             "<i>triangulate the rings as given</i>.</p>"
@@ -279,7 +280,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             ),
             QgsProcessingParameterNumber(
                 self.WORKERS,
-                self.tr("Worker processes (0 = one per core QGIS may use, 1 = none)"),
+                self.tr("Worker processes (0 = automatic, 1 = none)"),
                 QgsProcessingParameterNumber.Integer,
                 defaultValue=0,
                 minValue=0,
@@ -378,11 +379,17 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             return 1
         return self.parameterAsInt(parameters, self.DEM_BAND, context)
 
-    def _worker_count(self, parameters: dict[str, Any], context: QgsProcessingContext) -> int:
-        """Worker processes of the run: as asked, or one per core QGIS may use (its
-        "max cores" setting)."""
+    def _worker_count(
+        self, parameters: dict[str, Any], context: QgsProcessingContext, features: bool
+    ) -> int:
+        """Worker processes of the run: as asked, or by default one per core QGIS may use
+        (its "max cores" setting) in a run that writes no ``features`` (triangles or tree),
+        none in one that does (QGIS writing the features takes nine tenths of such a run:
+        workers would spare little time for their memory)."""
         count = self.parameterAsInt(parameters, self.WORKERS, context)
         if count <= 0:
+            if features:
+                return 1
             allowed = QgsApplication.maxThreads()
             count = allowed if allowed > 0 else os.cpu_count() or 1
         return min(count, MAX_WORKERS)
@@ -532,10 +539,10 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         options = EngineOptions(
             rule, tolerance, "as_given" if invalid_policy == INVALID_AS_GIVEN else "fail"
         )
+        workers = self._worker_count(parameters, context, any(s is not None for s in sinks))
         runner = EngineRunner(
-            options, self._worker_count(parameters, context), feedback, self.tr,
-            self.CHUNK_FEATURES, self.CHUNK_VERTICES,
-        )  # fmt: skip
+            options, workers, feedback, self.tr, self.CHUNK_FEATURES, self.CHUNK_VERTICES
+        )
 
         total = source.featureCount()
         step = 100.0 / total if total > 0 else 0.0

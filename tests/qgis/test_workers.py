@@ -169,3 +169,23 @@ def test_cancelling_ends_the_workers(tmp_path: Path, small_calls: list):
     assert pool.calls > 0
     assert pool.processes() == []
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("triangles", "pools"), [("", 1), ("memory:", 0)], ids=["mesh_only", "with_triangles"]
+)
+def test_by_default_workers_run_a_mesh_only_run_and_not_one_writing_triangles(
+    tmp_path: Path, small_calls: list, triangles: str, pools: int
+):
+    import processing
+
+    result = processing.run(
+        ALG,
+        {
+            "INPUT": str(FARMS),
+            "OUTPUT_MESH": str(tmp_path / "farms.ply"),
+            "OUTPUT_TRIANGLES": triangles,
+        },
+    )
+    assert result["FEATURE_COUNT"] == 2008
+    assert len(small_calls) == pools
