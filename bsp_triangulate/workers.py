@@ -104,25 +104,27 @@ class _Worker:
 
     def call(self, request: tuple) -> Any:
         try:
-            pickle.dump(request, self.process.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-            self.process.stdin.flush()
+            _send(self.process.stdin, request)
         except OSError as error:
-            raise WorkerError(f"the worker stopped: {self._stderr() or error}") from error
+            raise self._stopped(error) from error
         return self._receive()
 
     def _receive(self) -> Any:
         try:
             return pickle.load(self.process.stdout)
         except (EOFError, OSError, pickle.UnpicklingError) as error:
-            self.kill()
-            raise WorkerError(f"the worker stopped: {self._stderr() or error!r}") from error
+            raise self._stopped(error) from error
 
-    def _stderr(self) -> str:
+    def _stopped(self, error: BaseException) -> WorkerError:
+        """The worker ended (killed if it had not): the error naming what it printed last."""
+        self._end()
         try:
             self._errors.seek(0)
-            return self._errors.read().decode(errors="replace").strip()[-2000:]
+            printed = self._errors.read().decode(errors="replace").strip()[-2000:]
         except (OSError, ValueError):
-            return ""
+            printed = ""
+        self.kill()
+        return WorkerError(f"the worker stopped: {printed or repr(error)}")
 
     def close(self) -> None:
         """Close the worker's input (it exits), kill it if it does not."""
@@ -133,10 +135,13 @@ class _Worker:
             pass
         self.kill()
 
-    def kill(self) -> None:
+    def _end(self) -> None:
         if self.process.poll() is None:
             self.process.kill()
             self.process.wait()
+
+    def kill(self) -> None:
+        self._end()
         for stream in (self.process.stdin, self.process.stdout, self._errors):
             with contextlib.suppress(OSError):
                 stream.close()

@@ -113,6 +113,18 @@ def test_an_executable_that_is_not_a_worker_fails_the_call(python: str) -> None:
         assert pool.processes() == []
 
 
+def test_what_a_worker_prints_before_it_stops_is_in_the_error(tmp_path) -> None:
+    python = tmp_path / "python3"
+    python.write_text("#!/bin/sh\necho 'ModuleNotFoundError: no numpy here' >&2\nexit 1\n")
+    python.chmod(0o755)
+    call = PackedPolygons.of(as_arrays([TRIANGLE]))
+    with (
+        WorkerPool(1, python=str(python)) as pool,
+        pytest.raises(WorkerError, match="stopped: ModuleNotFoundError: no numpy here"),
+    ):
+        pool.submit(call).result(timeout=120)
+
+
 def test_close_ends_every_worker() -> None:
     call = PackedPolygons.of(as_arrays([TRIANGLE] * 4))
     pool = WorkerPool(2)
