@@ -166,6 +166,8 @@ class WorkerPool:
         self._workers: list[_Worker] = []
         self._lock = threading.Lock()
         self._closed = False
+        # workers started so far (a stopped one is replaced by a new one)
+        self.started = 0
 
     def submit(self, polygons: PackedPolygons, **options: Any) -> Future:
         """``triangulate_packed(polygons, **options)`` in a worker."""
@@ -206,6 +208,7 @@ class WorkerPool:
                 worker.kill()
                 raise WorkerError("the pool is closed")
             self._workers.append(worker)
+            self.started += 1
         return worker
 
     def _drop(self, worker: _Worker) -> None:

@@ -38,15 +38,17 @@ class EngineOptions:
         }
 
 
+# parts per feature, the parts packed and their proven flags (``_pack``)
+Packed = tuple[np.ndarray, PackedPolygons, np.ndarray]
+
+
 @dataclass(eq=False)
 class _Call:
-    """One engine call: its features, their parts packed (None if they cannot be), and where
-    its result comes from."""
+    """One engine call: its features, their parts ``packed`` (None if they cannot be), and
+    the future of its result in a worker."""
 
     items: list[FeatureRings]
-    part_count: np.ndarray
-    polygons: PackedPolygons | None
-    proven: np.ndarray
+    packed: Packed | None
     future: concurrent.futures.Future | None = None
 
 
@@ -58,7 +60,7 @@ class BatchJob:
     calls: list[_Call] = field(default_factory=list)
 
 
-def _pack(items: list[FeatureRings]) -> tuple[np.ndarray, PackedPolygons, np.ndarray]:
+def _pack(items: list[FeatureRings]) -> Packed:
     """Parts per item, all parts packed and their proven flags (raises when the rings
     cannot be packed)."""
     rings = [ring for item in items for part in item.parts for ring in part]
@@ -78,9 +80,9 @@ def _call(items: list[FeatureRings]) -> _Call:
     """The call of ``items``; one whose rings cannot be packed runs in this process, which
     names the feature."""
     try:
-        return _Call(items, *_pack(items))
+        return _Call(items, _pack(items))
     except Exception:
-        return _Call(items, np.zeros(0, np.int64), None, np.zeros(0, bool))
+        return _Call(items, None)
 
 
 class EngineRunner:
@@ -110,10 +112,10 @@ class EngineRunner:
         self.chunk_vertices = chunk_vertices
         self._pool: WorkerPool | None = None
         self._waiting: list[_Call] = []
-        # engine calls run, of them in workers, and the most workers running at once
+        # engine calls run, of them in workers, and the workers started
         self.calls = 0
         self.calls_in_workers = 0
-        self.workers_seen = 0
+        self.workers_started = 0
 
     @property
     def parallel(self) -> bool:
@@ -136,13 +138,15 @@ class EngineRunner:
                 job.calls.append(_call(chunk))
                 chunk, vertices = [], 0
         if self.parallel:
-            self._waiting += [call for call in job.calls if call.polygons is not None]
+            self._waiting += [call for call in job.calls if call.packed is not None]
             if self._pool is None and len(self._waiting) > 1:
                 self._pool = WorkerPool(self.workers)
             if self._pool is not None:
                 for call in self._waiting:
-                    call.future = self._pool.submit(call.polygons, proven=call.proven,
-                                                    **self.options.keywords())  # fmt: skip
+                    _part_count, polygons, proven = call.packed
+                    call.future = self._pool.submit(
+                        polygons, proven=proven, **self.options.keywords()
+                    )
                 self._waiting = []
         return job
 
@@ -156,10 +160,10 @@ class EngineRunner:
                 return None
             self.calls += 1
             if outcome is None:
-                results += self.run_here(call.items)
+                results += self.run_here(call.items, call.packed)
             else:
                 self.calls_in_workers += 1
-                results.append(self._chunk(call.items, call.part_count, outcome))
+                results.append(self._chunk(call.items, call.packed[0], outcome))
             self._waiting = [other for other in self._waiting if other is not call]
             done += len(call.items)
             report(done / max(len(job.batch), 1))
@@ -172,8 +176,6 @@ class EngineRunner:
         if call.future is None:
             return None
         while not self.feedback.isCanceled():
-            if self._pool is not None:
-                self.workers_seen = max(self.workers_seen, len(self._pool.processes()))
             try:
                 return call.future.result(timeout=_POLL)
             except concurrent.futures.TimeoutError:
@@ -191,21 +193,23 @@ class EngineRunner:
         self.feedback.pushWarning(
             self.tr("Worker processes stopped ({}); triangulating in this process.").format(error)
         )
-        self._pool.close(cancel=True)
-        self._pool = None
+        self.close(cancel=True)
         self.workers = 1
 
     def close(self, cancel: bool = False) -> None:
         """Stop the workers (at once when ``cancel``)."""
         if self._pool is not None:
             self._pool.close(cancel=cancel)
+            self.workers_started += self._pool.started
             self._pool = None
 
-    def run_here(self, items: list[FeatureRings]) -> list[EngineChunk]:
-        """All parts of ``items`` in one engine call in this process; a failure goes to its
-        feature."""
+    def run_here(
+        self, items: list[FeatureRings], packed: Packed | None = None
+    ) -> list[EngineChunk]:
+        """All parts of ``items`` (``packed`` already, or packed here) in one engine call in
+        this process; a failure goes to its feature."""
         try:
-            part_count, polygons, proven = _pack(items)
+            part_count, polygons, proven = packed or _pack(items)
             outcome = triangulate_packed(polygons, proven=proven, **self.options.keywords())
         except Exception as error:  # isolate the feature that breaks the call
             if len(items) == 1:

@@ -615,7 +615,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             if runner.calls_in_workers:
                 feedback.pushInfo(
                     self.tr("{} of {} engine calls ran in {} worker processes.").format(
-                        runner.calls_in_workers, runner.calls, runner.workers_seen
+                        runner.calls_in_workers, runner.calls, runner.workers_started
                     )
                 )
             writer.close(sinks)  # a GeoPackage builds its spatial index here
