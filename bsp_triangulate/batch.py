@@ -230,7 +230,7 @@ def _triangulate(flat: FlatRings, exhaustive: bool, known: np.ndarray) -> Piece:
     # left to the others (the proof pays off where the search is costly, on polygons of more
     # than a few vertices)
     undecided = handled & ~flat.empty & ~known
-    undecided &= ~proven_valid_rings(
+    proven = known | proven_valid_rings(
         flat.vx,
         flat.vy,
         flat.ring_start,
@@ -238,6 +238,7 @@ def _triangulate(flat: FlatRings, exhaustive: bool, known: np.ndarray) -> Piece:
         flat.ring_poly,
         undecided & (flat.poly_vcount >= _PROOF_VERTICES),
     )
+    undecided &= ~proven
     handled &= ~touching_polygons(flat, wx, undecided)
     # the engine gives slivers of negligible net area no triangles: left to it
     handled &= clear_area(flat, wx) | flat.empty
@@ -266,6 +267,7 @@ def _triangulate(flat: FlatRings, exhaustive: bool, known: np.ndarray) -> Piece:
         seq_len,
         flat.mirrored[polys_ok],
         exhaustive,
+        proven[polys_ok],
     )
     return _piece(flat, empties, polys_ok[trees.ok], trees)
 

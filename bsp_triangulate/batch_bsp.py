@@ -11,7 +11,8 @@ Where the time goes (rule "first"): conditions 1 and 4 are a few orientations pe
 tables of float64 signs with an exact fallback), which grows with the square of the
 sub-polygon size as the trees are fan-shaped. A vertex found strictly inside a candidate's
 triangle is tested first against the node's next candidates (``_strictly_inside``), which
-rules out most failing candidates without a table.
+rules out most failing candidates without a table. Ears (candidate hi - 1) of proven-valid
+polygons test only the sub-polygon's bent vertices (``_clear_ears``).
 """
 
 from __future__ import annotations
@@ -57,7 +58,9 @@ class Sequences:
     """Per position of the flat sequences (each with its closing repeat): coordinates (also
     as (x, y) rows), the other position of the same vertex (``twin``, bridge ends) or -1,
     the extents of its sequence, and the ``table`` of the columns above; ``exact``: every
-    float orientation is exact (grid coordinates)."""
+    float orientation is exact (grid coordinates). ``proven``: the position's polygon is
+    proven valid; ``bent``: the positions of proven sequences that are not a strict left
+    turn, and ``bent_rank[p]`` how many of them come before position p."""
 
     sx: np.ndarray
     sy: np.ndarray
@@ -68,6 +71,11 @@ class Sequences:
     table: np.ndarray
     exact: bool
     starts: np.ndarray
+    proven: np.ndarray
+    bent: np.ndarray
+    bent_x: np.ndarray
+    bent_y: np.ndarray
+    bent_rank: np.ndarray
     runs: RunBoxes | None = None
 
     def run_boxes(self) -> RunBoxes:
@@ -78,8 +86,15 @@ class Sequences:
 
     @classmethod
     def of(
-        cls, sx: np.ndarray, sy: np.ndarray, twin: np.ndarray, starts: np.ndarray, exact: bool
+        cls,
+        sx: np.ndarray,
+        sy: np.ndarray,
+        twin: np.ndarray,
+        starts: np.ndarray,
+        exact: bool,
+        proven: np.ndarray | None = None,
     ) -> Sequences:
+        """``proven``: per sequence, its polygon is proven valid (none if omitted)."""
         n = len(sx)
         lengths = np.diff(np.r_[starts, n])
         extent_x, extent_y = _extents(sx, sy, starts)
@@ -102,7 +117,18 @@ class Sequences:
             table[1:-1, _TURN] = turn
         extent_x, extent_y = np.repeat(extent_x, lengths), np.repeat(extent_y, lengths)
         xy = np.ascontiguousarray(table[:, :2])
-        return cls(sx, sy, xy, twin, extent_x, extent_y, table, exact, starts)
+        if proven is None:
+            proven_at = np.zeros(n, dtype=bool)
+        else:
+            proven_at = np.repeat(np.asarray(proven, dtype=bool), lengths)
+        bent_at = proven_at & (table[:, _TURN] != 1.0)
+        bent_rank = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(bent_at, out=bent_rank[1:])
+        bent = np.flatnonzero(bent_at)
+        return cls(
+            sx, sy, xy, twin, extent_x, extent_y, table, exact, starts, proven_at, bent,
+            sx[bent], sy[bent], bent_rank,
+        )  # fmt: skip
 
 
 @dataclass
@@ -227,6 +253,76 @@ def _tables(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Conditions 2 and 3 for facing candidates ``c`` of sub-polygons [lo, hi] of at least 4
     vertices: per item whether it fails, and a position strictly inside its triangle or -1.
+
+    Ears of proven-valid polygons that :func:`_clear_ears` clears pass without a table.
+    """
+    ear = np.flatnonzero(seqs.proven[lo] & (c == hi - 1))
+    if not len(ear):
+        return _all_tables(seqs, lo, hi, c)
+    rest = np.ones(len(c), dtype=bool)
+    rest[ear[_clear_ears(seqs, lo[ear], hi[ear])]] = False
+    bad = np.zeros(len(c), dtype=bool)
+    inside = np.full(len(c), -1, dtype=np.int64)
+    idx = np.flatnonzero(rest)
+    if len(idx):
+        bad[idx], inside[idx] = _all_tables(seqs, lo[idx], hi[idx], c[idx])
+    return bad, inside
+
+
+def _clear_ears(seqs: Sequences, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Per sub-polygon [lo, hi] of a proven-valid polygon whose ear candidate hi - 1 passes
+    conditions 1 and 4: its triangle is surely correct (False: not known, test the table).
+
+    True where no bent position (not a strict left turn) between lo and hi - 1 lies in the
+    closed triangle other than at a corner. Why that suffices: the triangle (a, b, c) = (s_hi,
+    s_lo, s_hi-1) has one new side, bc; ab and ca are edges of the sub-polygon, which no edge
+    crosses and no vertex lies on in a valid polygon (other occurrences of a corner lie at
+    it, and their edges stay outside the corner's angle). So any boundary inside the triangle
+    comes in across bc and has a vertex strictly inside. The one farthest from bc has both
+    neighbours no farther, while the part of the triangle beyond it holds no boundary and
+    so is interior, like the tip a: its interior angle is at least 180 degrees, it is bent.
+    """
+    first = seqs.bent_rank[lo + 1]
+    count = seqs.bent_rank[hi - 1] - first
+    clear = np.ones(len(lo), dtype=bool)
+    item = np.repeat(np.arange(len(lo), dtype=np.int64), count)
+    if not len(item):
+        return clear
+    sx, sy = seqs.sx, seqs.sy
+    corners = np.stack([hi, lo, hi - 1])
+    cx, cy = sx[corners], sy[corners]
+    index = ragged_index(first, count)
+    px, py = seqs.bent_x[index], seqs.bent_y[index]
+    # the bent positions in the triangle's bounding box, then those in the closed triangle
+    near = px >= np.repeat(cx.min(axis=0), count)
+    near &= px <= np.repeat(cx.max(axis=0), count)
+    near &= py >= np.repeat(cy.min(axis=0), count)
+    near &= py <= np.repeat(cy.max(axis=0), count)
+    at = np.flatnonzero(near)
+    if not len(at):
+        return clear
+    owner = item[at]
+    qx, qy = px[at], py[at]
+    ax, ay = cx[:, owner], cy[:, owner]
+    width_x, width_y = seqs.extent_x[lo[owner]], seqs.extent_y[lo[owner]]
+    inside = np.ones(len(at), dtype=bool)
+    for u, v in ((0, 1), (1, 2), (2, 0)):
+        dx, dy = ax[v] - ax[u], ay[v] - ay[u]
+        det = dx * (qy - ay[u]) - dy * (qx - ax[u])
+        # the closed side of the line u -> v that holds the triangle (within the float error)
+        if seqs.exact:
+            inside &= det >= 0
+        else:
+            inside &= det >= -row_bound(dx, dy, width_x, width_y)
+    inside &= ~((qx == ax) & (qy == ay)).any(axis=0)
+    clear[owner[inside]] = False
+    return clear
+
+
+def _all_tables(
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_tables` over every position of the sub-polygons.
 
     Items go in passes of bounded size, each in tables of a few padded widths.
     """
@@ -707,14 +803,16 @@ def build_trees(
     seq_len: np.ndarray,
     mirrored: np.ndarray,
     exhaustive: bool,
+    proven: np.ndarray | None = None,
 ) -> Trees:
     """BSP trees of sequences laid out with their closing repeat (length ``seq_len + 1``) at
     ``seq_start``; ``ids`` are the output vertex indices of every position, ``twin`` the other
-    position of the same vertex or -1."""
+    position of the same vertex or -1; ``proven``: per sequence, its polygon is proven valid
+    (``validity.proven_valid``), which lets its ears skip the tables."""
     count = len(seq_start)
     # a sample that is not grid-exact rules out the whole (cheap for float data)
     exact = grid_exact(sx[:1024], sy[:1024]) and grid_exact(sx, sy)
-    seqs = Sequences.of(sx, sy, twin, seq_start, exact)
+    seqs = Sequences.of(sx, sy, twin, seq_start, exact, proven)
     m = seq_len
     tri_count = np.maximum(m - 2, 0)
     tri_start = np.cumsum(tri_count) - tri_count

@@ -319,3 +319,41 @@ def test_rule_elevation_on_larger_stars_equals_engine(elevations: str) -> None:
     problems, handled = mismatches(polygons, rule="elevation")
     assert problems == []
     assert handled == len(polygons)
+
+
+@pytest.mark.parametrize("family", ["farms", "float-islands", "integer-stars", "grid"])
+def test_ears_cleared_without_a_table_pass_the_whole_table(
+    family: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An ear of a proven-valid polygon that ``_clear_ears`` clears (no bent vertex in it) is
+    correct by the whole table too, and the fast path clears most ears."""
+    from bsp_triangulate import batch_bsp
+
+    rnd = random.Random(sum(map(ord, family)))
+    if family == "farms":
+        polygons = farm_polygons(400)
+    elif family == "float-islands":
+        polygons = [random_polygon(rnd, islands=2, integer=False) for _ in range(300)]
+    elif family == "integer-stars":
+        polygons = [random_polygon(rnd, islands=rnd.randint(0, 1)) for _ in range(300)]
+    else:
+        polygons = [random_polygon(rnd, grid=True) for _ in range(300)]
+    counts = {"cleared": 0, "kept": 0, "kept and bad": 0}
+    clear_ears = batch_bsp._clear_ears
+
+    def checked(seqs, lo, hi):
+        clear = clear_ears(seqs, lo, hi)
+        bad, _ = batch_bsp._all_tables(seqs, lo, hi, hi - 1)
+        assert not (clear & bad).any()
+        counts["cleared"] += int(clear.sum())
+        counts["kept"] += int((~clear).sum())
+        counts["kept and bad"] += int((~clear & bad).sum())
+        return clear
+
+    monkeypatch.setattr(batch_bsp, "_clear_ears", checked)
+    problems, handled = mismatches(polygons)
+    assert problems == []
+    assert handled >= 0.9 * len(polygons)
+    assert counts["cleared"] > 4 * counts["kept"] > 0
+    if family != "grid":
+        assert counts["kept and bad"] > 0
