@@ -304,16 +304,10 @@ def _clear_ears(seqs: Sequences, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     owner = item[at]
     qx, qy = px[at], py[at]
     ax, ay = cx[:, owner], cy[:, owner]
-    width_x, width_y = seqs.extent_x[lo[owner]], seqs.extent_y[lo[owner]]
     inside = np.ones(len(at), dtype=bool)
     for u, v in ((0, 1), (1, 2), (2, 0)):
-        dx, dy = ax[v] - ax[u], ay[v] - ay[u]
-        det = dx * (qy - ay[u]) - dy * (qx - ax[u])
-        # the closed side of the line u -> v that holds the triangle (within the float error)
-        if seqs.exact:
-            inside &= det >= 0
-        else:
-            inside &= det >= -row_bound(dx, dy, width_x, width_y)
+        # the closed side of the line u -> v that holds the triangle
+        inside &= orient_items(ax[u], ay[u], ax[v], ay[v], qx, qy, seqs.exact) >= 0
     inside &= ~((qx == ax) & (qy == ay)).any(axis=0)
     clear[owner[inside]] = False
     return clear
