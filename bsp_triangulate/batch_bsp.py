@@ -11,8 +11,9 @@ Where the time goes (rule "first"): conditions 1 and 4 are a few orientations pe
 tables of float64 signs with an exact fallback), which grows with the square of the
 sub-polygon size as the trees are fan-shaped. A vertex found strictly inside a candidate's
 triangle is tested first against the node's next candidates (``_strictly_inside``), which
-rules out most failing candidates without a table. Ears (candidate hi - 1) of proven-valid
-polygons test only the sub-polygon's bent vertices (``_clear_ears``).
+rules out most failing candidates without a table. Candidates in proven-valid polygons test
+only the sub-polygon's bent vertices (``_surely_correct``);
+a tree that then does not complete is built again with every table (``build_trees``).
 """
 
 from __future__ import annotations
@@ -254,13 +255,14 @@ def _tables(
     """Conditions 2 and 3 for facing candidates ``c`` of sub-polygons [lo, hi] of at least 4
     vertices: per item whether it fails, and a position strictly inside its triangle or -1.
 
-    Ears of proven-valid polygons that :func:`_clear_ears` clears pass without a table.
+    Candidates of proven-valid polygons that :func:`_surely_correct` clears pass without a
+    table.
     """
-    ear = np.flatnonzero(seqs.proven[lo] & (c == hi - 1))
-    if not len(ear):
+    sure = np.flatnonzero(seqs.proven[lo])
+    if not len(sure):
         return _all_tables(seqs, lo, hi, c)
     rest = np.ones(len(c), dtype=bool)
-    rest[ear[_clear_ears(seqs, lo[ear], hi[ear])]] = False
+    rest[sure[_surely_correct(seqs, lo[sure], hi[sure], c[sure])]] = False
     bad = np.zeros(len(c), dtype=bool)
     inside = np.full(len(c), -1, dtype=np.int64)
     idx = np.flatnonzero(rest)
@@ -269,47 +271,63 @@ def _tables(
     return bad, inside
 
 
-def _clear_ears(seqs: Sequences, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Per sub-polygon [lo, hi] of a proven-valid polygon whose ear candidate hi - 1 passes
-    conditions 1 and 4: its triangle is surely correct (False: not known, test the table).
+def _surely_correct(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Per candidate ``c`` of a sub-polygon [lo, hi] of a proven-valid polygon that passes
+    conditions 1 and 4: True where it is taken without a table, which is right provided that
+    the polygon's tree completes (False: test the table). Taken where no bent position (not a
+    strict left turn) between lo and hi lies in the closed triangle other than at a corner,
+    by float signs.
 
-    True where no bent position (not a strict left turn) between lo and hi - 1 lies in the
-    closed triangle other than at a corner. Why that suffices: the triangle (a, b, c) = (s_hi,
-    s_lo, s_hi-1) has one new side, bc; ab and ca are edges of the sub-polygon, which no edge
-    crosses and no vertex lies on in a valid polygon (other occurrences of a corner lie at
-    it, and their edges stay outside the corner's angle). So any boundary inside the triangle
-    comes in across bc and has a vertex strictly inside. The one farthest from bc has both
-    neighbours no farther, while the part of the triangle beyond it holds no boundary and
-    so is interior, like the tip a: its interior angle is at least 180 degrees, it is bent.
+    Why a tree that completes is the one every table gives: each node splits its chain into
+    its triangle and two sub-chains, so the triangles' winding numbers add up to the
+    sequence's, 1 inside the polygon and 0 outside. All are strictly counter-clockwise
+    (condition 1), so they tile the polygon without overlap. Every edge of the sequence is a
+    side of exactly one triangle, which lies on its left: a bridge's two copies have
+    triangles on both sides, a ring edge has the exterior on its right. So no edge meets
+    another triangle's open interior (condition 2), and no vertex lies in the relative
+    interior of a side (condition 3: the triangles on both sides would cover the exterior
+    next to its ring edges). Condition 4 is tested exactly before. So every triangle is
+    correct, and every rejected candidate was not (facing, blocker and table rejections are
+    exact). A triangle taken wrongly thus leaves a tree that cannot complete: some node finds
+    no candidate, and :func:`build_trees` builds that tree again with every table.
+
+    The bent positions stop most wrong candidates early: any boundary inside an ear comes in
+    across its only new side, and its vertex farthest from that side is bent (the part of the
+    ear beyond it is interior). A triangle with two new sides can also be crossed by a notch
+    of the exterior with no vertex inside: 0.6 % of the benchmark's concave stars start again.
     """
-    first = seqs.bent_rank[lo + 1]
-    count = seqs.bent_rank[hi - 1] - first
-    clear = np.ones(len(lo), dtype=bool)
-    item = np.repeat(np.arange(len(lo), dtype=np.int64), count)
-    if not len(item):
-        return clear
     sx, sy = seqs.sx, seqs.sy
-    corners = np.stack([hi, lo, hi - 1])
-    cx, cy = sx[corners], sy[corners]
+    ax, ay, bx, by, cx, cy = sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]
+    x0 = np.minimum(np.minimum(ax, bx), cx)
+    x1 = np.maximum(np.maximum(ax, bx), cx)
+    y0 = np.minimum(np.minimum(ay, by), cy)
+    y1 = np.maximum(np.maximum(ay, by), cy)
+    first = seqs.bent_rank[lo + 1]
+    count = seqs.bent_rank[hi] - first
+    clear = np.ones(len(lo), dtype=bool)
     index = ragged_index(first, count)
-    px, py = seqs.bent_x[index], seqs.bent_y[index]
-    # the bent positions in the triangle's bounding box, then those in the closed triangle
-    near = px >= np.repeat(cx.min(axis=0), count)
-    near &= px <= np.repeat(cx.max(axis=0), count)
-    near &= py >= np.repeat(cy.min(axis=0), count)
-    near &= py <= np.repeat(cy.max(axis=0), count)
-    at = np.flatnonzero(near)
-    if not len(at):
-        return clear
-    owner = item[at]
-    qx, qy = px[at], py[at]
-    ax, ay = cx[:, owner], cy[:, owner]
-    inside = np.ones(len(at), dtype=bool)
-    for u, v in ((0, 1), (1, 2), (2, 0)):
-        # the closed side of the line u -> v that holds the triangle
-        inside &= orient_items(ax[u], ay[u], ax[v], ay[v], qx, qy, seqs.exact) >= 0
-    inside &= ~((qx == ax) & (qy == ay)).any(axis=0)
-    clear[owner[inside]] = False
+    if len(index):
+        px, py = seqs.bent_x[index], seqs.bent_y[index]
+        # the bent positions in the triangle's bounding box, then those in the closed triangle
+        near = px >= np.repeat(x0, count)
+        near &= px <= np.repeat(x1, count)
+        near &= py >= np.repeat(y0, count)
+        near &= py <= np.repeat(y1, count)
+        at = np.flatnonzero(near)
+        if len(at):
+            owner = np.repeat(np.arange(len(lo), dtype=np.int64), count)[at]
+            qx, qy = px[at], py[at]
+            # orient(u, v, q) = (v - u) x (q - a) + (v - u) x (a - u) for each side u -> v
+            dx, dy = qx - ax[owner], qy - ay[owner]
+            inside = (bx - ax)[owner] * dy >= (by - ay)[owner] * dx
+            ex, ey = ax - cx, ay - cy
+            inside &= ex[owner] * dy >= ey[owner] * dx
+            ex, ey = cx - bx, cy - by
+            inside &= ex[owner] * dy - ey[owner] * dx >= (ey * (ax - bx) - ex * (ay - by))[owner]
+            at_corner = (qx == ax[owner]) & (qy == ay[owner])
+            at_corner |= (qx == bx[owner]) & (qy == by[owner])
+            at_corner |= (qx == cx[owner]) & (qy == cy[owner])
+            clear[owner[inside & ~at_corner]] = False
     return clear
 
 
@@ -802,7 +820,9 @@ def build_trees(
     """BSP trees of sequences laid out with their closing repeat (length ``seq_len + 1``) at
     ``seq_start``; ``ids`` are the output vertex indices of every position, ``twin`` the other
     position of the same vertex or -1; ``proven``: per sequence, its polygon is proven valid
-    (``validity.proven_valid``), which lets its ears skip the tables."""
+    (``validity.proven_valid``), which lets its candidates skip most tables
+    (:func:`_surely_correct`; a proven polygon whose tree does not complete is built again
+    with every table)."""
     count = len(seq_start)
     # a sample that is not grid-exact rules out the whole (cheap for float data)
     exact = grid_exact(sx[:1024], sy[:1024]) and grid_exact(sx, sy)
@@ -817,19 +837,13 @@ def build_trees(
     depth = np.zeros(total, dtype=np.int64)
     side = np.zeros(total, dtype=np.int8)
     ok = np.ones(count, dtype=bool)
-    # per round: rows, base corners, apex, parent, depth and side of the emitted triangles
+    # per sequence: the round of its last start (a proven tree that does not complete starts
+    # again with every table, see _surely_correct)
+    restart = np.zeros(count, dtype=np.int64)
+    state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
+    # per round: rows, base corners, apex, parent, depth and side of the emitted triangles,
+    # and their sequence
     emitted: list[tuple[np.ndarray, ...]] = []
-    poly = np.flatnonzero(m >= 3)
-    state = np.zeros((len(poly), 11), dtype=np.int64)
-    state[:, _LO] = seq_start[poly] + 1
-    state[:, _HI] = seq_start[poly] + m[poly]
-    state[:, _CAND] = state[:, _HI] - 1
-    state[:, _ROW] = tri_start[poly]
-    state[:, _FIRST] = tri_start[poly]
-    state[:, _PARENT] = -1
-    state[:, _AT_HI] = 1
-    state[:, _SEQ] = poly
-    state[:, _BLOCK] = -1
     while len(state):
         lo = state[:, _LO]
         retry = None
@@ -840,8 +854,15 @@ def build_trees(
             found, apex, blocker = _first_correct(seqs, state)
             failed = ~found & (apex <= lo)
             retry = np.flatnonzero(~found & ~failed)
+        again = np.zeros(0, dtype=np.int64)
         if failed.any():
-            ok[state[failed, _SEQ]] = False
+            dead = np.unique(state[failed, _SEQ])
+            again = dead[seqs.proven[seq_start[dead]]]
+            ok[dead] = False
+            if len(again):
+                ok[again] = True
+                seqs.proven[ragged_index(seq_start[again], m[again] + 1)] = False
+                restart[again] = len(emitted) + 1
         # emit triangles: (base, base, apex), counter-clockwise in the output coordinates
         emit = np.flatnonzero(found)
         done = state[emit]
@@ -856,16 +877,29 @@ def build_trees(
                 done[:, _PARENT],
                 done[:, _DEPTH],
                 done[:, _SIDE],
+                done[:, _SEQ],
             )
         )
         if retry is None:
             retry, blocker = np.zeros(0, dtype=np.int64), apex
         state = _next_state(state, emit, done, apex, retry, blocker)
+        if len(again):
+            restarted = np.zeros(count, dtype=bool)
+            restarted[again] = True
+            state = np.concatenate(
+                [state[~restarted[state[:, _SEQ]]], _roots(again, seq_start, m, tri_start)]
+            )
         if not ok.all():
             state = state[ok[state[:, _SEQ]]]
     # all rows at once: one pass of scattered writes per field instead of one per round
     if emitted:
-        row, first, second, a, up, level, branch = (np.concatenate(f) for f in zip(*emitted))
+        row, first, second, a, up, level, branch, seq = (np.concatenate(f) for f in zip(*emitted))
+        if restart.any():
+            # rows of a tree emitted before it started again
+            rounds = np.repeat(np.arange(len(emitted)), [len(e[0]) for e in emitted])
+            keep = np.flatnonzero(restart[seq] <= rounds)
+            row, first, second, a = row[keep], first[keep], second[keep], a[keep]
+            up, level, branch = up[keep], level[keep], branch[keep]
         slots = 3 * row
         corners[slots] = ids[first]
         corners[slots + 1] = ids[second]
@@ -874,3 +908,20 @@ def build_trees(
         depth[row] = level
         side[row] = branch
     return Trees(triangles, parent, depth, side, tri_start, tri_count, ok)
+
+
+def _roots(
+    poly: np.ndarray, seq_start: np.ndarray, m: np.ndarray, tri_start: np.ndarray
+) -> np.ndarray:
+    """The open-node state of the root nodes of the sequences ``poly``."""
+    state = np.zeros((len(poly), 11), dtype=np.int64)
+    state[:, _LO] = seq_start[poly] + 1
+    state[:, _HI] = seq_start[poly] + m[poly]
+    state[:, _CAND] = state[:, _HI] - 1
+    state[:, _ROW] = tri_start[poly]
+    state[:, _FIRST] = tri_start[poly]
+    state[:, _PARENT] = -1
+    state[:, _AT_HI] = 1
+    state[:, _SEQ] = poly
+    state[:, _BLOCK] = -1
+    return state

@@ -11,6 +11,7 @@ float stars, 1-3 islands, islands touching at a vertex, both orientations, z val
 from __future__ import annotations
 
 import json
+import math
 import random
 
 import numpy as np
@@ -321,38 +322,109 @@ def test_rule_elevation_on_larger_stars_equals_engine(elevations: str) -> None:
     assert handled == len(polygons)
 
 
-@pytest.mark.parametrize("family", ["farms", "float-islands", "integer-stars", "grid"])
-def test_ears_cleared_without_a_table_pass_the_whole_table(
-    family: str, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """An ear of a proven-valid polygon that ``_clear_ears`` clears (no bent vertex in it) is
-    correct by the whole table too, and the fast path clears most ears."""
-    from bsp_triangulate import batch_bsp
+def concave_stars(rnd: random.Random, count: int) -> list:
+    """Concave stars of 16-40 vertices (valid, proven: star-shaped) with one or two islands."""
+    polygons: list = []
+    while len(polygons) < count:
+        outer = star_ring(rnd, rnd.randint(16, 40), radius=100.0, integer=False)
+        rings = add_islands(rnd, outer, rnd.randint(1, 2), 12.0, integer=False)
+        if is_valid([outer]) and rings is not None:
+            polygons.append(rings)
+    return polygons
 
+
+def family_polygons(family: str) -> list:
     rnd = random.Random(sum(map(ord, family)))
     if family == "farms":
-        polygons = farm_polygons(400)
-    elif family == "float-islands":
-        polygons = [random_polygon(rnd, islands=2, integer=False) for _ in range(300)]
-    elif family == "integer-stars":
-        polygons = [random_polygon(rnd, islands=rnd.randint(0, 1)) for _ in range(300)]
-    else:
-        polygons = [random_polygon(rnd, grid=True) for _ in range(300)]
-    counts = {"cleared": 0, "kept": 0, "kept and bad": 0}
-    clear_ears = batch_bsp._clear_ears
+        return farm_polygons(400)
+    if family == "float-islands":
+        return [random_polygon(rnd, islands=2, integer=False) for _ in range(300)]
+    if family == "integer-stars":
+        return [random_polygon(rnd, islands=rnd.randint(0, 1)) for _ in range(300)]
+    if family == "grid":
+        return [random_polygon(rnd, grid=True) for _ in range(300)]
+    return concave_stars(rnd, 300)
 
-    def checked(seqs, lo, hi):
-        clear = clear_ears(seqs, lo, hi)
-        bad, _ = batch_bsp._all_tables(seqs, lo, hi, hi - 1)
-        assert not (clear & bad).any()
-        counts["cleared"] += int(clear.sum())
-        counts["kept"] += int((~clear).sum())
-        counts["kept and bad"] += int((~clear & bad).sum())
+
+@pytest.mark.parametrize(
+    "family", ["farms", "float-islands", "integer-stars", "grid", "concave-stars"]
+)
+def test_candidates_accepted_without_a_table(family: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Candidates of proven-valid polygons that ``_surely_correct`` accepts without a table:
+    every one that the whole table rejects is in a tree that does not complete and starts
+    again with every table, and all results equal the engine's."""
+    from bsp_triangulate import batch_bsp
+
+    counts = {"accepted": 0, "tested": 0, "accepted ears": 0, "accepted and bad": 0}
+    wrong: set[tuple[int, int]] = set()
+    restarted: set[tuple[int, int]] = set()
+    call = [0]
+    surely_correct, roots, build_trees = (
+        batch_bsp._surely_correct,
+        batch_bsp._roots,
+        batch_bsp.build_trees,
+    )
+
+    def checked(seqs, lo, hi, c):
+        clear = surely_correct(seqs, lo, hi, c)
+        bad, _ = batch_bsp._all_tables(seqs, lo, hi, c)
+        counts["accepted"] += int(clear.sum())
+        counts["tested"] += int((~clear).sum())
+        counts["accepted ears"] += int((clear & (c == hi - 1)).sum())
+        counts["accepted and bad"] += int((clear & bad).sum())
+        sequence = np.searchsorted(seqs.starts, lo[clear & bad], side="right") - 1
+        wrong.update((call[0], int(i)) for i in sequence)
         return clear
 
-    monkeypatch.setattr(batch_bsp, "_clear_ears", checked)
-    problems, handled = mismatches(polygons)
+    def recorded_roots(poly, *args):
+        if call[-1]:
+            restarted.update((call[0], int(i)) for i in poly)
+        call[-1] = 1
+        return roots(poly, *args)
+
+    def counted_build_trees(*args, **kwargs):
+        call[:] = [call[0] + 1, 0]
+        return build_trees(*args, **kwargs)
+
+    monkeypatch.setattr(batch_bsp, "_surely_correct", checked)
+    monkeypatch.setattr(batch_bsp, "_roots", recorded_roots)
+    monkeypatch.setattr(batch_bsp, "build_trees", counted_build_trees)
+    monkeypatch.setattr("bsp_triangulate.batch.build_trees", counted_build_trees)
+    problems, handled = mismatches(family_polygons(family))
     assert problems == []
-    assert handled >= 0.9 * len(polygons)
-    assert counts["cleared"] > 4 * counts["kept"] > 0
-    assert counts["kept and bad"] > 0
+    assert handled >= 0.9 * len(family_polygons(family))
+    assert wrong <= restarted
+    assert counts["accepted"] > 3 * counts["tested"] > 0
+    assert counts["accepted ears"] > 0
+    if family == "concave-stars":
+        # notches of the exterior across a triangle: accepted, found wrong, started again
+        assert counts["accepted and bad"] > 0
+        assert wrong
+
+
+def test_trees_started_again_under_rule_elevation(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Rule "elevation" takes the closest of the candidates it believes correct: a wrong one
+    taken without a table stops its tree, which starts again and equals the engine's."""
+    from bsp_triangulate import batch_bsp
+
+    rnd = random.Random(41)
+    polygons = [
+        [[(x, y, 20.0 + 0.2 * x - 0.1 * y + 3.0 * math.sin(y / 9.0)) for x, y in ring]
+         for ring in rings]
+        for rings in concave_stars(rnd, 300)
+    ]  # fmt: skip
+    restarts = []
+    roots = batch_bsp._roots
+    first_call = [True]
+
+    def recorded_roots(poly, *args):
+        if not first_call[0]:
+            restarts.append(len(poly))
+        first_call[0] = False
+        return roots(poly, *args)
+
+    monkeypatch.setattr(batch_bsp, "_roots", recorded_roots)
+    problems, handled = mismatches(polygons, rule="elevation")
+    assert problems == []
+    assert handled == len(polygons)
+    assert sum(restarts) > 0
