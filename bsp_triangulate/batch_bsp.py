@@ -12,8 +12,8 @@ tables of float64 signs with an exact fallback), which grows with the square of 
 sub-polygon size as the trees are fan-shaped. A vertex found strictly inside a candidate's
 triangle is tested first against the node's next candidates (``_strictly_inside``), which
 rules out most failing candidates without a table. Candidates in proven-valid polygons test
-only the sub-polygon's bent vertices (``_surely_correct``);
-a tree that then does not complete is built again with every table (``build_trees``).
+only the sub-polygon's bent vertices (``_bent_in_triangle``); a tree that then does not
+complete is built again with every table (``build_trees``).
 """
 
 from __future__ import annotations
@@ -255,28 +255,31 @@ def _tables(
     """Conditions 2 and 3 for facing candidates ``c`` of sub-polygons [lo, hi] of at least 4
     vertices: per item whether it fails, and a position strictly inside its triangle or -1.
 
-    Candidates of proven-valid polygons that :func:`_surely_correct` clears pass without a
-    table.
+    In proven-valid polygons only the bent positions are tested (:func:`_bent_in_triangle`).
     """
-    sure = np.flatnonzero(seqs.proven[lo])
-    if not len(sure):
+    proven = seqs.proven[lo]
+    if proven.all():
+        return _bent_in_triangle(seqs, lo, hi, c)
+    if not proven.any():
         return _all_tables(seqs, lo, hi, c)
-    rest = np.ones(len(c), dtype=bool)
-    rest[sure[_surely_correct(seqs, lo[sure], hi[sure], c[sure])]] = False
     bad = np.zeros(len(c), dtype=bool)
     inside = np.full(len(c), -1, dtype=np.int64)
-    idx = np.flatnonzero(rest)
-    if len(idx):
-        bad[idx], inside[idx] = _all_tables(seqs, lo[idx], hi[idx], c[idx])
+    for idx, test in (
+        (np.flatnonzero(proven), _bent_in_triangle),
+        (np.flatnonzero(~proven), _all_tables),
+    ):
+        bad[idx], inside[idx] = test(seqs, lo[idx], hi[idx], c[idx])
     return bad, inside
 
 
-def _surely_correct(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Per candidate ``c`` of a sub-polygon [lo, hi] of a proven-valid polygon that passes
-    conditions 1 and 4: True where it is taken without a table, which is right provided that
-    the polygon's tree completes (False: test the table). Taken where no bent position (not a
-    strict left turn) between lo and hi lies in the closed triangle other than at a corner,
-    by float signs.
+def _bent_in_triangle(
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_tables` for a proven-valid polygon, by its bent positions (not a strict left
+    turn) between lo and hi alone: a candidate fails where one of them lies in the closed
+    triangle other than at a corner (exact signs) or where :func:`_bridge_at_corner` finds
+    an edge across it, and passes otherwise, which is right provided that the polygon's
+    tree completes.
 
     Why a tree that completes is the one every table gives: each node splits its chain into
     its triangle and two sub-chains, so the triangles' winding numbers add up to the
@@ -287,48 +290,94 @@ def _surely_correct(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarr
     another triangle's open interior (condition 2), and no vertex lies in the relative
     interior of a side (condition 3: the triangles on both sides would cover the exterior
     next to its ring edges). Condition 4 is tested exactly before. So every triangle is
-    correct, and every rejected candidate was not (facing, blocker and table rejections are
-    exact). A triangle taken wrongly thus leaves a tree that cannot complete: some node finds
-    no candidate, and :func:`build_trees` builds that tree again with every table.
+    correct. A failure found here is real: a vertex strictly inside brings its edges into
+    the open triangle, and so does an edge across a side; a vertex on a new side fails
+    condition 3; and none lies on the base, a side of the correct parent (or a ring edge at
+    the root). A candidate passed wrongly thus leaves a tree that cannot complete: some node
+    finds no candidate, and :func:`build_trees` builds that tree again with every table.
 
-    The bent positions stop most wrong candidates early: any boundary inside an ear comes in
-    across its only new side, and its vertex farthest from that side is bent (the part of the
-    ear beyond it is interior). A triangle with two new sides can also be crossed by a notch
-    of the exterior with no vertex inside: 0.6 % of the benchmark's concave stars start again.
+    These tests find most failures: any boundary inside an ear comes in across its only new
+    side, and its vertex farthest from that side is bent (the part of the ear beyond it is
+    interior). A triangle with two new sides can also be crossed by a notch of the exterior,
+    or a bridge, with no vertex inside: 0.9 % of the benchmark's concave stars start again.
     """
+    n = len(lo)
     sx, sy = seqs.sx, seqs.sy
     ax, ay, bx, by, cx, cy = sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]
-    x0 = np.minimum(np.minimum(ax, bx), cx)
-    x1 = np.maximum(np.maximum(ax, bx), cx)
-    y0 = np.minimum(np.minimum(ay, by), cy)
-    y1 = np.maximum(np.maximum(ay, by), cy)
+    bad = _bridge_at_corner(seqs, lo, hi, c)
+    found = np.full(n, -1, dtype=np.int64)
     first = seqs.bent_rank[lo + 1]
     count = seqs.bent_rank[hi] - first
-    clear = np.ones(len(lo), dtype=bool)
     index = ragged_index(first, count)
-    if len(index):
-        px, py = seqs.bent_x[index], seqs.bent_y[index]
-        # the bent positions in the triangle's bounding box, then those in the closed triangle
-        near = px >= np.repeat(x0, count)
-        near &= px <= np.repeat(x1, count)
-        near &= py >= np.repeat(y0, count)
-        near &= py <= np.repeat(y1, count)
-        at = np.flatnonzero(near)
-        if len(at):
-            owner = np.repeat(np.arange(len(lo), dtype=np.int64), count)[at]
-            qx, qy = px[at], py[at]
-            # orient(u, v, q) = (v - u) x (q - a) + (v - u) x (a - u) for each side u -> v
-            dx, dy = qx - ax[owner], qy - ay[owner]
-            inside = (bx - ax)[owner] * dy >= (by - ay)[owner] * dx
-            ex, ey = ax - cx, ay - cy
-            inside &= ex[owner] * dy >= ey[owner] * dx
-            ex, ey = cx - bx, cy - by
-            inside &= ex[owner] * dy - ey[owner] * dx >= (ey * (ax - bx) - ex * (ay - by))[owner]
-            at_corner = (qx == ax[owner]) & (qy == ay[owner])
-            at_corner |= (qx == bx[owner]) & (qy == by[owner])
-            at_corner |= (qx == cx[owner]) & (qy == cy[owner])
-            clear[owner[inside & ~at_corner]] = False
-    return clear
+    if not len(index):
+        return bad, found
+    px, py = seqs.bent_x[index], seqs.bent_y[index]
+    # the bent positions in the triangle's bounding box
+    near = px >= np.repeat(np.minimum(np.minimum(ax, bx), cx), count)
+    near &= px <= np.repeat(np.maximum(np.maximum(ax, bx), cx), count)
+    near &= py >= np.repeat(np.minimum(np.minimum(ay, by), cy), count)
+    near &= py <= np.repeat(np.maximum(np.maximum(ay, by), cy), count)
+    at = np.flatnonzero(near)
+    if not len(at):
+        return bad, found
+    owner = np.repeat(np.arange(n, dtype=np.int64), count)[at]
+    qx, qy = px[at], py[at]
+    if not seqs.exact:
+        # those not surely outside a side by float orientations (each one within the
+        # sequence's bound; the one of side b -> c is the sum of two)
+        margin = -4.0 * seqs.table[lo, _BOUND][owner]
+        dx, dy = qx - ax[owner], qy - ay[owner]
+        # orient(u, v, q) = (v - u) x (q - a) + (v - u) x (a - u) for each side u -> v
+        maybe = (bx - ax)[owner] * dy - (by - ay)[owner] * dx >= margin
+        maybe &= (ax - cx)[owner] * dy - (ay - cy)[owner] * dx >= margin
+        ex, ey = cx - bx, cy - by
+        base = (ex * (ay - by) - ey * (ax - bx))[owner]
+        maybe &= ex[owner] * dy - ey[owner] * dx + base >= margin
+        keep = np.flatnonzero(maybe)
+        at, owner, qx, qy = at[keep], owner[keep], qx[keep], qy[keep]
+    signs = [
+        orient_items(ux[owner], uy[owner], vx[owner], vy[owner], qx, qy, seqs.exact)
+        for ux, uy, vx, vy in ((ax, ay, bx, by), (bx, by, cx, cy), (cx, cy, ax, ay))
+    ]
+    closed = (signs[0] >= 0) & (signs[1] >= 0) & (signs[2] >= 0)
+    for ux, uy in ((ax, ay), (bx, by), (cx, cy)):
+        closed &= (qx != ux[owner]) | (qy != uy[owner])
+    bad[owner[closed]] = True
+    strictly = np.flatnonzero((signs[0] > 0) & (signs[1] > 0) & (signs[2] > 0))
+    if len(strictly):
+        # the first position strictly inside, per candidate (owners and positions ascend)
+        who = owner[strictly]
+        head = strictly[np.r_[True, who[1:] != who[:-1]]]
+        found[owner[head]] = seqs.bent[index[at[head]]]
+    return bad, found
+
+
+def _bridge_at_corner(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Per candidate other than the ear hi - 1: an edge at the other occurrence (a bridge end)
+    of the corner s_lo or s_hi crosses the opposite new side (c s_hi or s_lo c) at a point
+    inside both (exact signs). Such an edge runs through the open triangle (condition 2
+    fails) with no vertex in it: a bridge from the fan's centre, say."""
+    bad = np.zeros(len(lo), dtype=bool)
+    for corner, end in ((lo, hi), (hi, lo)):
+        t = seqs.twin[corner]
+        rows = np.flatnonzero((t > lo) & (t < hi) & (c != hi - 1))
+        if not len(rows):
+            continue
+        u, v, w = c[rows], end[rows], t[rows]
+        for p, q in ((w - 1, w), (w, w + 1)):
+            bad[rows[_cross(seqs, u, v, p, q)]] = True
+    return bad
+
+
+def _cross(seqs: Sequences, u: np.ndarray, v: np.ndarray, p: np.ndarray, q: np.ndarray):
+    """Per item: the segments s_u s_v and s_p s_q cross at a point inside both (exact)."""
+    sx, sy, exact = seqs.sx, seqs.sy, seqs.exact
+    ux, uy, vx, vy, px, py, qx, qy = sx[u], sy[u], sx[v], sy[v], sx[p], sy[p], sx[q], sy[q]
+    apart = orient_items(ux, uy, vx, vy, px, py, exact).astype(np.int16)
+    apart *= orient_items(ux, uy, vx, vy, qx, qy, exact)
+    across = orient_items(px, py, qx, qy, ux, uy, exact).astype(np.int16)
+    across *= orient_items(px, py, qx, qy, vx, vy, exact)
+    return (apart < 0) & (across < 0)
 
 
 def _all_tables(
@@ -821,7 +870,7 @@ def build_trees(
     ``seq_start``; ``ids`` are the output vertex indices of every position, ``twin`` the other
     position of the same vertex or -1; ``proven``: per sequence, its polygon is proven valid
     (``validity.proven_valid``), which lets its candidates skip most tables
-    (:func:`_surely_correct`; a proven polygon whose tree does not complete is built again
+    (:func:`_bent_in_triangle`; a proven polygon whose tree does not complete is built again
     with every table)."""
     count = len(seq_start)
     # a sample that is not grid-exact rules out the whole (cheap for float data)
@@ -838,7 +887,7 @@ def build_trees(
     side = np.zeros(total, dtype=np.int8)
     ok = np.ones(count, dtype=bool)
     # per sequence: the round of its last start (a proven tree that does not complete starts
-    # again with every table, see _surely_correct)
+    # again with every table, see _bent_in_triangle)
     restart = np.zeros(count, dtype=np.int64)
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
     # per round: rows, base corners, apex, parent, depth and side of the emitted triangles,

@@ -349,56 +349,61 @@ def family_polygons(family: str) -> list:
 @pytest.mark.parametrize(
     "family", ["farms", "float-islands", "integer-stars", "grid", "concave-stars"]
 )
-def test_candidates_accepted_without_a_table(family: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Candidates of proven-valid polygons that ``_surely_correct`` accepts without a table:
-    every one that the whole table rejects is in a tree that does not complete and starts
-    again with every table, and all results equal the engine's."""
+def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Candidates of proven-valid polygons decided without a table (``_bent_in_triangle``):
+    a rejection agrees with the whole table and a candidate it passes but the table rejects
+    stops its tree, except in trees that start again with every table; all results equal the
+    engine's."""
     from bsp_triangulate import batch_bsp
 
-    counts = {"accepted": 0, "tested": 0, "accepted ears": 0, "accepted and bad": 0}
+    counts = {"passed": 0, "rejected": 0, "passed ears": 0, "passed and bad": 0}
     wrong: set[tuple[int, int]] = set()
     restarted: set[tuple[int, int]] = set()
-    call = [0]
-    surely_correct, roots, build_trees = (
-        batch_bsp._surely_correct,
+    call = [0, 0]
+    bent_in_triangle, roots, build_trees = (
+        batch_bsp._bent_in_triangle,
         batch_bsp._roots,
         batch_bsp.build_trees,
     )
 
     def checked(seqs, lo, hi, c):
-        clear = surely_correct(seqs, lo, hi, c)
-        bad, _ = batch_bsp._all_tables(seqs, lo, hi, c)
-        counts["accepted"] += int(clear.sum())
-        counts["tested"] += int((~clear).sum())
-        counts["accepted ears"] += int((clear & (c == hi - 1)).sum())
-        counts["accepted and bad"] += int((clear & bad).sum())
-        sequence = np.searchsorted(seqs.starts, lo[clear & bad], side="right") - 1
+        bad, found = bent_in_triangle(seqs, lo, hi, c)
+        table_bad, _ = batch_bsp._all_tables(seqs, lo, hi, c)
+        counts["passed"] += int((~bad).sum())
+        counts["rejected"] += int(bad.sum())
+        counts["passed ears"] += int((~bad & (c == hi - 1)).sum())
+        counts["passed and bad"] += int((~bad & table_bad).sum())
+        differ = bad != table_bad
+        sequence = np.searchsorted(seqs.starts, lo[differ], side="right") - 1
         wrong.update((call[0], int(i)) for i in sequence)
-        return clear
+        # a blocker lies strictly inside the triangle
+        hit = np.flatnonzero(found >= 0)
+        assert batch_bsp._strictly_inside(seqs, hi[hit], lo[hit], c[hit], found[hit]).all()
+        return bad, found
 
     def recorded_roots(poly, *args):
-        if call[-1]:
+        if call[1]:
             restarted.update((call[0], int(i)) for i in poly)
-        call[-1] = 1
+        call[1] = 1
         return roots(poly, *args)
 
     def counted_build_trees(*args, **kwargs):
         call[:] = [call[0] + 1, 0]
         return build_trees(*args, **kwargs)
 
-    monkeypatch.setattr(batch_bsp, "_surely_correct", checked)
+    monkeypatch.setattr(batch_bsp, "_bent_in_triangle", checked)
     monkeypatch.setattr(batch_bsp, "_roots", recorded_roots)
-    monkeypatch.setattr(batch_bsp, "build_trees", counted_build_trees)
     monkeypatch.setattr("bsp_triangulate.batch.build_trees", counted_build_trees)
-    problems, handled = mismatches(family_polygons(family))
+    polygons = family_polygons(family)
+    problems, handled = mismatches(polygons)
     assert problems == []
-    assert handled >= 0.9 * len(family_polygons(family))
+    assert handled >= 0.9 * len(polygons)
     assert wrong <= restarted
-    assert counts["accepted"] > 3 * counts["tested"] > 0
-    assert counts["accepted ears"] > 0
+    assert counts["passed"] > 3 * counts["rejected"] > 0
+    assert counts["passed ears"] > 0
     if family == "concave-stars":
-        # notches of the exterior across a triangle: accepted, found wrong, started again
-        assert counts["accepted and bad"] > 0
+        # notches of the exterior across a triangle: passed, found wrong, started again
+        assert counts["passed and bad"] > 0
         assert wrong
 
 
