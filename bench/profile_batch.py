@@ -119,6 +119,7 @@ STAGES = (
     (batch_bsp, "_strictly_inside"),
     (batch_bsp, "_tables"),
     (batch_bsp, "_bad_rows"),
+    (batch_bsp, "_bent_in_triangle"),
 )
 
 

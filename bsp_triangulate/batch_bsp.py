@@ -323,22 +323,28 @@ def _bent_in_triangle(
     owner = np.repeat(np.arange(n, dtype=np.int64), count)[at]
     qx, qy = px[at], py[at]
     if not seqs.exact:
-        # those not surely outside a side by float orientations (each one within the
-        # sequence's bound; the one of side b -> c is the sum of two)
-        margin = -4.0 * seqs.table[lo, _BOUND][owner]
+        # float orientations against the sides a -> b, b -> c, c -> a, as
+        # orient(u, v, q) = (v - u) x (q - a) + (v - u) x (a - u), each within the
+        # sequence's bound (that of b -> c is the sum of two): the lowest decides where it is
+        # surely negative (outside) or all are surely positive (strictly inside)
+        bound = 4.0 * seqs.table[lo, _BOUND][owner]
         dx, dy = qx - ax[owner], qy - ay[owner]
-        # orient(u, v, q) = (v - u) x (q - a) + (v - u) x (a - u) for each side u -> v
-        maybe = (bx - ax)[owner] * dy - (by - ay)[owner] * dx >= margin
-        maybe &= (ax - cx)[owner] * dy - (ay - cy)[owner] * dx >= margin
         ex, ey = cx - bx, cy - by
-        base = (ex * (ay - by) - ey * (ax - bx))[owner]
-        maybe &= ex[owner] * dy - ey[owner] * dx + base >= margin
-        keep = np.flatnonzero(maybe)
+        low = (bx - ax)[owner] * dy - (by - ay)[owner] * dx
+        np.minimum(low, (ax - cx)[owner] * dy - (ay - cy)[owner] * dx, out=low)
+        side = ex[owner] * dy - ey[owner] * dx
+        side += (ex * (ay - by) - ey * (ax - bx))[owner]
+        np.minimum(low, side, out=low)
+        keep = np.flatnonzero(low >= -bound)
         at, owner, qx, qy = at[keep], owner[keep], qx[keep], qy[keep]
-    signs = [
-        orient_items(ux[owner], uy[owner], vx[owner], vy[owner], qx, qy, seqs.exact)
-        for ux, uy, vx, vy in ((ax, ay, bx, by), (bx, by, cx, cy), (cx, cy, ax, ay))
-    ]
+        signs = np.ones((3, len(keep)), dtype=np.int8)
+        test = np.flatnonzero(low[keep] <= bound[keep])
+        if len(test):
+            signs[:, test] = _triangle_signs(
+                seqs, ax, ay, bx, by, cx, cy, owner[test], qx[test], qy[test]
+            )
+    else:
+        signs = _triangle_signs(seqs, ax, ay, bx, by, cx, cy, owner, qx, qy)
     closed = (signs[0] >= 0) & (signs[1] >= 0) & (signs[2] >= 0)
     for ux, uy in ((ax, ay), (bx, by), (cx, cy)):
         closed &= (qx != ux[owner]) | (qy != uy[owner])
@@ -352,20 +358,46 @@ def _bent_in_triangle(
     return bad, found
 
 
+def _triangle_signs(
+    seqs: Sequences,
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    owner: np.ndarray,
+    qx: np.ndarray,
+    qy: np.ndarray,
+) -> np.ndarray:
+    """Exact signs (3, n) of point q against the sides a -> b, b -> c, c -> a of the
+    triangle of its ``owner``."""
+    return np.stack(
+        [
+            orient_items(ux[owner], uy[owner], vx[owner], vy[owner], qx, qy, seqs.exact)
+            for ux, uy, vx, vy in ((ax, ay, bx, by), (bx, by, cx, cy), (cx, cy, ax, ay))
+        ]
+    )
+
+
 def _bridge_at_corner(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Per candidate other than the ear hi - 1: an edge at the other occurrence (a bridge end)
     of the corner s_lo or s_hi crosses the opposite new side (c s_hi or s_lo c) at a point
     inside both (exact signs). Such an edge runs through the open triangle (condition 2
     fails) with no vertex in it: a bridge from the fan's centre, say."""
     bad = np.zeros(len(lo), dtype=bool)
-    for corner, end in ((lo, hi), (hi, lo)):
-        t = seqs.twin[corner]
-        rows = np.flatnonzero((t > lo) & (t < hi) & (c != hi - 1))
-        if not len(rows):
-            continue
-        u, v, w = c[rows], end[rows], t[rows]
-        for p, q in ((w - 1, w), (w, w + 1)):
-            bad[rows[_cross(seqs, u, v, p, q)]] = True
+    t_lo, t_hi = seqs.twin[lo], seqs.twin[hi]
+    at_lo = np.flatnonzero((t_lo > lo) & (t_lo < hi) & (c != hi - 1))
+    at_hi = np.flatnonzero((t_hi > lo) & (t_hi < hi) & (c != hi - 1))
+    if not (len(at_lo) or len(at_hi)):
+        return bad
+    # rows: the side c s_hi against the edges at lo's twin t, then s_lo c against hi's
+    rows = np.concatenate([at_lo, at_hi])
+    t = np.concatenate([t_lo[at_lo], t_hi[at_hi]])
+    end = np.concatenate([hi[at_lo], lo[at_hi]])
+    rows, u, v = np.tile(rows, 2), np.tile(c[rows], 2), np.tile(end, 2)
+    p = np.concatenate([t - 1, t])
+    bad[rows[_cross(seqs, u, v, p, p + 1)]] = True
     return bad
 
 
