@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .batch_predicates import orient_items
+from .batch_predicates import crossing, orient_items
 from .batch_rings import FlatRings, ragged_index
 from .predicates import strictly_between
 
@@ -97,12 +97,7 @@ def _segment_clear(
     for o, px, py in ((o1, ax, ay), (o2, bx, by)):
         z = np.flatnonzero(o == 0)
         blocked[z[strictly_between(px[z], py[z], ux[z], uy[z], vx[z], vy[z])]] = True
-    straddle = np.flatnonzero((o1.astype(np.int16) * o2) < 0)
-    if len(straddle):
-        s = straddle
-        o3 = orient_items(ax[s], ay[s], bx[s], by[s], ux[s], uy[s])
-        o4 = orient_items(ax[s], ay[s], bx[s], by[s], vx[s], vy[s])
-        blocked[s[(o3.astype(np.int16) * o4) < 0]] = True
+    blocked |= crossing(o1, o2, ax, ay, bx, by, ux, uy, vx, vy)
     return np.bincount(item[blocked], minlength=len(u)) == 0
 
 

@@ -23,7 +23,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from .batch_predicates import orient_items, orient_rows, row_bound
+from .batch_predicates import crossing, orient_items, orient_rows, row_bound
 from .batch_rings import ragged_index
 from .predicates import CCW_ERRBOUND, grid_exact, orient_many, strictly_between
 
@@ -340,11 +340,13 @@ def _bent_in_triangle(
         signs = np.ones((3, len(keep)), dtype=np.int8)
         test = np.flatnonzero(low[keep] <= bound[keep])
         if len(test):
+            o = owner[test]
             signs[:, test] = _triangle_signs(
-                seqs, ax, ay, bx, by, cx, cy, owner[test], qx[test], qy[test]
+                ax[o], ay[o], bx[o], by[o], cx[o], cy[o], qx[test], qy[test], seqs.exact
             )
     else:
-        signs = _triangle_signs(seqs, ax, ay, bx, by, cx, cy, owner, qx, qy)
+        o = owner
+        signs = _triangle_signs(ax[o], ay[o], bx[o], by[o], cx[o], cy[o], qx, qy, seqs.exact)
     closed = (signs[0] >= 0) & (signs[1] >= 0) & (signs[2] >= 0)
     for ux, uy in ((ax, ay), (bx, by), (cx, cy)):
         closed &= (qx != ux[owner]) | (qy != uy[owner])
@@ -359,22 +361,21 @@ def _bent_in_triangle(
 
 
 def _triangle_signs(
-    seqs: Sequences,
     ax: np.ndarray,
     ay: np.ndarray,
     bx: np.ndarray,
     by: np.ndarray,
     cx: np.ndarray,
     cy: np.ndarray,
-    owner: np.ndarray,
     qx: np.ndarray,
     qy: np.ndarray,
+    exact: bool,
 ) -> np.ndarray:
-    """Exact signs (3, n) of point q against the sides a -> b, b -> c, c -> a of the
-    triangle of its ``owner``."""
+    """Exact signs (3, n) of each point q against the sides a -> b, b -> c, c -> a of its
+    triangle (a, b, c)."""
     return np.stack(
         [
-            orient_items(ux[owner], uy[owner], vx[owner], vy[owner], qx, qy, seqs.exact)
+            orient_items(ux, uy, vx, vy, qx, qy, exact)
             for ux, uy, vx, vy in ((ax, ay, bx, by), (bx, by, cx, cy), (cx, cy, ax, ay))
         ]
     )
@@ -387,8 +388,9 @@ def _bridge_at_corner(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.nda
     fails) with no vertex in it: a bridge from the fan's centre, say."""
     bad = np.zeros(len(lo), dtype=bool)
     t_lo, t_hi = seqs.twin[lo], seqs.twin[hi]
-    at_lo = np.flatnonzero((t_lo > lo) & (t_lo < hi) & (c != hi - 1))
-    at_hi = np.flatnonzero((t_hi > lo) & (t_hi < hi) & (c != hi - 1))
+    other = c != hi - 1
+    at_lo = np.flatnonzero((t_lo > lo) & (t_lo < hi) & other)
+    at_hi = np.flatnonzero((t_hi > lo) & (t_hi < hi) & other)
     if not (len(at_lo) or len(at_hi)):
         return bad
     # rows: the side c s_hi against the edges at lo's twin t, then s_lo c against hi's
@@ -401,15 +403,15 @@ def _bridge_at_corner(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.nda
     return bad
 
 
-def _cross(seqs: Sequences, u: np.ndarray, v: np.ndarray, p: np.ndarray, q: np.ndarray):
+def _cross(
+    seqs: Sequences, u: np.ndarray, v: np.ndarray, p: np.ndarray, q: np.ndarray
+) -> np.ndarray:
     """Per item: the segments s_u s_v and s_p s_q cross at a point inside both (exact)."""
     sx, sy, exact = seqs.sx, seqs.sy, seqs.exact
     ux, uy, vx, vy, px, py, qx, qy = sx[u], sy[u], sx[v], sy[v], sx[p], sy[p], sx[q], sy[q]
-    apart = orient_items(ux, uy, vx, vy, px, py, exact).astype(np.int16)
-    apart *= orient_items(ux, uy, vx, vy, qx, qy, exact)
-    across = orient_items(px, py, qx, qy, ux, uy, exact).astype(np.int16)
-    across *= orient_items(px, py, qx, qy, vx, vy, exact)
-    return (apart < 0) & (across < 0)
+    o1 = orient_items(ux, uy, vx, vy, px, py, exact)
+    o2 = orient_items(ux, uy, vx, vy, qx, qy, exact)
+    return crossing(o1, o2, px, py, qx, qy, ux, uy, vx, vy, exact)
 
 
 def _all_tables(
@@ -596,15 +598,9 @@ def _strictly_inside(
     seqs: Sequences, a: np.ndarray, b: np.ndarray, c: np.ndarray, p: np.ndarray
 ) -> np.ndarray:
     """Position ``p`` lies strictly inside the counter-clockwise triangle (a, b, c) (exact)."""
-    n = len(p)
-    line_a = np.concatenate([a, b, c])
-    line_b = np.concatenate([b, c, a])
-    point = np.concatenate([p, p, p])
     sx, sy = seqs.sx, seqs.sy
-    signs = orient_items(
-        sx[line_a], sy[line_a], sx[line_b], sy[line_b], sx[point], sy[point], seqs.exact
-    )
-    return (signs.reshape(3, n) > 0).all(axis=0)
+    signs = _triangle_signs(sx[a], sy[a], sx[b], sy[b], sx[c], sy[c], sx[p], sy[p], seqs.exact)
+    return (signs > 0).all(axis=0)
 
 
 def _bad_rows(

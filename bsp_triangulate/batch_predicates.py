@@ -87,6 +87,30 @@ def orient_rows(
 _NONE = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
 
 
+def crossing(
+    o1: np.ndarray,
+    o2: np.ndarray,
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    ux: np.ndarray,
+    uy: np.ndarray,
+    vx: np.ndarray,
+    vy: np.ndarray,
+    exact: bool = False,
+) -> np.ndarray:
+    """Per item: the segments ab and uv cross at a point inside both, given ``o1`` and
+    ``o2``, the exact signs of a and of b against the line u -> v (exact)."""
+    cross = np.zeros(len(o1), dtype=bool)
+    s = np.flatnonzero((o1.astype(np.int16) * o2) < 0)
+    if len(s):
+        o3 = orient_items(ax[s], ay[s], bx[s], by[s], ux[s], uy[s], exact)
+        o4 = orient_items(ax[s], ay[s], bx[s], by[s], vx[s], vy[s], exact)
+        cross[s] = (o3.astype(np.int16) * o4) < 0
+    return cross
+
+
 def orient_items(
     ax: np.ndarray,
     ay: np.ndarray,

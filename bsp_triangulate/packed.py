@@ -7,6 +7,7 @@ laid out one after another, so that a whole layer goes in and out with a few num
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -114,11 +115,12 @@ class PackedTriangulations:
     def __len__(self) -> int:
         return len(self.vertex_count)
 
-    @property
+    # computed once: ``self[i]`` on every polygon in turn stays linear
+    @functools.cached_property
     def vertex_start(self) -> np.ndarray:
         return np.cumsum(self.vertex_count) - self.vertex_count
 
-    @property
+    @functools.cached_property
     def triangle_start(self) -> np.ndarray:
         return np.cumsum(self.triangle_count) - self.triangle_count
 

@@ -346,6 +346,33 @@ def family_polygons(family: str) -> list:
     return concave_stars(rnd, 300)
 
 
+class RestartLog:
+    """The trees that ``build_trees`` started again, as (its call, sequence) pairs: the
+    sequences whose roots it made after the first roots of the call."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        from bsp_triangulate import batch, batch_bsp
+
+        self.call = 0
+        self.restarted: set[tuple[int, int]] = set()
+        self._first = True
+        roots, build_trees = batch_bsp._roots, batch.build_trees
+
+        def recorded_roots(poly, *args):
+            if not self._first:
+                self.restarted.update((self.call, int(i)) for i in poly)
+            self._first = False
+            return roots(poly, *args)
+
+        def counted_build_trees(*args, **kwargs):
+            self.call += 1
+            self._first = True
+            return build_trees(*args, **kwargs)
+
+        monkeypatch.setattr(batch_bsp, "_roots", recorded_roots)
+        monkeypatch.setattr(batch, "build_trees", counted_build_trees)
+
+
 @pytest.mark.parametrize(
     "family", ["farms", "float-islands", "integer-stars", "grid", "concave-stars"]
 )
@@ -358,13 +385,8 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
 
     counts = {"passed": 0, "rejected": 0, "passed ears": 0, "passed and bad": 0}
     wrong: set[tuple[int, int]] = set()
-    restarted: set[tuple[int, int]] = set()
-    call = [0, 0]
-    bent_in_triangle, roots, build_trees = (
-        batch_bsp._bent_in_triangle,
-        batch_bsp._roots,
-        batch_bsp.build_trees,
-    )
+    log = RestartLog(monkeypatch)
+    bent_in_triangle = batch_bsp._bent_in_triangle
 
     def checked(seqs, lo, hi, c):
         bad, found = bent_in_triangle(seqs, lo, hi, c)
@@ -375,30 +397,18 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
         counts["passed and bad"] += int((~bad & table_bad).sum())
         differ = bad != table_bad
         sequence = np.searchsorted(seqs.starts, lo[differ], side="right") - 1
-        wrong.update((call[0], int(i)) for i in sequence)
+        wrong.update((log.call, int(i)) for i in sequence)
         # a blocker lies strictly inside the triangle
         hit = np.flatnonzero(found >= 0)
         assert batch_bsp._strictly_inside(seqs, hi[hit], lo[hit], c[hit], found[hit]).all()
         return bad, found
 
-    def recorded_roots(poly, *args):
-        if call[1]:
-            restarted.update((call[0], int(i)) for i in poly)
-        call[1] = 1
-        return roots(poly, *args)
-
-    def counted_build_trees(*args, **kwargs):
-        call[:] = [call[0] + 1, 0]
-        return build_trees(*args, **kwargs)
-
     monkeypatch.setattr(batch_bsp, "_bent_in_triangle", checked)
-    monkeypatch.setattr(batch_bsp, "_roots", recorded_roots)
-    monkeypatch.setattr("bsp_triangulate.batch.build_trees", counted_build_trees)
     polygons = family_polygons(family)
     problems, handled = mismatches(polygons)
     assert problems == []
     assert handled >= 0.9 * len(polygons)
-    assert wrong <= restarted
+    assert wrong <= log.restarted
     assert counts["passed"] > 3 * counts["rejected"] > 0
     assert counts["passed ears"] > 0
     if family == "concave-stars":
@@ -410,26 +420,14 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
 def test_trees_started_again_under_rule_elevation(monkeypatch: pytest.MonkeyPatch) -> None:
     """Rule "elevation" takes the closest of the candidates it believes correct: a wrong one
     taken without a table stops its tree, which starts again and equals the engine's."""
-    from bsp_triangulate import batch_bsp
-
     rnd = random.Random(41)
     polygons = [
         [[(x, y, 20.0 + 0.2 * x - 0.1 * y + 3.0 * math.sin(y / 9.0)) for x, y in ring]
          for ring in rings]
         for rings in concave_stars(rnd, 300)
     ]  # fmt: skip
-    restarts = []
-    roots = batch_bsp._roots
-    first_call = [True]
-
-    def recorded_roots(poly, *args):
-        if not first_call[0]:
-            restarts.append(len(poly))
-        first_call[0] = False
-        return roots(poly, *args)
-
-    monkeypatch.setattr(batch_bsp, "_roots", recorded_roots)
+    log = RestartLog(monkeypatch)
     problems, handled = mismatches(polygons, rule="elevation")
     assert problems == []
     assert handled == len(polygons)
-    assert sum(restarts) > 0
+    assert log.restarted
