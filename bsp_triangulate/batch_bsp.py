@@ -207,6 +207,12 @@ def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> n
     return positive[0] & angle[0] & angle[1]
 
 
+# rows 1-4 of the determinants in :func:`_facing`: the line's first position relative to c
+# (the line is that position -> the next) and whether the point is hi (else lo)
+_SHIFT_A = np.array([0, 0, 0, -1, -1], dtype=np.int64)
+_POINT_AT_HI = np.array([False, True, False, True, False])
+
+
 def _decide(
     seqs: Sequences,
     lo: np.ndarray,
@@ -218,9 +224,15 @@ def _decide(
     negative: np.ndarray,
 ) -> None:
     """Exact signs of the uncertain entries (rows, items) of :func:`_facing`."""
-    line_a = np.stack([hi, c, c, c - 1, c - 1])[rows, items]
-    line_b = np.stack([lo, c + 1, c + 1, c, c])[rows, items]
-    point = np.stack([c, hi, lo, hi, lo])[rows, items]
+    # per row r of the determinants: the line (line_a, line_b) and the point, where the
+    # line is c + shift_a[r] -> c + shift_b[r] (row 0: hi -> lo) and the point lo or hi
+    at_c = c[items]
+    line_a = at_c + _SHIFT_A[rows]
+    line_b = at_c + _SHIFT_A[rows] + 1
+    point = np.where(_POINT_AT_HI[rows], hi[items], lo[items])
+    row0 = np.flatnonzero(rows == 0)
+    if len(row0):
+        line_a[row0], line_b[row0], point[row0] = hi[items[row0]], lo[items[row0]], at_c[row0]
     sx, sy = seqs.sx, seqs.sy
     ax, ay, bx, by, px, py = sx[line_a], sy[line_a], sx[line_b], sy[line_b], sx[point], sy[point]
     # a point equal to one of the line's points: exactly 0
@@ -322,13 +334,21 @@ def _bent_in_triangle(
         return bad, found
     owner = np.repeat(np.arange(n, dtype=np.int64), count)[at]
     qx, qy = px[at], py[at]
+    # a position at a corner's point (the candidate itself, a bridge end's twin) is neither
+    # inside nor a failure: left out before any orientation (its signs are zeros)
+    oax, oay = ax[owner], ay[owner]
+    away = (qx != oax) | (qy != oay)
+    away &= (qx != bx[owner]) | (qy != by[owner])
+    away &= (qx != cx[owner]) | (qy != cy[owner])
+    if not away.all():
+        at, owner, qx, qy, oax, oay = (v[away] for v in (at, owner, qx, qy, oax, oay))
     if not seqs.exact:
         # float orientations against the sides a -> b, b -> c, c -> a, as
         # orient(u, v, q) = (v - u) x (q - a) + (v - u) x (a - u), each within the
         # sequence's bound (that of b -> c is the sum of two): the lowest decides where it is
         # surely negative (outside) or all are surely positive (strictly inside)
         bound = 4.0 * seqs.table[lo, _BOUND][owner]
-        dx, dy = qx - ax[owner], qy - ay[owner]
+        dx, dy = qx - oax, qy - oay
         ex, ey = cx - bx, cy - by
         low = (bx - ax)[owner] * dy - (by - ay)[owner] * dx
         np.minimum(low, (ax - cx)[owner] * dy - (ay - cy)[owner] * dx, out=low)
@@ -348,8 +368,6 @@ def _bent_in_triangle(
         o = owner
         signs = _triangle_signs(ax[o], ay[o], bx[o], by[o], cx[o], cy[o], qx, qy, seqs.exact)
     closed = (signs[0] >= 0) & (signs[1] >= 0) & (signs[2] >= 0)
-    for ux, uy in ((ax, ay), (bx, by), (cx, cy)):
-        closed &= (qx != ux[owner]) | (qy != uy[owner])
     bad[owner[closed]] = True
     strictly = np.flatnonzero((signs[0] > 0) & (signs[1] > 0) & (signs[2] > 0))
     if len(strictly):
