@@ -934,11 +934,9 @@ def build_trees(
     ok = np.ones(count, dtype=bool)
     # per sequence: the round of its last start (a proven tree that does not complete starts
     # again with every table, see _bent_in_triangle)
-    restart = np.zeros(count, dtype=np.int64)
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
-    # per round: rows, base corners, apex, parent, depth and side of the emitted triangles,
-    # and their sequence
-    emitted: list[tuple[np.ndarray, ...]] = []
+    # rows are written as they are emitted: a tree that starts again writes all its rows
+    # again in later rounds, and a sequence that fails is not read
     while len(state):
         lo = state[:, _LO]
         retry = None
@@ -957,24 +955,16 @@ def build_trees(
             if len(again):
                 ok[again] = True
                 seqs.proven[ragged_index(seq_start[again], m[again] + 1)] = False
-                restart[again] = len(emitted) + 1
         # emit triangles: (base, base, apex), counter-clockwise in the output coordinates
         emit = np.flatnonzero(found)
         done = state[emit]
         lo_e, hi_e = done[:, _LO], done[:, _HI]
         first = np.where(mirrored[done[:, _SEQ]], lo_e, hi_e)
-        emitted.append(
-            (
-                done[:, _ROW],
-                first,
-                lo_e + hi_e - first,
-                apex[emit],
-                done[:, _PARENT],
-                done[:, _DEPTH],
-                done[:, _SIDE],
-                done[:, _SEQ],
-            )
-        )
+        row = done[:, _ROW]
+        triangles[row] = ids[np.stack([first, lo_e + hi_e - first, apex[emit]], axis=1)]
+        parent[row] = done[:, _PARENT]
+        depth[row] = done[:, _DEPTH]
+        side[row] = done[:, _SIDE]
         if retry is None:
             retry, blocker = np.zeros(0, dtype=np.int64), apex
         state = _next_state(state, emit, done, apex, retry, blocker)
@@ -986,22 +976,6 @@ def build_trees(
             )
         if not ok.all():
             state = state[ok[state[:, _SEQ]]]
-    # all rows at once: one pass of scattered writes per field instead of one per round
-    if emitted:
-        row, first, second, a, up, level, branch, seq = (np.concatenate(f) for f in zip(*emitted))
-        if restart.any():
-            # rows of a tree emitted before it started again
-            rounds = np.repeat(np.arange(len(emitted)), [len(e[0]) for e in emitted])
-            keep = np.flatnonzero(restart[seq] <= rounds)
-            row, first, second, a = row[keep], first[keep], second[keep], a[keep]
-            up, level, branch = up[keep], level[keep], branch[keep]
-        slots = 3 * row
-        corners[slots] = ids[first]
-        corners[slots + 1] = ids[second]
-        corners[slots + 2] = ids[a]
-        parent[row] = up
-        depth[row] = level
-        side[row] = branch
     return Trees(triangles, parent, depth, side, tri_start, tri_count, ok)
 
 
