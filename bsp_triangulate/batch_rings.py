@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import chain
+from operator import attrgetter
 
 import numpy as np
 
@@ -67,6 +69,26 @@ def ragged_index(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     return np.cumsum(steps)
 
 
+def _parse_plain(polygons: Sequence[Sequence[object]]) -> tuple | None:
+    """:func:`_parse` where every polygon is a list or tuple of (n > 0, 2 to 4) float64
+    arrays (the common input), without a Python step per ring; None for any other input."""
+    if not set(map(type, polygons)) <= {list, tuple}:
+        return None
+    arrays = list(chain.from_iterable(polygons))
+    if not set(map(type, arrays)) <= {np.ndarray}:
+        return None
+    if any(dtype != np.float64 for dtype in set(map(attrgetter("dtype"), arrays))):
+        return None
+    if not set(map(attrgetter("ndim"), arrays)) <= {2}:
+        return None
+    shapes = np.array(list(map(attrgetter("shape"), arrays)), dtype=np.int64).reshape(-1, 2)
+    lengths, widths = shapes[:, 0], shapes[:, 1]
+    if not ((lengths > 0) & (widths >= 2) & (widths <= 4)).all():
+        return None
+    counts = [count or -1 for count in map(len, polygons)]
+    return arrays, counts, widths, lengths
+
+
 def _parse(polygons: Sequence[Sequence[object]]) -> tuple[list[np.ndarray], list[int], np.ndarray]:
     """Input rings as float arrays; the ring count per polygon (-1: not handled)."""
     arrays: list[np.ndarray] = []
@@ -109,6 +131,11 @@ def stack_rings(arrays: list[np.ndarray], widths: np.ndarray) -> np.ndarray:
     """All rings (``widths`` columns each) as one (N, 3) array, z = 0 where absent."""
     if not arrays:
         return np.zeros((0, 3))
+    if (widths == 2).all():
+        # straight into the x and y columns of the result
+        out = np.zeros((int(sum(map(len, arrays))), 3))
+        np.concatenate(arrays, out=out[:, :2])
+        return out
     if (widths == widths[0]).all():
         return as_xyz(np.concatenate(arrays))
     return np.concatenate([as_xyz(a) for a in arrays])
@@ -144,11 +171,20 @@ def _xy_is_working_plane(p: np.ndarray, starts: np.ndarray, counts: np.ndarray) 
 
 def _area_signs(x: np.ndarray, y: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     """Sign of each ring's shoelace area; 0 where it is zero or not surely decided."""
-    nxt = np.arange(len(x)) + 1
-    nxt[starts + counts - 1] = starts
-    terms = x * y[nxt] - x[nxt] * y
-    total = np.add.reduceat(terms, starts)
-    magnitude = np.add.reduceat(np.abs(x * y[nxt]) + np.abs(x[nxt] * y), starts)
+    # the next point of each point in its ring (the rings cover x one after another)
+    last = starts + counts - 1
+    xn = np.empty_like(x)
+    xn[:-1] = x[1:]
+    xn[last] = x[starts]
+    yn = np.empty_like(y)
+    yn[:-1] = y[1:]
+    yn[last] = y[starts]
+    left = x * yn
+    right = xn * y
+    total = np.add.reduceat(left - right, starts)
+    np.abs(left, out=left)
+    np.abs(right, out=right)
+    magnitude = np.add.reduceat(left + right, starts)
     bound = 2.0 * (magnitude * (counts + 4) * 2.0 * _EPS + _UNDERFLOW_SLACK * counts)
     sure = (np.abs(total) > bound) & np.isfinite(total) & np.isfinite(bound)
     return np.where(sure, np.sign(total), 0).astype(np.int64)
@@ -156,18 +192,27 @@ def _area_signs(x: np.ndarray, y: np.ndarray, starts: np.ndarray, counts: np.nda
 
 def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> FlatRings:
     """Parse, clean and orient the rings of ``polygons`` (see the module docstring)."""
-    arrays, ring_counts, widths = _parse(polygons)
+    plain = _parse_plain(polygons)
+    if plain is None:
+        arrays, ring_counts, widths = _parse(polygons)
+        raw_len = np.array([len(a) for a in arrays], dtype=np.int64)
+    else:
+        arrays, ring_counts, widths, raw_len = plain
     counts = np.array(ring_counts, dtype=np.int64)
-    raw_len = np.array([len(a) for a in arrays], dtype=np.int64)
-    return flatten_points(stack_rings(arrays, widths), raw_len, counts, max_vertices)
+    return flatten_points(stack_rings(arrays, widths), raw_len, counts, max_vertices, owned=True)
 
 
 def flatten_points(
-    raw: np.ndarray, raw_len: np.ndarray, ring_counts: np.ndarray, max_vertices: int
+    raw: np.ndarray,
+    raw_len: np.ndarray,
+    ring_counts: np.ndarray,
+    max_vertices: int,
+    owned: bool = False,
 ) -> FlatRings:
     """:func:`flatten_rings` of rings given as one (N, 3) array of their points one after
     another, ``raw_len`` points per ring (none empty), ``ring_counts`` rings per polygon
-    (-1: the polygon is not handled, and has no rings here)."""
+    (-1: the polygon is not handled, and has no rings here). ``owned``: ``raw`` is the
+    caller's own scratch array, which may become the result's ``vertices``."""
     count = len(ring_counts)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         handled = ring_counts > 0
@@ -175,7 +220,7 @@ def flatten_points(
         ring_poly = np.repeat(np.arange(count, dtype=np.int64), poly_rings)
         poly_ring0 = np.cumsum(poly_rings) - poly_rings
         raw_start = np.cumsum(raw_len) - raw_len
-        if len(raw):
+        if len(raw) and not np.isfinite(raw).all():
             finite = np.isfinite(raw).all(axis=1)
             ring_finite = np.logical_and.reduceat(finite, raw_start)
             handled[ring_poly[~ring_finite]] = False
@@ -186,18 +231,28 @@ def flatten_points(
             plane = _xy_is_working_plane(outer_points, np.cumsum(outer_len) - outer_len, outer_len)
             handled[ring_poly[outer_rings[~plane]]] = False
         # clean: consecutive duplicates in XY, then a closing point equal to the first
-        x, y = raw[:, 0], raw[:, 1]
+        x, y = np.ascontiguousarray(raw[:, 0]), np.ascontiguousarray(raw[:, 1])
         keep = np.ones(len(raw), dtype=bool)
         keep[1:] = (x[1:] != x[:-1]) | (y[1:] != y[:-1])
         keep[raw_start] = True
-        kept_count = np.add.reduceat(keep.astype(np.int64), raw_start) if len(raw) else raw_len
-        # position of each ring's last kept point and its first point
-        last_raw = np.zeros(len(raw_len), dtype=np.int64)
-        if len(raw):
+        duplicates = len(raw) - np.count_nonzero(keep)
+        if duplicates == 0:
+            # position of each ring's last point (all kept)
+            kept_count = raw_len.astype(np.int64)
+            last_raw = raw_start + kept_count - 1
+        else:
+            kept_count = np.add.reduceat(keep.astype(np.int64), raw_start)
+            # position of each ring's last kept point
             last_raw = np.maximum.reduceat(np.where(keep, np.arange(len(raw)), -1), raw_start)
         closing = (kept_count > 1) & (x[last_raw] == x[raw_start]) & (y[last_raw] == y[raw_start])
-        keep[last_raw[closing]] = False
-        points = raw[keep]
+        if duplicates == 0 and not closing.any():
+            points = raw if owned else raw.copy()
+            vx, vy = x, y
+        else:
+            keep[last_raw[closing]] = False
+            kept = np.flatnonzero(keep)
+            points = raw.take(kept, axis=0)
+            vx, vy = x[kept], y[kept]
         ring_len = kept_count - closing
         ring_start = np.cumsum(ring_len) - ring_len
         too_small = ring_len < 3
@@ -209,12 +264,13 @@ def flatten_points(
         is_island = np.ones(len(ring_len), dtype=bool)
         is_island[poly_ring0[poly_rings > 0]] = False
         handled[ring_poly[too_small & is_island]] = False
-        px, py = points[:, 0], points[:, 1]
-        safe_len = np.maximum(ring_len, 1)
         signs = np.zeros(len(ring_len), dtype=np.int64)
         nonempty = ring_len > 0
-        if nonempty.any():
-            signs[nonempty] = _area_signs(px, py, ring_start[nonempty], safe_len[nonempty])
+        if nonempty.all() and len(ring_len):
+            signs = _area_signs(vx, vy, ring_start, ring_len)
+        elif nonempty.any():
+            safe_len = np.maximum(ring_len, 1)
+            signs[nonempty] = _area_signs(vx, vy, ring_start[nonempty], safe_len[nonempty])
         outer_sign = np.zeros(count, dtype=np.int64)
         outer_sign[polys_with_rings] = signs[poly_ring0[polys_with_rings]]
         # an undecided sign: zero area (empty result) or too close to call (engine decides)
@@ -230,8 +286,8 @@ def flatten_points(
         empty &= handled
     return FlatRings(
         vertices=points,
-        vx=np.ascontiguousarray(points[:, 0]),
-        vy=np.ascontiguousarray(points[:, 1]),
+        vx=vx,
+        vy=vy,
         vz=np.ascontiguousarray(points[:, 2]),
         ring_start=ring_start,
         ring_len=ring_len,
