@@ -213,6 +213,44 @@ _SHIFT_A = np.array([0, 0, 0, -1, -1], dtype=np.int64)
 _POINT_AT_HI = np.array([False, True, False, True, False])
 
 
+def _facing_ear(seqs: Sequences, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """:func:`_facing` of the candidates c = hi - 1: a = s_hi is c + 1, so the orientation
+    of a against the edge c -> c + 1 is 0 and that of b equals condition 1's. Conditions 1
+    and 4 reduce to orient(a, b, c) > 0 and, where c is a strict left turn, neither a nor b
+    right of the edge c - 1 -> c (the same float determinants as :func:`_facing`'s)."""
+    n = len(lo)
+    c = hi - 1
+    at_c = np.take(seqs.table, c, axis=0)
+    # a - c is the edge c -> c + 1; b - c
+    dxa, dya = at_c[:, _EX], at_c[:, _EY]
+    dxb = seqs.sx[lo] - at_c[:, _X]
+    dyb = seqs.sy[lo] - at_c[:, _Y]
+    det = np.empty((3, n))
+    np.multiply(dxa, dyb, out=det[0])
+    det[0] -= dya * dxb
+    np.multiply(at_c[:, _PX], dya, out=det[1])
+    det[1] -= at_c[:, _PY] * dxa
+    np.multiply(at_c[:, _PX], dyb, out=det[2])
+    det[2] -= at_c[:, _PY] * dxb
+    bound = at_c[:, _BOUND]
+    positive = det > bound
+    negative = det < -bound
+    if not seqs.exact:
+        unsure = ~(positive | negative)
+        # exact zero: b is c - 1
+        unsure[2] &= c - 1 != lo
+        if unsure.any():
+            rows, items = np.nonzero(unsure)
+            signs = _exact_signs(seqs, lo, hi, c, _EAR_ROWS[rows], items)
+            positive[rows, items] = signs > 0
+            negative[rows, items] = signs < 0
+    return positive[0] & ((at_c[:, _TURN] != 1.0) | ~(negative[1] | negative[2]))
+
+
+# the rows of :func:`_facing`'s determinants that :func:`_facing_ear` computes
+_EAR_ROWS = np.array([0, 3, 4], dtype=np.int64)
+
+
 def _decide(
     seqs: Sequences,
     lo: np.ndarray,
@@ -224,8 +262,22 @@ def _decide(
     negative: np.ndarray,
 ) -> None:
     """Exact signs of the uncertain entries (rows, items) of :func:`_facing`."""
-    # per row r of the determinants: the line (line_a, line_b) and the point, where the
-    # line is c + shift_a[r] -> c + shift_b[r] (row 0: hi -> lo) and the point lo or hi
+    signs = _exact_signs(seqs, lo, hi, c, rows, items)
+    positive[rows, items] = signs > 0
+    negative[rows, items] = signs < 0
+
+
+def _exact_signs(
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    rows: np.ndarray,
+    items: np.ndarray,
+) -> np.ndarray:
+    """Exact signs of the determinants (rows, items) of :func:`_facing`."""
+    # per row r of the determinants: the line c + _SHIFT_A[r] -> the next position (row 0:
+    # hi -> lo) and the point, lo or hi (row 0: c)
     at_c = c[items]
     line_a = at_c + _SHIFT_A[rows]
     line_b = at_c + _SHIFT_A[rows] + 1
@@ -240,8 +292,7 @@ def _decide(
     signs = np.zeros(len(rows), dtype=np.int8)
     if len(rest):
         signs[rest] = orient_many(ax[rest], ay[rest], bx[rest], by[rest], px[rest], py[rest])
-    positive[rows, items] = signs > 0
-    negative[rows, items] = signs < 0
+    return signs
 
 
 # below this many table entries a round uses one table for all items
@@ -558,7 +609,20 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
         # a small sub-polygon's next candidate alone first (it usually passes), a large
         # one's whole span at once (its rounds cost more); then the rest where it failed
         ahead = np.where(hi - lo > _RUN_MIN, span, 1)
-        passed, apex = _first_passing(seqs, lo, hi, block, nodes, cand, ahead)
+        # a node's first candidate (hi - 1) has no blocker yet; such nodes come last, after
+        # the ones that try again (see _next_state)
+        fresh = cand == hi - 1
+        r = n - int(np.count_nonzero(fresh))
+        if fresh[r:].all():
+            passed = np.empty(n, dtype=bool)
+            apex = cand.copy()
+            passed[r:] = _facing_ear(seqs, lo[r:], hi[r:])
+            if r:
+                passed[:r], apex[:r] = _first_passing(
+                    seqs, lo, hi, block, nodes[:r], cand[:r], ahead[:r]
+                )
+        else:
+            passed, apex = _first_passing(seqs, lo, hi, block, nodes, cand, ahead)
         more = np.flatnonzero(~passed & (span > ahead))
         if len(more):
             hit, found = _first_passing(
@@ -927,7 +991,6 @@ def build_trees(
     tri_start = np.cumsum(tri_count) - tri_count
     total = int(tri_count.sum())
     triangles = np.zeros((total, 3), dtype=np.int64)
-    corners = triangles.reshape(-1)
     parent = np.zeros(total, dtype=np.int64)
     depth = np.zeros(total, dtype=np.int64)
     side = np.zeros(total, dtype=np.int8)

@@ -417,6 +417,40 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
         assert wrong
 
 
+@pytest.mark.parametrize(
+    "family", ["farms", "float-islands", "integer-stars", "grid", "concave-stars"]
+)
+def test_rounds_of_many_nodes_equal_engine(family: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Rounds of many nodes (every round here) test a node's first candidate with
+    ``_facing_ear`` and the others' next candidate alone before the rest of their span: the
+    ear test agrees with ``_facing`` item by item, and all results equal the engine's."""
+    from bsp_triangulate import batch_bsp
+
+    monkeypatch.setattr(batch_bsp, "_TWO_PASSES", 0)
+    counts = {"ears": 0, "ears passed": 0, "second pass": 0}
+    facing_ear, first_passing = batch_bsp._facing_ear, batch_bsp._first_passing
+
+    def checked_ear(seqs, lo, hi):
+        passed = facing_ear(seqs, lo, hi)
+        assert np.array_equal(passed, batch_bsp._facing(seqs, lo, hi, hi - 1))
+        counts["ears"] += len(lo)
+        counts["ears passed"] += int(passed.sum())
+        return passed
+
+    def counted_first_passing(seqs, lo, hi, block, nodes, top, count):
+        counts["second pass"] += int((count > 1).sum())
+        return first_passing(seqs, lo, hi, block, nodes, top, count)
+
+    monkeypatch.setattr(batch_bsp, "_facing_ear", checked_ear)
+    monkeypatch.setattr(batch_bsp, "_first_passing", counted_first_passing)
+    polygons = family_polygons(family)
+    problems, handled = mismatches(polygons)
+    assert problems == []
+    assert handled >= 0.9 * len(polygons)
+    assert counts["ears"] > counts["ears passed"] > 0
+    assert counts["second pass"] > 0
+
+
 def test_trees_started_again_under_rule_elevation(monkeypatch: pytest.MonkeyPatch) -> None:
     """Rule "elevation" takes the closest of the candidates it believes correct: a wrong one
     taken without a table stops its tree, which starts again and equals the engine's."""

@@ -159,3 +159,30 @@ def test_runs_decide_like_the_whole_table(grid: bool) -> None:
     a, b, q = hi[found], lo[found], c[found]
     for u, v in ((a, b), (b, q), (q, a)):
         assert (orient_many(sx[u], sy[u], sx[v], sy[v], sx[p], sy[p]) > 0).all()
+
+
+@pytest.mark.parametrize("wobble", [0.0, 1e-15, 1e-12])
+def test_ear_facing_equals_facing_on_near_collinear_combs(wobble: float) -> None:
+    """``_facing_ear`` (a node's first candidate hi - 1) decides like ``_facing`` on every
+    sub-polygon [lo, hi] of combs whose vertices lie within rounding distance of the lines
+    through others, and of bridged stars (bridge ends at the same point)."""
+    from bsp_triangulate import batch_bsp
+
+    rng = np.random.default_rng(43)
+    rings = [near_collinear_polygon(rng, int(rng.integers(5, 25)), wobble)[0] for _ in range(40)]
+    parts = [(np.concatenate([r, r[:1]]), np.full(len(r) + 1, -1)) for r in rings]
+    parts += [bridged_star(rng, int(rng.integers(6, 30)), False) for _ in range(20)]
+    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+    seq = np.concatenate([p[0] for p in parts])
+    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
+    seqs = batch_bsp.Sequences.of(seq[:, 0].copy(), seq[:, 1].copy(), twin, starts, False)
+    lo, hi = [], []
+    for (points, _), start in zip(parts, starts):
+        last = start + len(points) - 1
+        for low in range(start + 1, last - 1):
+            lo += [low] * (last - low - 1)
+            hi += list(range(low + 2, last + 1))
+    lo, hi = np.array(lo), np.array(hi)
+    passed = batch_bsp._facing_ear(seqs, lo, hi)
+    assert 0.05 < passed.mean() < 0.95
+    assert np.array_equal(passed, batch_bsp._facing(seqs, lo, hi, hi - 1))
