@@ -65,31 +65,53 @@ def _inside_angle(
     )
 
 
+class _Edges:
+    """End points and bounding boxes of the edges of one bridging step."""
+
+    def __init__(self, wx: np.ndarray, wy: np.ndarray, a: np.ndarray | None, b: np.ndarray) -> None:
+        """Edges a -> b; ``a`` None: the edge of every vertex of wx, in vertex order."""
+        self.ax, self.ay = (wx, wy) if a is None else (wx[a], wy[a])
+        self.bx, self.by = wx[b], wy[b]
+        self.lo_x = np.minimum(self.ax, self.bx)
+        self.hi_x = np.maximum(self.ax, self.bx)
+
+    def __len__(self) -> int:
+        return len(self.bx)
+
+
 def _segment_clear(
-    wx: np.ndarray,
-    wy: np.ndarray,
-    u: np.ndarray,
-    w: np.ndarray,
+    ux: np.ndarray,
+    uy: np.ndarray,
+    vx: np.ndarray,
+    vy: np.ndarray,
     edge_start: np.ndarray,
     edge_count: np.ndarray,
-    edge_a: np.ndarray,
-    edge_b: np.ndarray,
+    edges: _Edges,
 ) -> np.ndarray:
-    """Per test i: no edge of its range meets the open segment u_i w_i, no vertex lies on it."""
-    item = np.repeat(np.arange(len(u), dtype=np.int64), edge_count)
-    e = ragged_index(edge_start, edge_count)
-    a, b = edge_a[e], edge_b[e]
-    ux, uy, vx, vy = wx[u][item], wy[u][item], wx[w][item], wy[w][item]
-    ax, ay, bx, by = wx[a], wy[a], wx[b], wy[b]
-    # an edge that meets the closed segment meets its bounding box (exact comparisons)
+    """Per test i: no edge of its range meets the open segment u_i v_i, no vertex lies on it."""
+    tests = np.arange(len(ux), dtype=np.int64)
+    used = edge_count > 0
+    firsts = np.cumsum(edge_count) - edge_count
+    # the tests' ranges one after another over all edges: no gather of the edges
+    whole = int(edge_count.sum()) == len(edges) and np.array_equal(edge_start[used], firsts[used])
+    e = None if whole else ragged_index(edge_start, edge_count)
+    # an edge that meets the closed segment meets its bounding box (exact comparisons):
+    # x first, then y of the few edges left
+    hi_x, lo_x = (edges.hi_x, edges.lo_x) if e is None else (edges.hi_x[e], edges.lo_x[e])
     near = np.flatnonzero(
-        (np.maximum(ax, bx) >= np.minimum(ux, vx))
-        & (np.minimum(ax, bx) <= np.maximum(ux, vx))
-        & (np.maximum(ay, by) >= np.minimum(uy, vy))
-        & (np.minimum(ay, by) <= np.maximum(uy, vy))
+        (hi_x >= np.repeat(np.minimum(ux, vx), edge_count))
+        & (lo_x <= np.repeat(np.maximum(ux, vx), edge_count))
     )
-    item, ux, uy, vx, vy = item[near], ux[near], uy[near], vx[near], vy[near]
-    ax, ay, bx, by = ax[near], ay[near], bx[near], by[near]
+    item = np.repeat(tests, edge_count)[near]
+    if e is not None:
+        near = e[near]
+    ay, by = edges.ay[near], edges.by[near]
+    near_y = (np.maximum(ay, by) >= np.minimum(uy, vy)[item]) & (
+        np.minimum(ay, by) <= np.maximum(uy, vy)[item]
+    )
+    near, item, ay, by = near[near_y], item[near_y], ay[near_y], by[near_y]
+    ux, uy, vx, vy = ux[item], uy[item], vx[item], vy[item]
+    ax, bx = edges.ax[near], edges.bx[near]
     o1 = orient_items(ux, uy, vx, vy, ax, ay)
     o2 = orient_items(ux, uy, vx, vy, bx, by)
     blocked = np.zeros(len(item), dtype=bool)
@@ -98,7 +120,7 @@ def _segment_clear(
         z = np.flatnonzero(o == 0)
         blocked[z[strictly_between(px[z], py[z], ux[z], uy[z], vx[z], vy[z])]] = True
     blocked |= crossing(o1, o2, ax, ay, bx, by, ux, uy, vx, vy)
-    return np.bincount(item[blocked], minlength=len(u)) == 0
+    return np.bincount(item[blocked], minlength=len(tests)) == 0
 
 
 def bridge_sequences(
@@ -158,10 +180,14 @@ def bridge_sequences(
         # edges: ring edges plus the bridges so far, grouped per active polygon
         vstart = flat.poly_vstart[polys[active]]
         vcount = flat.poly_vcount[polys[active]]
-        ea = ragged_index(vstart, vcount)
+        e_count = vcount
+        # the ranges increase and do not overlap: all vertices means every one in order
+        every_vertex = int(vcount.sum()) == nv
+        ea = np.arange(nv, dtype=np.int64) if every_vertex else ragged_index(vstart, vcount)
         eb = nxt[ea]
-        e_owner = np.repeat(np.arange(len(active), dtype=np.int64), vcount)
         if bridge_p:
+            every_vertex = False
+            e_owner = np.repeat(np.arange(len(active), dtype=np.int64), vcount)
             slot = np.full(len(polys), -1, dtype=np.int64)
             slot[active] = np.arange(len(active))
             bp = slot[np.concatenate(bridge_p)]
@@ -171,16 +197,18 @@ def bridge_sequences(
             e_owner = np.concatenate([e_owner, bp[keep]])
             by_owner = np.argsort(e_owner, kind="stable")
             ea, eb, e_owner = ea[by_owner], eb[by_owner], e_owner[by_owner]
-        e_count = np.bincount(e_owner, minlength=len(active))
+            e_count = np.bincount(e_owner, minlength=len(active))
         e_start = np.cumsum(e_count) - e_count
+        edges = _Edges(wx, wy, None if every_vertex else ea, eb)
         # candidates: every occurrence of the current sequences
         c_len = seq_len[active]
         c_start = np.cumsum(c_len) - c_len
-        c_pos = ragged_index(seq_start[active], c_len)
+        all_active = len(active) == len(polys)
+        c_pos = np.arange(len(seq)) if all_active else ragged_index(seq_start[active], c_len)
         c_owner = np.repeat(np.arange(len(active), dtype=np.int64), c_len)
-        c_id = seq[c_pos]
+        c_id = seq if all_active else seq[c_pos]
         c_x, c_y = wx[c_id], wy[c_id]
-        d2 = (c_x - hx[c_owner]) ** 2 + (c_y - hy[c_owner]) ** 2
+        d2 = (c_x - np.repeat(hx, c_len)) ** 2 + (c_y - np.repeat(hy, c_len)) ** 2
         local = np.arange(len(c_pos), dtype=np.int64) - c_start[c_owner]
         remaining = np.ones(len(c_pos), dtype=bool)
         pending = np.ones(len(active), dtype=bool)
@@ -208,15 +236,15 @@ def bridge_sequences(
             valid = _inside_angle(wx, wy, prev, c_id[b], nxt_occ, hx[live], hy[live])
             test = np.flatnonzero(valid)
             if len(test):
+                u, w = c_id[b[test]], hid[live[test]]
                 clear = _segment_clear(
-                    wx,
-                    wy,
-                    c_id[b[test]],
-                    hid[live[test]],
+                    wx[u],
+                    wy[u],
+                    wx[w],
+                    wy[w],
                     e_start[live[test]],
                     e_count[live[test]],
-                    ea,
-                    eb,
+                    edges,
                 )
                 valid[test[~clear]] = False
             remaining[b[~valid]] = False
@@ -262,6 +290,10 @@ def bridge_sequences(
         bridge_b.append(h_id[chosen[go]])
         bridge_p.append(gp)
         # rebuild the flat sequence with the grown polygons replaced
+        if len(gp) == len(polys):
+            seq, seq_len = new_seq, new_len
+            seq_start = np.cumsum(seq_len) - seq_len
+            continue
         seq_len_new = seq_len.copy()
         seq_len_new[gp] = new_len
         src_start = seq_start.copy()
