@@ -394,18 +394,14 @@ def _bent_in_triangle(
     if not away.all():
         at, owner, qx, qy, oax, oay = (v[away] for v in (at, owner, qx, qy, oax, oay))
     if not seqs.exact:
-        # float orientations against the sides a -> b, b -> c, c -> a, as
-        # orient(u, v, q) = (v - u) x (q - a) + (v - u) x (a - u), each within the
-        # sequence's bound (that of b -> c is the sum of two): the lowest decides where it is
-        # surely negative (outside) or all are surely positive (strictly inside)
+        # the lowest float orientation against the sides decides where it is surely
+        # negative (outside) or all are surely positive (strictly inside)
         bound = 4.0 * seqs.table[lo, _BOUND][owner]
-        dx, dy = qx - oax, qy - oay
         ex, ey = cx - bx, cy - by
-        low = (bx - ax)[owner] * dy - (by - ay)[owner] * dx
-        np.minimum(low, (ax - cx)[owner] * dy - (ay - cy)[owner] * dx, out=low)
-        side = ex[owner] * dy - ey[owner] * dx
-        side += (ex * (ay - by) - ey * (ax - bx))[owner]
-        np.minimum(low, side, out=low)
+        low = _lowest_side(
+            (bx - ax)[owner], (by - ay)[owner], (ax - cx)[owner], (ay - cy)[owner],
+            ex[owner], ey[owner], (ex * (ay - by) - ey * (ax - bx))[owner], qx - oax, qy - oay,
+        )  # fmt: skip
         keep = np.flatnonzero(low >= -bound)
         at, owner, qx, qy = at[keep], owner[keep], qx[keep], qy[keep]
         signs = np.ones((3, len(keep)), dtype=np.int8)
@@ -427,6 +423,30 @@ def _bent_in_triangle(
         head = strictly[np.r_[True, who[1:] != who[:-1]]]
         found[owner[head]] = seqs.bent[index[at[head]]]
     return bad, found
+
+
+def _lowest_side(
+    abx: np.ndarray,
+    aby: np.ndarray,
+    cax: np.ndarray,
+    cay: np.ndarray,
+    bcx: np.ndarray,
+    bcy: np.ndarray,
+    bc_a: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+) -> np.ndarray:
+    """The lowest of the float orientations of points q against the sides a -> b, b -> c and
+    c -> a of their triangles, from ab = b - a, ca = a - c, bc = c - b, bc_a = bc x (a - b)
+    and d = q - a, as orient(u, v, q) = (v - u) x (q - a) + (v - u) x (a - u). With every
+    coordinate of one sequence, each is within 4 times the sequence's bound of the exact
+    value (that of b -> c is the sum of two)."""
+    low = abx * dy - aby * dx
+    np.minimum(low, cax * dy - cay * dx, out=low)
+    side = bcx * dy - bcy * dx
+    side += bc_a
+    np.minimum(low, side, out=low)
+    return low
 
 
 def _triangle_signs(
@@ -681,8 +701,29 @@ def _strictly_inside(
 ) -> np.ndarray:
     """Position ``p`` lies strictly inside the counter-clockwise triangle (a, b, c) (exact)."""
     sx, sy = seqs.sx, seqs.sy
-    signs = _triangle_signs(sx[a], sy[a], sx[b], sy[b], sx[c], sy[c], sx[p], sy[p], seqs.exact)
-    return (signs > 0).all(axis=0)
+    ax, ay, bx, by, cx, cy, qx, qy = sx[a], sy[a], sx[b], sy[b], sx[c], sy[c], sx[p], sy[p]
+    if seqs.exact:
+        return (_triangle_signs(ax, ay, bx, by, cx, cy, qx, qy, True) > 0).all(axis=0)
+    ex, ey = cx - bx, cy - by
+    low = _lowest_side(
+        bx - ax,
+        by - ay,
+        ax - cx,
+        ay - cy,
+        ex,
+        ey,
+        ex * (ay - by) - ey * (ax - bx),
+        qx - ax,
+        qy - ay,
+    )
+    bound = 4.0 * seqs.table[b, _BOUND]
+    inside = low > bound
+    unsure = np.flatnonzero(np.abs(low) <= bound)
+    if len(unsure):
+        u = unsure
+        signs = _triangle_signs(ax[u], ay[u], bx[u], by[u], cx[u], cy[u], qx[u], qy[u], False)
+        inside[u] = (signs > 0).all(axis=0)
+    return inside
 
 
 def _bad_rows(
