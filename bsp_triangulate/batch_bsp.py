@@ -392,7 +392,8 @@ def _bent_in_triangle(
     away &= (qx != bx[owner]) | (qy != by[owner])
     away &= (qx != cx[owner]) | (qy != cy[owner])
     if not away.all():
-        at, owner, qx, qy, oax, oay = (v[away] for v in (at, owner, qx, qy, oax, oay))
+        kept = np.flatnonzero(away)
+        at, owner, qx, qy, oax, oay = (v[kept] for v in (at, owner, qx, qy, oax, oay))
     if not seqs.exact:
         # the lowest float orientation against the sides decides where it is surely
         # negative (outside) or all are surely positive (strictly inside)
