@@ -155,14 +155,25 @@ def proven_valid_rings(
     chosen = np.flatnonzero(proven[ring_poly])
     if not len(chosen):
         return proven
-    # closed copies of the rings in question
-    length = ring_len[chosen] + 1
-    owner, within = _ragged(length)
-    source = ring_start[chosen][owner] + within % ring_len[chosen][owner]
+    # closed copies of the rings in question: each ring's first point again after its last
+    open_len = ring_len[chosen]
+    length = open_len + 1
+    ends = np.cumsum(open_len)
+    starts = ends - open_len
+    if (
+        len(chosen) == len(ring_len)
+        and len(x) == int(ends[-1])
+        and np.array_equal(ring_start, starts)
+    ):
+        open_x, open_y = x, y
+    else:
+        source = np.repeat(ring_start[chosen] - starts, open_len)
+        source += np.arange(len(source))
+        open_x, open_y = x[source], y[source]
     geometry = ring_poly[chosen]
     rings = _Rings(
-        x=x[source],
-        y=y[source],
+        x=np.insert(open_x, ends, open_x[starts]),
+        y=np.insert(open_y, ends, open_y[starts]),
         first=np.cumsum(length) - length,
         length=length,
         geometry=geometry,
@@ -211,7 +222,9 @@ def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
     x, y, first, length = rings.x, rings.y, rings.first, rings.length
     last = first + length - 1
     # the largest magnitude of each ring (NaN where a coordinate is NaN)
-    reject = ~(np.maximum.reduceat(np.maximum(np.abs(x), np.abs(y)), first) <= _LARGEST)
+    # (from the ring's extents: NaN where a coordinate is NaN)
+    largest = np.maximum(np.maximum(-rings.lo_x, rings.hi_x), np.maximum(-rings.lo_y, rings.hi_y))
+    reject = ~(largest <= _LARGEST)
     reject |= (x[first] != x[last]) | (y[first] != y[last])
     edges = length - 1
     cx = (np.add.reduceat(x, first) - x[last]) / edges
@@ -224,7 +237,10 @@ def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
     left = ax * by
     right = ay * bx
     det = left - right
-    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + _UNDERFLOW_SLACK
+    bound = np.abs(left)
+    bound += np.abs(right)
+    bound *= CCW_ERRBOUND
+    bound += _UNDERFLOW_SLACK
     counter = det > bound
     clockwise = det < -bound
     # winding number around the centre: edges crossing the horizontal ray to its right are
@@ -303,17 +319,18 @@ def _check_islands(rings: _Rings, proven: np.ndarray) -> None:
     if not len(islands):
         return
     # every edge of the outer ring with the island (its first point, its box), island by island
-    pair, within = _ragged(outer_edges)
-    a = np.repeat(first[outers], outer_edges) + within
-    ax, ay, bx, by = x[a], y[a], x[a + 1], y[a + 1]
+    pair = np.repeat(np.arange(len(islands)), outer_edges)
+    a = np.repeat(first[outers] - (np.cumsum(outer_edges) - outer_edges), outer_edges)
+    a += np.arange(len(a))
+    ay, by = y[a], y[a + 1]
     point = first[islands]
     py = np.repeat(y[point], outer_edges)
     # ray crossings to the right of the point: only straddling edges need an orientation
     straddle = np.flatnonzero((ay > py) != (by > py))
     side = _orientation(
-        ax[straddle],
+        x[a[straddle]],
         ay[straddle],
-        bx[straddle],
+        x[a[straddle] + 1],
         by[straddle],
         x[point][pair[straddle]],
         py[straddle],
@@ -328,9 +345,10 @@ def _check_islands(rings: _Rings, proven: np.ndarray) -> None:
     )
     near = np.flatnonzero(near)
     owner_island = islands[pair[near]]
+    ax, bx = x[a[near]], x[a[near] + 1]
     near = near[
-        (np.maximum(ax[near], bx[near]) >= rings.lo_x[owner_island])
-        & (np.minimum(ax[near], bx[near]) <= rings.hi_x[owner_island])
+        (np.maximum(ax, bx) >= rings.lo_x[owner_island])
+        & (np.minimum(ax, bx) <= rings.hi_x[owner_island])
     ]
     if not len(near):
         return
