@@ -605,52 +605,37 @@ _SPAN = 4
 _SPAN_LARGE = 12
 # closest-first tries of rule "elevation" before a node tests all its candidates
 _ELEVATION_TRIES = 16
-# rounds of at least this many nodes test the first of a span on its own
-_TWO_PASSES = 1024
+# rounds of at least this many nodes test first candidates with _facing_ear
+_EAR_ROUND = 1024
 
 
 def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One round of rule "first" for the open nodes ``state``.
 
-    A node whose first candidate failed tests up to ``_SPAN`` candidates (``_SPAN_LARGE`` in
-    large sub-polygons), its next ones in order, for conditions 1 and 4 and against its
-    recorded blocker (the first of them alone, then the others where it failed); the first
-    that passes goes on to the tables. Returns per node whether its candidate ``apex`` is
-    correct, the apex (or the next candidate to test) and the blocker to keep.
+    A node tests its first candidate (hi - 1) alone; a node whose first candidate failed
+    tests up to ``_SPAN`` candidates (``_SPAN_LARGE`` in large sub-polygons), its next ones
+    in order, for conditions 1 and 4 and against its recorded blocker; the first that passes
+    goes on to the tables. Returns per node whether its candidate ``apex`` is correct, the
+    apex (or the next candidate to test) and the blocker to keep.
     """
     lo, hi, cand, block = state[:, _LO], state[:, _HI], state[:, _CAND], state[:, _BLOCK]
     n = len(lo)
     span = np.minimum(cand - lo, np.where(hi - lo > _RUN_MIN, _SPAN_LARGE, _SPAN))
-    span[cand == hi - 1] = 1
-    nodes = np.arange(n)
-    if n < _TWO_PASSES:
-        # few nodes: every span at once (a second pass would cost more than it saves)
-        passed, apex = _first_passing(seqs, lo, hi, block, nodes, cand, span)
-    else:
-        # a small sub-polygon's next candidate alone first (it usually passes), a large
-        # one's whole span at once (its rounds cost more); then the rest where it failed
-        ahead = np.where(hi - lo > _RUN_MIN, span, 1)
-        # a node's first candidate (hi - 1) has no blocker yet; such nodes come last, after
-        # the ones that try again (see _next_state)
-        fresh = cand == hi - 1
-        r = n - int(np.count_nonzero(fresh))
-        if fresh[r:].all():
-            passed = np.empty(n, dtype=bool)
-            apex = cand.copy()
-            passed[r:] = _facing_ear(seqs, lo[r:], hi[r:])
-            if r:
-                passed[:r], apex[:r] = _first_passing(
-                    seqs, lo, hi, block, nodes[:r], cand[:r], ahead[:r]
-                )
-        else:
-            passed, apex = _first_passing(seqs, lo, hi, block, nodes, cand, ahead)
-        more = np.flatnonzero(~passed & (span > ahead))
-        if len(more):
-            hit, found = _first_passing(
-                seqs, lo, hi, block, more, cand[more] - ahead[more], span[more] - ahead[more]
+    fresh = cand == hi - 1
+    span[fresh] = 1
+    # nodes at their first candidate (no blocker yet) come after the ones that try again
+    # (see _next_state): in rounds of many nodes they take the cheaper ear test
+    r = n - int(np.count_nonzero(fresh))
+    if n >= _EAR_ROUND and fresh[r:].all():
+        passed = np.empty(n, dtype=bool)
+        apex = cand.copy()
+        passed[r:] = _facing_ear(seqs, lo[r:], hi[r:])
+        if r:
+            passed[:r], apex[:r] = _first_passing(
+                seqs, lo, hi, block, np.arange(r), cand[:r], span[:r]
             )
-            passed[more[hit]] = True
-            apex[more[hit]] = found[hit]
+    else:
+        passed, apex = _first_passing(seqs, lo, hi, block, np.arange(n), cand, span)
     apex = np.where(passed, apex, cand - span)
     correct = passed.copy()
     blocker = block.copy()

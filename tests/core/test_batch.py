@@ -422,12 +422,12 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
 )
 def test_rounds_of_many_nodes_equal_engine(family: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """Rounds of many nodes (every round here) test a node's first candidate with
-    ``_facing_ear`` and the others' next candidate alone before the rest of their span: the
-    ear test agrees with ``_facing`` item by item, and all results equal the engine's."""
+    ``_facing_ear`` and the others' spans with ``_facing``: the ear test agrees with
+    ``_facing`` item by item, and all results equal the engine's."""
     from bsp_triangulate import batch_bsp
 
-    monkeypatch.setattr(batch_bsp, "_TWO_PASSES", 0)
-    counts = {"ears": 0, "ears passed": 0, "second pass": 0}
+    monkeypatch.setattr(batch_bsp, "_EAR_ROUND", 0)
+    counts = {"ears": 0, "ears passed": 0, "spans": 0}
     facing_ear, first_passing = batch_bsp._facing_ear, batch_bsp._first_passing
 
     def checked_ear(seqs, lo, hi):
@@ -438,7 +438,7 @@ def test_rounds_of_many_nodes_equal_engine(family: str, monkeypatch: pytest.Monk
         return passed
 
     def counted_first_passing(seqs, lo, hi, block, nodes, top, count):
-        counts["second pass"] += int((count > 1).sum())
+        counts["spans"] += int((count > 1).sum())
         return first_passing(seqs, lo, hi, block, nodes, top, count)
 
     monkeypatch.setattr(batch_bsp, "_facing_ear", checked_ear)
@@ -448,7 +448,7 @@ def test_rounds_of_many_nodes_equal_engine(family: str, monkeypatch: pytest.Monk
     assert problems == []
     assert handled >= 0.9 * len(polygons)
     assert counts["ears"] > counts["ears passed"] > 0
-    assert counts["second pass"] > 0
+    assert counts["spans"] > 0
 
 
 def test_trees_started_again_under_rule_elevation(monkeypatch: pytest.MonkeyPatch) -> None:
