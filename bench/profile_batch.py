@@ -9,7 +9,7 @@ Usage: python bench/profile_batch.py [--counts 5000 50000] [--engine 300] [--rul
 
 ``--stages`` prints the CPU seconds of each step of the batch path (ring normalisation,
 validity proof, touching search, area check, bridges, and in the tree: per-position tables,
-facing tests, blocker tests, vertex tables, the rest being the round bookkeeping).
+facing and ear tests, blocker tests, vertex tables, the rest being the round bookkeeping).
 """
 
 from __future__ import annotations
@@ -116,6 +116,7 @@ STAGES = (
     (batch, "build_trees"),
     (batch_bsp.Sequences, "of"),
     (batch_bsp, "_facing"),
+    (batch_bsp, "_facing_ear"),
     (batch_bsp, "_strictly_inside"),
     (batch_bsp, "_tables"),
     (batch_bsp, "_bad_rows"),
@@ -156,7 +157,7 @@ def stage_times(polygons: list, rule: str) -> tuple[float, dict[str, float]]:
 def print_stages(polygons: list, rule: str) -> None:
     total, seconds = stage_times(polygons, rule)
     tree = seconds.get("build_trees", 0.0)
-    inner = ("of", "_facing", "_strictly_inside", "_tables")
+    inner = ("of", "_facing", "_facing_ear", "_strictly_inside", "_tables")
     rows = [(name, seconds.get(name, 0.0)) for _, name in STAGES]
     rows.append(("tree bookkeeping", tree - sum(seconds.get(name, 0.0) for name in inner)))
     rows.append(("other", total - sum(seconds.get(name, 0.0) for _, name in STAGES[:6])))
