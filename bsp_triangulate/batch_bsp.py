@@ -194,8 +194,7 @@ def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> n
         unsure[1] &= c + 1 != hi
         unsure[4] &= c - 1 != lo
         if unsure.any():
-            rows, items = np.nonzero(unsure)
-            _decide(seqs, lo, hi, c, rows, items, positive, negative)
+            _decide(seqs, lo, hi, c, unsure, positive, negative, _ALL_ROWS)
     turn = at_c[:, _TURN]
     after_next = ~negative[1:3]
     after_prev = ~negative[3:5]
@@ -240,14 +239,12 @@ def _facing_ear(seqs: Sequences, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         # exact zero: b is c - 1
         unsure[2] &= c - 1 != lo
         if unsure.any():
-            rows, items = np.nonzero(unsure)
-            signs = _exact_signs(seqs, lo, hi, c, _EAR_ROWS[rows], items)
-            positive[rows, items] = signs > 0
-            negative[rows, items] = signs < 0
+            _decide(seqs, lo, hi, c, unsure, positive, negative, _EAR_ROWS)
     return positive[0] & ((at_c[:, _TURN] != 1.0) | ~(negative[1] | negative[2]))
 
 
-# the rows of :func:`_facing`'s determinants that :func:`_facing_ear` computes
+# the rows of :func:`_facing`'s determinants, and those that :func:`_facing_ear` computes
+_ALL_ROWS = np.arange(5, dtype=np.int64)
 _EAR_ROWS = np.array([0, 3, 4], dtype=np.int64)
 
 
@@ -256,33 +253,22 @@ def _decide(
     lo: np.ndarray,
     hi: np.ndarray,
     c: np.ndarray,
-    rows: np.ndarray,
-    items: np.ndarray,
+    unsure: np.ndarray,
     positive: np.ndarray,
     negative: np.ndarray,
+    det_rows: np.ndarray,
 ) -> None:
-    """Exact signs of the uncertain entries (rows, items) of :func:`_facing`."""
-    signs = _exact_signs(seqs, lo, hi, c, rows, items)
-    positive[rows, items] = signs > 0
-    negative[rows, items] = signs < 0
-
-
-def _exact_signs(
-    seqs: Sequences,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    c: np.ndarray,
-    rows: np.ndarray,
-    items: np.ndarray,
-) -> np.ndarray:
-    """Exact signs of the determinants (rows, items) of :func:`_facing`."""
-    # per row r of the determinants: the line c + _SHIFT_A[r] -> the next position (row 0:
-    # hi -> lo) and the point, lo or hi (row 0: c)
+    """Exact signs of the ``unsure`` entries of ``positive`` and ``negative``, whose rows are
+    the determinants ``det_rows`` of :func:`_facing`."""
+    rows, items = np.nonzero(unsure)
+    det = det_rows[rows]
+    # per determinant: the line c + _SHIFT_A -> the next position (0: hi -> lo) and the
+    # point, lo or hi (0: c)
     at_c = c[items]
-    line_a = at_c + _SHIFT_A[rows]
-    line_b = at_c + _SHIFT_A[rows] + 1
-    point = np.where(_POINT_AT_HI[rows], hi[items], lo[items])
-    row0 = np.flatnonzero(rows == 0)
+    line_a = at_c + _SHIFT_A[det]
+    line_b = line_a + 1
+    point = np.where(_POINT_AT_HI[det], hi[items], lo[items])
+    row0 = np.flatnonzero(det == 0)
     if len(row0):
         line_a[row0], line_b[row0], point[row0] = hi[items[row0]], lo[items[row0]], at_c[row0]
     sx, sy = seqs.sx, seqs.sy
@@ -292,7 +278,8 @@ def _exact_signs(
     signs = np.zeros(len(rows), dtype=np.int8)
     if len(rest):
         signs[rest] = orient_many(ax[rest], ay[rest], bx[rest], by[rest], px[rest], py[rest])
-    return signs
+    positive[rows, items] = signs > 0
+    negative[rows, items] = signs < 0
 
 
 # below this many table entries a round uses one table for all items
