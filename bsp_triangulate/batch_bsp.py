@@ -381,27 +381,10 @@ def _bent_in_triangle(
     if not away.all():
         kept = np.flatnonzero(away)
         at, owner, qx, qy, oax, oay = (v[kept] for v in (at, owner, qx, qy, oax, oay))
-    if not seqs.exact:
-        # the lowest float orientation against the sides decides where it is surely
-        # negative (outside) or all are surely positive (strictly inside)
-        bound = 4.0 * seqs.table[lo, _BOUND][owner]
-        ex, ey = cx - bx, cy - by
-        low = _lowest_side(
-            (bx - ax)[owner], (by - ay)[owner], (ax - cx)[owner], (ay - cy)[owner],
-            ex[owner], ey[owner], (ex * (ay - by) - ey * (ax - bx))[owner], qx - oax, qy - oay,
-        )  # fmt: skip
-        keep = np.flatnonzero(low >= -bound)
-        at, owner, qx, qy = at[keep], owner[keep], qx[keep], qy[keep]
-        signs = np.ones((3, len(keep)), dtype=np.int8)
-        test = np.flatnonzero(low[keep] <= bound[keep])
-        if len(test):
-            o = owner[test]
-            signs[:, test] = _triangle_signs(
-                ax[o], ay[o], bx[o], by[o], cx[o], cy[o], qx[test], qy[test], seqs.exact
-            )
-    else:
-        o = owner
-        signs = _triangle_signs(ax[o], ay[o], bx[o], by[o], cx[o], cy[o], qx, qy, seqs.exact)
+    o = owner
+    signs = _side_signs(
+        oax, oay, bx[o], by[o], cx[o], cy[o], qx, qy, 4.0 * seqs.table[lo, _BOUND][o], seqs.exact
+    )
     closed = (signs[0] >= 0) & (signs[1] >= 0) & (signs[2] >= 0)
     bad[owner[closed]] = True
     strictly = np.flatnonzero((signs[0] > 0) & (signs[1] > 0) & (signs[2] > 0))
@@ -413,28 +396,37 @@ def _bent_in_triangle(
     return bad, found
 
 
-def _lowest_side(
-    abx: np.ndarray,
-    aby: np.ndarray,
-    cax: np.ndarray,
-    cay: np.ndarray,
-    bcx: np.ndarray,
-    bcy: np.ndarray,
-    bc_a: np.ndarray,
-    dx: np.ndarray,
-    dy: np.ndarray,
+def _side_signs(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    qx: np.ndarray,
+    qy: np.ndarray,
+    bound: np.ndarray,
+    exact: bool,
 ) -> np.ndarray:
-    """The lowest of the float orientations of points q against the sides a -> b, b -> c and
-    c -> a of their triangles, from ab = b - a, ca = a - c, bc = c - b, bc_a = bc x (a - b)
-    and d = q - a, as orient(u, v, q) = (v - u) x (q - a) + (v - u) x (a - u). With every
-    coordinate of one sequence, each is within 4 times the sequence's bound of the exact
-    value (that of b -> c is the sum of two)."""
-    low = abx * dy - aby * dx
-    np.minimum(low, cax * dy - cay * dx, out=low)
-    side = bcx * dy - bcy * dx
-    side += bc_a
+    """:func:`_triangle_signs` where they decide whether q is in the closed triangle or
+    strictly inside: -1 in every row where q is surely right of a side, 1 where it is surely
+    left of all three. The float orientations, as (v - u) x (q - a) + (v - u) x (a - u), are
+    within ``bound`` (4 times the sequence's) of the exact ones; the lowest of them decides,
+    and only those within the bound of zero get exact signs."""
+    if exact:
+        return _triangle_signs(ax, ay, bx, by, cx, cy, qx, qy, True)
+    dx, dy = qx - ax, qy - ay
+    ex, ey = cx - bx, cy - by
+    low = (bx - ax) * dy - (by - ay) * dx
+    np.minimum(low, (ax - cx) * dy - (ay - cy) * dx, out=low)
+    side = ex * dy - ey * dx
+    side += ex * (ay - by) - ey * (ax - bx)
     np.minimum(low, side, out=low)
-    return low
+    signs = np.repeat(np.where(low > 0, 1, -1).astype(np.int8)[None], 3, axis=0)
+    u = np.flatnonzero(np.abs(low) <= bound)
+    if len(u):
+        signs[:, u] = _triangle_signs(ax[u], ay[u], bx[u], by[u], cx[u], cy[u], qx[u], qy[u], False)
+    return signs
 
 
 def _triangle_signs(
@@ -674,29 +666,9 @@ def _strictly_inside(
 ) -> np.ndarray:
     """Position ``p`` lies strictly inside the counter-clockwise triangle (a, b, c) (exact)."""
     sx, sy = seqs.sx, seqs.sy
-    ax, ay, bx, by, cx, cy, qx, qy = sx[a], sy[a], sx[b], sy[b], sx[c], sy[c], sx[p], sy[p]
-    if seqs.exact:
-        return (_triangle_signs(ax, ay, bx, by, cx, cy, qx, qy, True) > 0).all(axis=0)
-    ex, ey = cx - bx, cy - by
-    low = _lowest_side(
-        bx - ax,
-        by - ay,
-        ax - cx,
-        ay - cy,
-        ex,
-        ey,
-        ex * (ay - by) - ey * (ax - bx),
-        qx - ax,
-        qy - ay,
-    )
     bound = 4.0 * seqs.table[b, _BOUND]
-    inside = low > bound
-    unsure = np.flatnonzero(np.abs(low) <= bound)
-    if len(unsure):
-        u = unsure
-        signs = _triangle_signs(ax[u], ay[u], bx[u], by[u], cx[u], cy[u], qx[u], qy[u], False)
-        inside[u] = (signs > 0).all(axis=0)
-    return inside
+    signs = _side_signs(sx[a], sy[a], sx[b], sy[b], sx[c], sy[c], sx[p], sy[p], bound, seqs.exact)
+    return (signs > 0).all(axis=0)
 
 
 def _bad_rows(
@@ -1009,8 +981,6 @@ def build_trees(
     depth = np.zeros(total, dtype=np.int64)
     side = np.zeros(total, dtype=np.int8)
     ok = np.ones(count, dtype=bool)
-    # per sequence: the round of its last start (a proven tree that does not complete starts
-    # again with every table, see _bent_in_triangle)
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
     # rows are written as they are emitted: a tree that starts again writes all its rows
     # again in later rounds, and a sequence that fails is not read
@@ -1045,14 +1015,13 @@ def build_trees(
         if retry is None:
             retry, blocker = np.zeros(0, dtype=np.int64), apex
         state = _next_state(state, emit, done, apex, retry, blocker)
+        if len(again) or not ok.all():
+            # the nodes of failed trees and of those that start again leave
+            live = ok.copy()
+            live[again] = False
+            state = state[live[state[:, _SEQ]]]
         if len(again):
-            restarted = np.zeros(count, dtype=bool)
-            restarted[again] = True
-            state = np.concatenate(
-                [state[~restarted[state[:, _SEQ]]], _roots(again, seq_start, m, tri_start)]
-            )
-        if not ok.all():
-            state = state[ok[state[:, _SEQ]]]
+            state = np.concatenate([state, _roots(again, seq_start, m, tri_start)])
     return Trees(triangles, parent, depth, side, tri_start, tri_count, ok)
 
 
