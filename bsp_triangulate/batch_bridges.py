@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .batch_predicates import crossing, orient_items
-from .batch_rings import FlatRings, ragged_index
+from .batch_rings import FlatRings, covers_in_order, ragged_index
 from .predicates import strictly_between
 
 # relative margin within which two squared distances count as a tie (left to the engine)
@@ -90,10 +90,8 @@ def _segment_clear(
 ) -> np.ndarray:
     """Per test i: no edge of its range meets the open segment u_i v_i, no vertex lies on it."""
     tests = np.arange(len(ux), dtype=np.int64)
-    used = edge_count > 0
-    firsts = np.cumsum(edge_count) - edge_count
     # the tests' ranges one after another over all edges: no gather of the edges
-    whole = int(edge_count.sum()) == len(edges) and np.array_equal(edge_start[used], firsts[used])
+    whole = covers_in_order(edge_start, edge_count, len(edges))
     e = None if whole else ragged_index(edge_start, edge_count)
     # an edge that meets the closed segment meets its bounding box (exact comparisons):
     # x first, then y of the few edges left
@@ -181,8 +179,7 @@ def bridge_sequences(
         vstart = flat.poly_vstart[polys[active]]
         vcount = flat.poly_vcount[polys[active]]
         e_count = vcount
-        # the ranges increase and do not overlap: all vertices means every one in order
-        every_vertex = int(vcount.sum()) == nv
+        every_vertex = covers_in_order(vstart, vcount, nv)
         ea = np.arange(nv, dtype=np.int64) if every_vertex else ragged_index(vstart, vcount)
         eb = nxt[ea]
         if bridge_p:
@@ -203,7 +200,7 @@ def bridge_sequences(
         # candidates: every occurrence of the current sequences
         c_len = seq_len[active]
         c_start = np.cumsum(c_len) - c_len
-        all_active = len(active) == len(polys)
+        all_active = covers_in_order(seq_start[active], c_len, len(seq))
         c_pos = np.arange(len(seq)) if all_active else ragged_index(seq_start[active], c_len)
         c_owner = np.repeat(np.arange(len(active), dtype=np.int64), c_len)
         c_id = seq if all_active else seq[c_pos]

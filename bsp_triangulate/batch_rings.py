@@ -69,6 +69,16 @@ def ragged_index(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     return np.cumsum(steps)
 
 
+def covers_in_order(starts: np.ndarray, counts: np.ndarray, total: int) -> bool:
+    """The ranges [starts, starts + counts) are the positions 0 .. total - 1 one after
+    another: ``ragged_index(starts, counts)`` is then ``arange(total)``, and a gather by it
+    can be left out."""
+    used = counts > 0
+    return int(counts.sum()) == total and np.array_equal(
+        starts[used], (np.cumsum(counts) - counts)[used]
+    )
+
+
 def _parse_plain(polygons: Sequence[Sequence[object]]) -> tuple | None:
     """:func:`_parse` where every polygon is a list or tuple of (n > 0, 2 to 4) float64
     arrays (the common input), without a Python step per ring; None for any other input."""
@@ -89,8 +99,9 @@ def _parse_plain(polygons: Sequence[Sequence[object]]) -> tuple | None:
     return arrays, counts, widths, lengths
 
 
-def _parse(polygons: Sequence[Sequence[object]]) -> tuple[list[np.ndarray], list[int], np.ndarray]:
-    """Input rings as float arrays; the ring count per polygon (-1: not handled)."""
+def _parse(polygons: Sequence[Sequence[object]]) -> tuple:
+    """Input rings as float arrays; the ring count per polygon (-1: not handled), the
+    columns and the points of each ring."""
     arrays: list[np.ndarray] = []
     counts: list[int] = []
     widths: list[int] = []
@@ -111,7 +122,8 @@ def _parse(polygons: Sequence[Sequence[object]]) -> tuple[list[np.ndarray], list
         except (TypeError, ValueError):
             del arrays[before:], widths[before:]
         counts.append(len(arrays) - before or -1)
-    return arrays, counts, np.array(widths, dtype=np.int64)
+    lengths = np.array([len(a) for a in arrays], dtype=np.int64)
+    return arrays, counts, np.array(widths, dtype=np.int64), lengths
 
 
 def as_xyz(points: np.ndarray) -> np.ndarray:
@@ -192,12 +204,7 @@ def _area_signs(x: np.ndarray, y: np.ndarray, starts: np.ndarray, counts: np.nda
 
 def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> FlatRings:
     """Parse, clean and orient the rings of ``polygons`` (see the module docstring)."""
-    plain = _parse_plain(polygons)
-    if plain is None:
-        arrays, ring_counts, widths = _parse(polygons)
-        raw_len = np.array([len(a) for a in arrays], dtype=np.int64)
-    else:
-        arrays, ring_counts, widths, raw_len = plain
+    arrays, ring_counts, widths, raw_len = _parse_plain(polygons) or _parse(polygons)
     counts = np.array(ring_counts, dtype=np.int64)
     return flatten_points(stack_rings(arrays, widths), raw_len, counts, max_vertices, owned=True)
 
@@ -266,9 +273,7 @@ def flatten_points(
         handled[ring_poly[too_small & is_island]] = False
         signs = np.zeros(len(ring_len), dtype=np.int64)
         nonempty = ring_len > 0
-        if nonempty.all() and len(ring_len):
-            signs = _area_signs(vx, vy, ring_start, ring_len)
-        elif nonempty.any():
+        if nonempty.any():
             safe_len = np.maximum(ring_len, 1)
             signs[nonempty] = _area_signs(vx, vy, ring_start[nonempty], safe_len[nonempty])
         outer_sign = np.zeros(count, dtype=np.int64)

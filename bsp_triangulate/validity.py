@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .batch_rings import covers_in_order
 from .predicates import CCW_ERRBOUND
 from .wkb import PolygonTable
 
@@ -160,11 +161,7 @@ def proven_valid_rings(
     length = open_len + 1
     ends = np.cumsum(open_len)
     starts = ends - open_len
-    if (
-        len(chosen) == len(ring_len)
-        and len(x) == int(ends[-1])
-        and np.array_equal(ring_start, starts)
-    ):
+    if covers_in_order(ring_start[chosen], open_len, len(x)):
         open_x, open_y = x, y
     else:
         source = np.repeat(ring_start[chosen] - starts, open_len)
@@ -221,8 +218,7 @@ def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
     """Each ring closed, finite, and star-shaped around its vertex mean, winding once."""
     x, y, first, length = rings.x, rings.y, rings.first, rings.length
     last = first + length - 1
-    # the largest magnitude of each ring (NaN where a coordinate is NaN)
-    # (from the ring's extents: NaN where a coordinate is NaN)
+    # the largest magnitude of each ring, from its extents (NaN where a coordinate is NaN)
     largest = np.maximum(np.maximum(-rings.lo_x, rings.hi_x), np.maximum(-rings.lo_y, rings.hi_y))
     reject = ~(largest <= _LARGEST)
     reject |= (x[first] != x[last]) | (y[first] != y[last])
