@@ -896,10 +896,12 @@ def _extents(sx: np.ndarray, sy: np.ndarray, starts: np.ndarray) -> tuple[np.nda
     return extent_x, extent_y
 
 
-# columns of the open-node state: sub-polygon [lo, hi], next candidate, output row of the
-# node, output row of its sequence's first triangle, parent (pre-order index), depth, side,
-# V1 at hi (1) or at lo (0), sequence, a position to test first (or -1)
-_LO, _HI, _CAND, _ROW, _FIRST, _PARENT, _DEPTH, _SIDE, _AT_HI, _SEQ, _BLOCK = range(11)
+# columns of the open-node state: sub-polygon [lo, hi], next candidate, parent (pre-order
+# index), depth, side, output row of the node, output row of its sequence's first triangle,
+# V1 at hi (1) or at lo (0), sequence, a position to test first (or -1); an emitted node's
+# first _RECORD columns (its apex in _CAND) are its output record
+_LO, _HI, _CAND, _PARENT, _DEPTH, _SIDE, _ROW, _FIRST, _AT_HI, _SEQ, _BLOCK = range(11)
+_RECORD = 6
 
 
 def _next_state(
@@ -976,10 +978,7 @@ def build_trees(
     tri_count = np.maximum(m - 2, 0)
     tri_start = np.cumsum(tri_count) - tri_count
     total = int(tri_count.sum())
-    triangles = np.zeros((total, 3), dtype=np.int64)
-    parent = np.zeros(total, dtype=np.int64)
-    depth = np.zeros(total, dtype=np.int64)
-    side = np.zeros(total, dtype=np.int8)
+    record = np.zeros((total, _RECORD), dtype=np.int64)
     ok = np.ones(count, dtype=bool)
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
     # rows are written as they are emitted: a tree that starts again writes all its rows
@@ -1002,16 +1001,10 @@ def build_trees(
             if len(again):
                 ok[again] = True
                 seqs.proven[ragged_index(seq_start[again], m[again] + 1)] = False
-        # emit triangles: (base, base, apex), counter-clockwise in the output coordinates
         emit = np.flatnonzero(found)
         done = state[emit]
-        lo_e, hi_e = done[:, _LO], done[:, _HI]
-        first = np.where(mirrored[done[:, _SEQ]], lo_e, hi_e)
-        row = done[:, _ROW]
-        triangles[row] = ids[np.stack([first, lo_e + hi_e - first, apex[emit]], axis=1)]
-        parent[row] = done[:, _PARENT]
-        depth[row] = done[:, _DEPTH]
-        side[row] = done[:, _SIDE]
+        done[:, _CAND] = apex[emit]
+        record[done[:, _ROW]] = done[:, :_RECORD]
         if retry is None:
             retry, blocker = np.zeros(0, dtype=np.int64), apex
         state = _next_state(state, emit, done, apex, retry, blocker)
@@ -1022,7 +1015,13 @@ def build_trees(
             state = state[live[state[:, _SEQ]]]
         if len(again):
             state = np.concatenate([state, _roots(again, seq_start, m, tri_start)])
-    return Trees(triangles, parent, depth, side, tri_start, tri_count, ok)
+    # triangles (base, base, apex), counter-clockwise in the output coordinates
+    lo, hi = record[:, _LO], record[:, _HI]
+    first = np.where(np.repeat(mirrored, tri_count), lo, hi)
+    triangles = ids[np.stack([first, lo + hi - first, record[:, _CAND]], axis=1)]
+    depth = record[:, _DEPTH].copy()
+    side = record[:, _SIDE].astype(np.int8)
+    return Trees(triangles, record[:, _PARENT].copy(), depth, side, tri_start, tri_count, ok)
 
 
 def _roots(
