@@ -41,7 +41,7 @@ from .batch_rings import (
     ragged_index,
     touching_polygons,
 )
-from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
+from .packed import PackedPolygons, PackedTriangulations, Piece
 from .triangulation import Triangulation
 from .validity import proven_valid_rings
 
@@ -82,11 +82,12 @@ def triangulate_batch(
         return np.array([_point_count(polygons[i]) for i in index.tolist()], dtype=np.int64)
 
     pieces = batch_pieces(len(polygons), flatten, point_counts, rule, max_vertices, proven)
-    decided = np.zeros(len(polygons), dtype=bool)
+    # each result is a slice of its piece's arrays: no copy of them all into one
+    results: list[Triangulation | None] = [None] * len(polygons)
     for piece in pieces:
-        decided[piece.index] = True
-    listed = assemble(len(polygons), pieces, {}).to_list()
-    return [result if done else None for result, done in zip(listed, decided.tolist())]
+        for index, result in zip(piece.index.tolist(), piece.results.to_list()):
+            results[index] = result
+    return results
 
 
 def triangulate_batch_packed(

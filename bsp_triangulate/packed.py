@@ -148,15 +148,20 @@ class PackedTriangulations:
 
     def to_list(self) -> list[Triangulation | TriangulationError]:
         """One :class:`Triangulation` (slices of these arrays) or error per polygon."""
-        starts, counts = self.vertex_start.tolist(), self.vertex_count.tolist()
-        tri_starts, tri_counts = self.triangle_start.tolist(), self.triangle_count.tolist()
-        out: list[Triangulation | TriangulationError] = []
-        for index, (v, n, t, m) in enumerate(zip(starts, counts, tri_starts, tri_counts)):
-            error = self.errors.get(index) if self.errors else None
-            if error is not None:
-                out.append(error)
-                continue
-            out.append(self._slice(v, n, t, m))
+        v0, t0 = self.vertex_start, self.triangle_start
+        rows = zip(
+            v0.tolist(), (v0 + self.vertex_count).tolist(),
+            t0.tolist(), (t0 + self.triangle_count).tolist(),
+        )  # fmt: skip
+        vertices, triangles, parent, depth, side = (
+            self.vertices, self.triangles, self.parent, self.depth, self.side
+        )  # fmt: skip
+        out: list[Triangulation | TriangulationError] = [
+            Triangulation(vertices[a:b], triangles[c:d], parent[c:d], depth[c:d], side[c:d])
+            for a, b, c, d in rows
+        ]
+        for index, error in self.errors.items():
+            out[index] = error
         return out
 
 
