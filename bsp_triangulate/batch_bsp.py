@@ -597,7 +597,7 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     goes on to the tables. Returns per node whether its candidate ``apex`` is correct, the
     apex (or the next candidate to test) and the blocker to keep.
     """
-    lo, hi, cand, block = state[:, _LO], state[:, _HI], state[:, _CAND], state[:, _BLOCK]
+    lo, hi, cand, block = state[_LO], state[_HI], state[_CAND], state[_BLOCK]
     n = len(lo)
     span = np.minimum(cand - lo, np.where(hi - lo > _RUN_MIN, _SPAN_LARGE, _SPAN))
     fresh = cand == hi - 1
@@ -795,7 +795,7 @@ def _elevation_apex(
     rule's choice; where it is not correct it drops out and the next closest is tried, up to
     ``_ELEVATION_TRIES`` times. Nodes where the choice is not sure test all their candidates.
     """
-    lo, hi = state[:, _LO], state[:, _HI]
+    lo, hi = state[_LO], state[_HI]
     n = len(lo)
     found = np.zeros(n, dtype=bool)
     apex = np.full(n, -1, dtype=np.int64)
@@ -806,7 +806,7 @@ def _elevation_apex(
     owner, c = owner[facing], c[facing]
     if not len(c):
         return found, apex
-    at_hi = state[:, _AT_HI] == 1
+    at_hi = state[_AT_HI] == 1
     v1 = np.where(at_hi, hi, lo)
     v2 = np.where(at_hi, lo, hi)
     zc = sz[c]
@@ -896,10 +896,10 @@ def _extents(sx: np.ndarray, sy: np.ndarray, starts: np.ndarray) -> tuple[np.nda
     return extent_x, extent_y
 
 
-# columns of the open-node state: sub-polygon [lo, hi], next candidate, parent (pre-order
-# index), depth, side, output row of the node, output row of its sequence's first triangle,
-# V1 at hi (1) or at lo (0), sequence, a position to test first (or -1); an emitted node's
-# first _RECORD columns (its apex in _CAND) are its output record
+# rows of the open-node state (one column per node): sub-polygon [lo, hi], next candidate,
+# parent (pre-order index), depth, side, output row of the node, output row of its
+# sequence's first triangle, V1 at hi (1) or at lo (0), sequence, a position to test first
+# (or -1); an emitted node's first _RECORD rows (its apex in _CAND) are its output record
 _LO, _HI, _CAND, _PARENT, _DEPTH, _SIDE, _ROW, _FIRST, _AT_HI, _SEQ, _BLOCK = range(11)
 _RECORD = 6
 
@@ -912,17 +912,17 @@ def _next_state(
     retry: np.ndarray,
     blocker: np.ndarray,
 ) -> np.ndarray:
-    """The open nodes of the next round: the nodes ``retry`` (rows of ``state``) with their
-    next candidate ``apex`` and ``blocker``, then below the nodes ``emit`` (their rows
-    ``done``) with their ``apex`` the left children (base V1 V3), then the right children
-    (base V2 V3), where they have a triangle.
+    """The open nodes of the next round: the nodes ``retry`` (columns of ``state``) with
+    their next candidate ``apex`` and ``blocker``, then below the nodes ``emit`` (their
+    columns ``done``) with their ``apex`` the left children (base V1 V3), then the right
+    children (base V2 V3), where they have a triangle.
 
     With V1 at hi the left child is the upper part [apex, hi], else the lower part [lo, apex];
     the left subtree comes first in pre-order, the right child's row is after it.
     """
-    lo, hi = done[:, _LO], done[:, _HI]
+    lo, hi = done[_LO], done[_HI]
     a = apex[emit]
-    at_hi = done[:, _AT_HI] == 1
+    at_hi = done[_AT_HI] == 1
     left_lo = np.where(at_hi, a, lo)
     left_hi = np.where(at_hi, hi, a)
     right_lo = np.where(at_hi, lo, a)
@@ -930,25 +930,25 @@ def _next_state(
     left = np.flatnonzero(left_hi - left_lo > 1)
     right = np.flatnonzero(right_hi - right_lo > 1)
     rows = np.concatenate([retry, emit[left], emit[right]])
-    out = np.take(state, rows, axis=0)
+    out = np.take(state, rows, axis=1)
     r = len(retry)
-    out[:r, _CAND] = apex[retry]
-    out[:r, _BLOCK] = blocker[retry]
-    children = out[r:]
-    children[:, _PARENT] = children[:, _ROW] - children[:, _FIRST]
-    children[:, _DEPTH] += 1
-    children[:, _BLOCK] = -1
-    lefts, rights = out[r : r + len(left)], out[r + len(left) :]
-    lefts[:, _LO] = left_lo[left]
-    lefts[:, _HI] = left_hi[left]
-    lefts[:, _ROW] += 1
-    lefts[:, _SIDE] = 1
-    rights[:, _LO] = right_lo[right]
-    rights[:, _HI] = right_hi[right]
-    rights[:, _ROW] += (left_hi - left_lo)[right]
-    rights[:, _SIDE] = 2
-    rights[:, _AT_HI] ^= 1
-    children[:, _CAND] = children[:, _HI] - 1
+    out[_CAND, :r] = apex[retry]
+    out[_BLOCK, :r] = blocker[retry]
+    children = out[:, r:]
+    children[_PARENT] = children[_ROW] - children[_FIRST]
+    children[_DEPTH] += 1
+    children[_BLOCK] = -1
+    lefts, rights = out[:, r : r + len(left)], out[:, r + len(left) :]
+    lefts[_LO] = left_lo[left]
+    lefts[_HI] = left_hi[left]
+    lefts[_ROW] += 1
+    lefts[_SIDE] = 1
+    rights[_LO] = right_lo[right]
+    rights[_HI] = right_hi[right]
+    rights[_ROW] += (left_hi - left_lo)[right]
+    rights[_SIDE] = 2
+    rights[_AT_HI] ^= 1
+    children[_CAND] = children[_HI] - 1
     return out
 
 
@@ -983,8 +983,8 @@ def build_trees(
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
     # rows are written as they are emitted: a tree that starts again writes all its rows
     # again in later rounds, and a sequence that fails is not read
-    while len(state):
-        lo = state[:, _LO]
+    while state.shape[1]:
+        lo = state[_LO]
         retry = None
         if exhaustive:
             found, apex = _elevation_apex(seqs, sz, state)
@@ -995,16 +995,16 @@ def build_trees(
             retry = np.flatnonzero(~found & ~failed)
         again = np.zeros(0, dtype=np.int64)
         if failed.any():
-            dead = np.unique(state[failed, _SEQ])
+            dead = np.unique(state[_SEQ, failed])
             again = dead[seqs.proven[seq_start[dead]]]
             ok[dead] = False
             if len(again):
                 ok[again] = True
                 seqs.proven[ragged_index(seq_start[again], m[again] + 1)] = False
         emit = np.flatnonzero(found)
-        done = state[emit]
-        done[:, _CAND] = apex[emit]
-        record[done[:, _ROW]] = done[:, :_RECORD]
+        done = np.take(state, emit, axis=1)
+        done[_CAND] = apex[emit]
+        record[done[_ROW]] = done[:_RECORD].T
         if retry is None:
             retry, blocker = np.zeros(0, dtype=np.int64), apex
         state = _next_state(state, emit, done, apex, retry, blocker)
@@ -1012,30 +1012,30 @@ def build_trees(
             # the nodes of failed trees and of those that start again leave
             live = ok.copy()
             live[again] = False
-            state = state[live[state[:, _SEQ]]]
+            state = state[:, live[state[_SEQ]]]
         if len(again):
-            state = np.concatenate([state, _roots(again, seq_start, m, tri_start)])
+            state = np.concatenate([state, _roots(again, seq_start, m, tri_start)], axis=1)
     # triangles (base, base, apex), counter-clockwise in the output coordinates
     lo, hi = record[:, _LO], record[:, _HI]
     first = np.where(np.repeat(mirrored, tri_count), lo, hi)
     triangles = ids[np.stack([first, lo + hi - first, record[:, _CAND]], axis=1)]
-    depth = record[:, _DEPTH].copy()
+    parent, depth = record[:, _PARENT].copy(), record[:, _DEPTH].copy()
     side = record[:, _SIDE].astype(np.int8)
-    return Trees(triangles, record[:, _PARENT].copy(), depth, side, tri_start, tri_count, ok)
+    return Trees(triangles, parent, depth, side, tri_start, tri_count, ok)
 
 
 def _roots(
     poly: np.ndarray, seq_start: np.ndarray, m: np.ndarray, tri_start: np.ndarray
 ) -> np.ndarray:
     """The open-node state of the root nodes of the sequences ``poly``."""
-    state = np.zeros((len(poly), 11), dtype=np.int64)
-    state[:, _LO] = seq_start[poly] + 1
-    state[:, _HI] = seq_start[poly] + m[poly]
-    state[:, _CAND] = state[:, _HI] - 1
-    state[:, _ROW] = tri_start[poly]
-    state[:, _FIRST] = tri_start[poly]
-    state[:, _PARENT] = -1
-    state[:, _AT_HI] = 1
-    state[:, _SEQ] = poly
-    state[:, _BLOCK] = -1
+    state = np.zeros((11, len(poly)), dtype=np.int64)
+    state[_LO] = seq_start[poly] + 1
+    state[_HI] = seq_start[poly] + m[poly]
+    state[_CAND] = state[_HI] - 1
+    state[_ROW] = tri_start[poly]
+    state[_FIRST] = tri_start[poly]
+    state[_PARENT] = -1
+    state[_AT_HI] = 1
+    state[_SEQ] = poly
+    state[_BLOCK] = -1
     return state
