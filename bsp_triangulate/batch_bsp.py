@@ -61,7 +61,7 @@ class Sequences:
     the extents of its sequence, and the ``table`` of the columns above; ``exact``: every
     float orientation is exact (grid coordinates). ``proven``: the position's polygon is
     proven valid; ``bent``: the positions of proven sequences that are not a strict left
-    turn, and ``bent_rank[p]`` how many of them come before position p."""
+    turn or are a bridge end, and ``bent_rank[p]`` how many of them come before position p."""
 
     sx: np.ndarray
     sy: np.ndarray
@@ -122,7 +122,9 @@ class Sequences:
             proven_at = np.zeros(n, dtype=bool)
         else:
             proven_at = np.repeat(np.asarray(proven, dtype=bool), lengths)
-        bent_at = proven_at & (table[:, _TURN] != 1.0)
+        # a bridge end is bent as a vertex (two left turns that together turn more than 180
+        # degrees, around the island), whatever the turn of each of its positions
+        bent_at = proven_at & ((table[:, _TURN] != 1.0) | (twin >= 0))
         bent_rank = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(bent_at, out=bent_rank[1:])
         bent = np.flatnonzero(bent_at)
@@ -326,10 +328,10 @@ def _bent_in_triangle(
     seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_tables` for a proven-valid polygon, by its bent positions (not a strict left
-    turn) between lo and hi alone: a candidate fails where one of them lies in the closed
-    triangle other than at a corner (exact signs) or where :func:`_bridge_at_corner` finds
-    an edge across it, and passes otherwise, which is right provided that the polygon's
-    tree completes.
+    turn, or a bridge end) between lo and hi alone: a candidate fails where one of them lies
+    in the closed triangle other than at a corner (exact signs) or where
+    :func:`_bridge_at_corner` finds an edge across it, and passes otherwise, which is right
+    provided that the polygon's tree completes.
 
     Why a tree that completes is the one every table gives: each node splits its chain into
     its triangle and two sub-chains, so the triangles' winding numbers add up to the
@@ -349,7 +351,7 @@ def _bent_in_triangle(
     These tests find most failures: any boundary inside an ear comes in across its only new
     side, and its vertex farthest from that side is bent (the part of the ear beyond it is
     interior). A triangle with two new sides can also be crossed by a notch of the exterior,
-    or a bridge, with no vertex inside: 0.9 % of the benchmark's concave stars start again.
+    or a bridge, with no vertex inside: 0.5 % of the benchmark's concave stars start again.
     """
     n = len(lo)
     sx, sy = seqs.sx, seqs.sy
@@ -456,15 +458,16 @@ def _bridge_at_corner(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.nda
     inside both (exact signs). Such an edge runs through the open triangle (condition 2
     fails) with no vertex in it: a bridge from the fan's centre, say."""
     bad = np.zeros(len(lo), dtype=bool)
-    t_lo, t_hi = seqs.twin[lo], seqs.twin[hi]
-    other = c != hi - 1
-    at_lo = np.flatnonzero((t_lo > lo) & (t_lo < hi) & other)
-    at_hi = np.flatnonzero((t_hi > lo) & (t_hi < hi) & other)
+    other = np.flatnonzero(c != hi - 1)
+    lo_o, hi_o = lo[other], hi[other]
+    t_lo, t_hi = seqs.twin[lo_o], seqs.twin[hi_o]
+    at_lo = other[(t_lo > lo_o) & (t_lo < hi_o)]
+    at_hi = other[(t_hi > lo_o) & (t_hi < hi_o)]
     if not (len(at_lo) or len(at_hi)):
         return bad
     # rows: the side c s_hi against the edges at lo's twin t, then s_lo c against hi's
     rows = np.concatenate([at_lo, at_hi])
-    t = np.concatenate([t_lo[at_lo], t_hi[at_hi]])
+    t = seqs.twin[np.concatenate([lo[at_lo], hi[at_hi]])]
     end = np.concatenate([hi[at_lo], lo[at_hi]])
     rows, u, v = np.tile(rows, 2), np.tile(c[rows], 2), np.tile(end, 2)
     p = np.concatenate([t - 1, t])
