@@ -143,18 +143,30 @@ def batch_pieces(
     known = np.zeros(count, dtype=bool)
     if proven is not None:
         known[:] = np.asarray(proven, dtype=bool)
+    exhaustive = _RULES[rule]
     decided = np.zeros(count, dtype=bool)
+    again: list[np.ndarray] = []
+
+    def run(index: np.ndarray, limit: int) -> None:
+        done, redo = _triangulate(flatten(index, limit), exhaustive, known[index])
+        pieces.append(_globalised(done, index))
+        decided[pieces[-1].index] = True
+        again.append(index[redo])
+
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         # groups of moderate size keep the working arrays in the cache
         for first in range(0, count, _GROUP):
-            index = np.arange(first, min(first + _GROUP, count), dtype=np.int64)
-            done = _triangulate(flatten(index, max_vertices), _RULES[rule], known[index])
-            pieces.append(_globalised(done, index))
-            decided[pieces[-1].index] = True
+            run(np.arange(first, min(first + _GROUP, count), dtype=np.int64), max_vertices)
         if max_vertices < MID_VERTICES:
-            pieces += _triangulate_mid_size(
-                np.flatnonzero(~decided), flatten, point_counts, _RULES[rule], max_vertices, known
-            )
+            for index in _mid_size_groups(np.flatnonzero(~decided), point_counts, max_vertices):
+                run(index, MID_VERTICES)
+        # the trees that the proven-valid shortcut left incomplete, all in one group (a few
+        # trees take as many rounds as a whole group): every table
+        redo = np.sort(np.concatenate(again)) if again else np.zeros(0, dtype=np.int64)
+        if len(redo):
+            valid = np.ones(len(redo), dtype=bool)
+            done, _ = _triangulate(flatten(redo, MID_VERTICES), exhaustive, valid, False)
+            pieces.append(_globalised(done, redo))
     return pieces
 
 
@@ -163,16 +175,12 @@ def _globalised(piece: Piece, index: np.ndarray) -> Piece:
     return piece
 
 
-def _triangulate_mid_size(
-    left: np.ndarray,
-    flatten: Callable[[np.ndarray, int], FlatRings],
-    point_counts: Callable[[np.ndarray], np.ndarray],
-    exhaustive: bool,
-    max_vertices: int,
-    known: np.ndarray,
-) -> list[Piece]:
-    """Batch the polygons of more than ``max_vertices`` and at most ``MID_VERTICES`` points
-    among ``left``, in groups of similar size, if there are at least ``MID_MIN_COUNT``."""
+def _mid_size_groups(
+    left: np.ndarray, point_counts: Callable[[np.ndarray], np.ndarray], max_vertices: int
+) -> list[np.ndarray]:
+    """Groups of similar size (each in polygon order) of the polygons of more than
+    ``max_vertices`` and at most ``MID_VERTICES`` points among ``left``, if there are at
+    least ``MID_MIN_COUNT``."""
     counts = point_counts(left)
     mid = (counts > max_vertices) & (counts <= MID_VERTICES)
     if int(mid.sum()) < MID_MIN_COUNT:
@@ -181,19 +189,17 @@ def _triangulate_mid_size(
     sizes = counts[mid]
     order = np.argsort(sizes, kind="stable")
     chosen_all, sizes = chosen_all[order], sizes[order].tolist()
-    pieces = []
+    groups = []
     start = 0
     while start < len(chosen_all):
         stop, total = start, 0
         while stop < len(chosen_all) and (stop == start or total < _MID_GROUP_VERTICES):
             total += sizes[stop]
             stop += 1
-        # each group in polygon order (flatten wants increasing indices)
-        chosen = np.sort(chosen_all[start:stop])
-        done = _triangulate(flatten(chosen, MID_VERTICES), exhaustive, known[chosen])
-        pieces.append(_globalised(done, chosen))
+        # flatten wants increasing indices
+        groups.append(np.sort(chosen_all[start:stop]))
         start = stop
-    return pieces
+    return groups
 
 
 def _point_count(rings: object) -> int:
@@ -222,8 +228,12 @@ def _twins(ext: np.ndarray, ext_start: np.ndarray) -> np.ndarray:
     return twin
 
 
-def _triangulate(flat: FlatRings, exhaustive: bool, known: np.ndarray) -> Piece:
-    """The polygons of ``flat`` that the batch path decides (indices into ``flat``)."""
+def _triangulate(
+    flat: FlatRings, exhaustive: bool, known: np.ndarray, shortcut: bool = True
+) -> tuple[Piece, np.ndarray]:
+    """The polygons of ``flat`` that the batch path decides (indices into ``flat``), and
+    those to triangulate again with every table (their trees, built with the proven-valid
+    shortcut, did not complete); ``shortcut=False`` builds every tree with every table."""
     wx = np.where(np.repeat(flat.mirrored[flat.ring_poly], flat.ring_len), -flat.vx, flat.vx)
     wy = flat.vy
     handled = flat.handled.copy()
@@ -245,8 +255,9 @@ def _triangulate(flat: FlatRings, exhaustive: bool, known: np.ndarray) -> Piece:
     handled &= clear_area(flat, wx) | flat.empty
     empties = np.flatnonzero(handled & flat.empty)
     polys = np.flatnonzero(handled & ~flat.empty)
+    none = np.zeros(0, np.int64)
     if len(polys) == 0:
-        return _piece(flat, empties, np.zeros(0, np.int64), None)
+        return _piece(flat, empties, none, None), none
     seq, seq_start, seq_len, bridged = bridge_sequences(flat, wx, wy, polys)
     polys_ok = polys[bridged]
     seq_start, seq_len = seq_start[bridged], seq_len[bridged]
@@ -268,9 +279,9 @@ def _triangulate(flat: FlatRings, exhaustive: bool, known: np.ndarray) -> Piece:
         seq_len,
         flat.mirrored[polys_ok],
         exhaustive,
-        proven[polys_ok],
+        proven[polys_ok] if shortcut else None,
     )
-    return _piece(flat, empties, polys_ok[trees.ok], trees)
+    return _piece(flat, empties, polys_ok[trees.ok], trees), polys_ok[trees.again]
 
 
 def _piece(

@@ -43,7 +43,8 @@ _UNDERFLOW_SLACK = 1e-300
 
 @dataclass
 class Trees:
-    """BSP results of many sequences: triangle rows of sequence i at ``start[i]``."""
+    """BSP results of many sequences: triangle rows of sequence i at ``start[i]``, read
+    where ``ok``."""
 
     triangles: np.ndarray  # (T, 3) local vertex indices
     parent: np.ndarray
@@ -52,6 +53,8 @@ class Trees:
     start: np.ndarray
     count: np.ndarray
     ok: np.ndarray
+    # per sequence: proven valid, but its tree did not complete (build it with every table)
+    again: np.ndarray
 
 
 @dataclass
@@ -971,8 +974,8 @@ def build_trees(
     ``seq_start``; ``ids`` are the output vertex indices of every position, ``twin`` the other
     position of the same vertex or -1; ``proven``: per sequence, its polygon is proven valid
     (``validity.proven_valid``), which lets its candidates skip most tables
-    (:func:`_bent_in_triangle`; a proven polygon whose tree does not complete is built again
-    with every table)."""
+    (:func:`_bent_in_triangle`; a proven polygon whose tree does not complete is marked
+    ``again``, for the caller to build with every table, with the trees of other groups)."""
     count = len(seq_start)
     # a sample that is not grid-exact rules out the whole (cheap for float data)
     exact = grid_exact(sx[:1024], sy[:1024]) and grid_exact(sx, sy)
@@ -984,8 +987,7 @@ def build_trees(
     record = np.zeros((total, _RECORD), dtype=np.int64)
     ok = np.ones(count, dtype=bool)
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
-    # rows are written as they are emitted: a tree that starts again writes all its rows
-    # again in later rounds, and a sequence that fails is not read
+    # rows are written as they are emitted; a sequence that fails is not read
     while state.shape[1]:
         lo = state[_LO]
         retry = None
@@ -996,14 +998,7 @@ def build_trees(
             found, apex, blocker = _first_correct(seqs, state)
             failed = ~found & (apex <= lo)
             retry = np.flatnonzero(~found & ~failed)
-        again = np.zeros(0, dtype=np.int64)
-        if failed.any():
-            dead = np.unique(state[_SEQ, failed])
-            again = dead[seqs.proven[seq_start[dead]]]
-            ok[dead] = False
-            if len(again):
-                ok[again] = True
-                seqs.proven[ragged_index(seq_start[again], m[again] + 1)] = False
+        dead = np.unique(state[_SEQ, failed]) if failed.any() else None
         emit = np.flatnonzero(found)
         done = np.take(state, emit, axis=1)
         done[_CAND] = apex[emit]
@@ -1011,20 +1006,18 @@ def build_trees(
         if retry is None:
             retry, blocker = np.zeros(0, dtype=np.int64), apex
         state = _next_state(state, emit, done, apex, retry, blocker)
-        if len(again) or not ok.all():
-            # the nodes of failed trees and of those that start again leave
-            live = ok.copy()
-            live[again] = False
-            state = state[:, live[state[_SEQ]]]
-        if len(again):
-            state = np.concatenate([state, _roots(again, seq_start, m, tri_start)], axis=1)
+        if dead is not None:
+            # a failed tree's other nodes leave
+            ok[dead] = False
+            state = state[:, ok[state[_SEQ]]]
+    again = ~ok & seqs.proven[seq_start]
     # triangles (base, base, apex), counter-clockwise in the output coordinates
     lo, hi = record[:, _LO], record[:, _HI]
     first = np.where(np.repeat(mirrored, tri_count), lo, hi)
     triangles = ids[np.stack([first, lo + hi - first, record[:, _CAND]], axis=1)]
     parent, depth = record[:, _PARENT].copy(), record[:, _DEPTH].copy()
     side = record[:, _SIDE].astype(np.int8)
-    return Trees(triangles, parent, depth, side, tri_start, tri_count, ok)
+    return Trees(triangles, parent, depth, side, tri_start, tri_count, ok, again)
 
 
 def _roots(

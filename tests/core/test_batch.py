@@ -347,29 +347,22 @@ def family_polygons(family: str) -> list:
 
 
 class RestartLog:
-    """The trees that ``build_trees`` started again, as (its call, sequence) pairs: the
-    sequences whose roots it made after the first roots of the call."""
+    """The trees that ``build_trees`` left to be built again with every table, as (its call,
+    sequence) pairs."""
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
-        from bsp_triangulate import batch, batch_bsp
+        from bsp_triangulate import batch
 
         self.call = 0
         self.restarted: set[tuple[int, int]] = set()
-        self._first = True
-        roots, build_trees = batch_bsp._roots, batch.build_trees
-
-        def recorded_roots(poly, *args):
-            if not self._first:
-                self.restarted.update((self.call, int(i)) for i in poly)
-            self._first = False
-            return roots(poly, *args)
+        build_trees = batch.build_trees
 
         def counted_build_trees(*args, **kwargs):
             self.call += 1
-            self._first = True
-            return build_trees(*args, **kwargs)
+            trees = build_trees(*args, **kwargs)
+            self.restarted.update((self.call, int(i)) for i in np.flatnonzero(trees.again))
+            return trees
 
-        monkeypatch.setattr(batch_bsp, "_roots", recorded_roots)
         monkeypatch.setattr(batch, "build_trees", counted_build_trees)
 
 
@@ -378,8 +371,8 @@ class RestartLog:
 )
 def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """Candidates of proven-valid polygons decided without a table (``_bent_in_triangle``):
-    a rejection agrees with the whole table and a candidate it passes but the table rejects
-    stops its tree, except in trees that start again with every table; all results equal the
+    a rejection agrees with the whole table, and a candidate it passes but the table rejects
+    stops its tree, which is then built again with every table; all results equal the
     engine's."""
     from bsp_triangulate import batch_bsp
 
