@@ -671,10 +671,16 @@ def _strictly_inside(
     seqs: Sequences, a: np.ndarray, b: np.ndarray, c: np.ndarray, p: np.ndarray
 ) -> np.ndarray:
     """Position ``p`` lies strictly inside the counter-clockwise triangle (a, b, c) (exact)."""
+    # a blocker is often the next candidate itself (a corner: not inside), left out before
+    # the orientations, whose zeros would take the exact path
+    inside = np.zeros(len(p), dtype=bool)
+    t = np.flatnonzero(p != c)
+    a, b, c, p = a[t], b[t], c[t], p[t]
     sx, sy = seqs.sx, seqs.sy
     bound = 4.0 * seqs.table[b, _BOUND]
     signs = _side_signs(sx[a], sy[a], sx[b], sy[b], sx[c], sy[c], sx[p], sy[p], bound, seqs.exact)
-    return (signs > 0).all(axis=0)
+    inside[t] = (signs > 0).all(axis=0)
+    return inside
 
 
 def _bad_rows(
