@@ -27,6 +27,7 @@ Pipeline: ``batch_rings`` (normalisation), ``batch_bridges`` (islands), ``batch_
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -148,10 +149,11 @@ def batch_pieces(
     again: list[np.ndarray] = []
 
     def run(index: np.ndarray, limit: int) -> None:
-        done, redo = _triangulate(flatten(index, limit), exhaustive, known[index])
-        pieces.append(_globalised(done, index))
+        group = _triangulate(flatten(index, limit), exhaustive, known[index])
+        # a tree to build again keeps its place (and its incomplete rows) in the piece
+        pieces.append(_globalised(group.piece(), index))
         decided[pieces[-1].index] = True
-        again.append(index[redo])
+        again.append(index[group.again()])
 
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         # groups of moderate size keep the working arrays in the cache
@@ -160,14 +162,50 @@ def batch_pieces(
         if max_vertices < MID_VERTICES:
             for index in _mid_size_groups(np.flatnonzero(~decided), point_counts, max_vertices):
                 run(index, MID_VERTICES)
-        # the trees that the proven-valid shortcut left incomplete, all in one group (a few
-        # trees take as many rounds as a whole group): every table
         redo = np.sort(np.concatenate(again)) if again else np.zeros(0, dtype=np.int64)
         if len(redo):
+            # the trees that the proven-valid shortcut left incomplete, with every table, all
+            # in one group (a few such trees would keep each group going for as many rounds
+            # as a whole group)
             valid = np.ones(len(redo), dtype=bool)
-            done, _ = _triangulate(flatten(redo, MID_VERTICES), exhaustive, valid, False)
-            pieces.append(_globalised(done, redo))
+            built = _triangulate(flatten(redo, MID_VERTICES), exhaustive, valid, False)
+            fixed = _globalised(built.piece(), redo)
+            pieces = [
+                _take_over(piece, wanted, fixed) if len(wanted) else piece
+                for piece, wanted in zip(pieces, again)
+            ]
     return pieces
+
+
+def _take_over(piece: Piece, wanted: np.ndarray, fixed: Piece) -> Piece:
+    """``piece`` with the trees of its polygons ``wanted`` (call indices) from ``fixed``; a
+    polygon that ``fixed`` does not hold leaves the piece."""
+    mine = np.searchsorted(piece.index, wanted)
+    at = np.minimum(np.searchsorted(fixed.index, wanted), max(len(fixed.index) - 1, 0))
+    r, f = piece.results, fixed.results
+    found = np.zeros(len(wanted), dtype=bool)
+    if len(fixed.index):
+        found = fixed.index[at] == wanted
+        found[found] = r.triangle_count[mine[found]] == f.triangle_count[at[found]]
+    m, t = mine[found], at[found]
+    rows = ragged_index(r.triangle_start[m], r.triangle_count[m])
+    source = ragged_index(f.triangle_start[t], f.triangle_count[t])
+    for name in ("triangles", "parent", "depth", "side"):
+        getattr(r, name)[rows] = getattr(f, name)[source]
+    if found.all():
+        return piece
+    keep = np.ones(len(piece.index), dtype=bool)
+    keep[mine[~found]] = False
+    k = np.flatnonzero(keep)
+    vertex_rows = ragged_index(r.vertex_start[k], r.vertex_count[k])
+    rows = ragged_index(r.triangle_start[k], r.triangle_count[k])
+    return Piece(
+        piece.index[k],
+        PackedTriangulations(
+            r.vertices[vertex_rows], r.vertex_count[k], r.triangles[rows],
+            r.triangle_count[k], r.parent[rows], r.depth[rows], r.side[rows],
+        ),
+    )  # fmt: skip
 
 
 def _globalised(piece: Piece, index: np.ndarray) -> Piece:
@@ -228,12 +266,38 @@ def _twins(ext: np.ndarray, ext_start: np.ndarray) -> np.ndarray:
     return twin
 
 
+@dataclass
+class _Group:
+    """The results of one group of polygons (``flat``): the polygons ``empties`` (no
+    triangles) and the ``trees`` of the polygons ``polys`` (indices into ``flat``)."""
+
+    flat: FlatRings
+    empties: np.ndarray
+    polys: np.ndarray
+    trees: Trees | None
+
+    def again(self) -> np.ndarray:
+        """The polygons whose trees are to be built again with every table."""
+        if self.trees is None:
+            return np.zeros(0, dtype=np.int64)
+        return self.polys[self.trees.again]
+
+    def piece(self) -> Piece:
+        """The piece of the polygons without triangles and of those whose trees completed or
+        are to be built again."""
+        trees = self.trees
+        if trees is None:
+            return _piece(self.flat, self.empties, self.polys, None)
+        kept = trees.ok | trees.again
+        return _piece(self.flat, self.empties, self.polys[kept], trees, kept)
+
+
 def _triangulate(
     flat: FlatRings, exhaustive: bool, known: np.ndarray, shortcut: bool = True
-) -> tuple[Piece, np.ndarray]:
-    """The polygons of ``flat`` that the batch path decides (indices into ``flat``), and
-    those to triangulate again with every table (their trees, built with the proven-valid
-    shortcut, did not complete); ``shortcut=False`` builds every tree with every table."""
+) -> _Group:
+    """The polygons of ``flat`` that the batch path decides; the trees of proven-valid
+    polygons that did not complete with the shortcut are marked ``again`` (built with every
+    table later); ``shortcut=False`` builds every tree with every table."""
     wx = np.where(np.repeat(flat.mirrored[flat.ring_poly], flat.ring_len), -flat.vx, flat.vx)
     wy = flat.vy
     handled = flat.handled.copy()
@@ -255,9 +319,8 @@ def _triangulate(
     handled &= clear_area(flat, wx) | flat.empty
     empties = np.flatnonzero(handled & flat.empty)
     polys = np.flatnonzero(handled & ~flat.empty)
-    none = np.zeros(0, np.int64)
     if len(polys) == 0:
-        return _piece(flat, empties, none, None), none
+        return _Group(flat, empties, polys, None)
     seq, seq_start, seq_len, bridged = bridge_sequences(flat, wx, wy, polys)
     polys_ok = polys[bridged]
     seq_start, seq_len = seq_start[bridged], seq_len[bridged]
@@ -281,14 +344,18 @@ def _triangulate(
         exhaustive,
         proven[polys_ok] if shortcut else None,
     )
-    return _piece(flat, empties, polys_ok[trees.ok], trees), polys_ok[trees.again]
+    return _Group(flat, empties, polys_ok, trees)
 
 
 def _piece(
-    flat: FlatRings, empties: np.ndarray, tree_polys: np.ndarray, trees: Trees | None
+    flat: FlatRings,
+    empties: np.ndarray,
+    tree_polys: np.ndarray,
+    trees: Trees | None,
+    kept: np.ndarray | None = None,
 ) -> Piece:
-    """The results of the polygons ``empties`` (no triangles) and ``tree_polys`` (the ok
-    sequences of ``trees``, in order)."""
+    """The results of the polygons ``empties`` (no triangles) and ``tree_polys`` (the
+    sequences ``kept`` of ``trees``, in order)."""
     decided = np.zeros(len(flat.handled), dtype=bool)
     decided[empties] = True
     decided[tree_polys] = True
@@ -301,10 +368,11 @@ def _piece(
     if trees is None or not len(tree_polys):
         return Piece(index, PackedTriangulations.without_triangles(vertices, vertex_count))
     triangle_count = np.zeros(len(index), dtype=np.int64)
-    triangle_count[np.searchsorted(index, tree_polys)] = trees.count[trees.ok]
+    kept = trees.ok if kept is None else kept
+    triangle_count[np.searchsorted(index, tree_polys)] = trees.count[kept]
     triangles, parent, depth, side = trees.triangles, trees.parent, trees.depth, trees.side
-    if not trees.ok.all():
-        rows = ragged_index(trees.start[trees.ok], trees.count[trees.ok])
+    if not kept.all():
+        rows = ragged_index(trees.start[kept], trees.count[kept])
         triangles, parent, depth, side = triangles[rows], parent[rows], depth[rows], side[rows]
     return Piece(
         index,

@@ -444,6 +444,38 @@ def test_rounds_of_many_nodes_equal_engine(family: str, monkeypatch: pytest.Monk
     assert counts["spans"] > 0
 
 
+def test_trees_built_again_that_fail_are_left_to_the_engine(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A tree to build again with every table keeps its place in its group's results until
+    it is built; where that build does not complete either, the polygon leaves the batch
+    results (to the engine), in the listed and the packed results alike, and the others are
+    untouched."""
+    from bsp_triangulate import batch, engine
+    from bsp_triangulate.packed import PackedPolygons
+
+    polygons = concave_stars(random.Random(43), 300)
+    log = RestartLog(monkeypatch)
+    build_trees = batch.build_trees
+
+    def full_tables_fail(*args, **kwargs):
+        trees = build_trees(*args, **kwargs)
+        if kwargs.get("proven", args[9] if len(args) > 9 else None) is None:
+            trees.ok[:] = False
+        return trees
+
+    monkeypatch.setattr(batch, "build_trees", full_tables_fail)
+    listed = triangulate_batch(polygons)
+    again = len(log.restarted)
+    assert again > 0
+    assert sum(result is None for result in listed) == again
+    problems, handled = mismatches(polygons)
+    assert problems == [] and handled == len(polygons) - again
+    packed = engine.triangulate_packed(PackedPolygons.of(polygons))
+    for rings, result in zip(polygons, packed.to_list()):
+        assert first_differing_field(result, triangulate(rings)) is None
+
+
 def test_trees_started_again_under_rule_elevation(monkeypatch: pytest.MonkeyPatch) -> None:
     """Rule "elevation" takes the closest of the candidates it believes correct: a wrong one
     taken without a table stops its tree, which starts again and equals the engine's."""
