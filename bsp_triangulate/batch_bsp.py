@@ -1017,10 +1017,16 @@ def build_trees(
             ok[dead] = False
             state = state[:, ok[state[_SEQ]]]
     again = ~ok & seqs.proven[seq_start]
-    # triangles (base, base, apex), counter-clockwise in the output coordinates
-    lo, hi = record[:, _LO], record[:, _HI]
-    first = np.where(np.repeat(mirrored, tri_count), lo, hi)
-    triangles = ids[np.stack([first, lo + hi - first, record[:, _CAND]], axis=1)]
+    # triangles (s_hi, s_lo, apex), (s_lo, s_hi, apex) where mirrored: counter-clockwise in
+    # the output coordinates
+    first, second = record[:, _HI], record[:, _LO]
+    if mirrored.any():
+        flip = np.repeat(mirrored, tri_count)
+        first, second = np.where(flip, second, first), np.where(flip, first, second)
+    triangles = np.empty((total, 3), dtype=np.int64)
+    triangles[:, 0] = ids[first]
+    triangles[:, 1] = ids[second]
+    triangles[:, 2] = ids[record[:, _CAND]]
     parent, depth = record[:, _PARENT].copy(), record[:, _DEPTH].copy()
     side = record[:, _SIDE].astype(np.int8)
     return Trees(triangles, parent, depth, side, tri_start, tri_count, ok, again)
