@@ -196,16 +196,8 @@ def _take_over(piece: Piece, wanted: np.ndarray, fixed: Piece) -> Piece:
         return piece
     keep = np.ones(len(piece.index), dtype=bool)
     keep[mine[~found]] = False
-    k = np.flatnonzero(keep)
-    vertex_rows = ragged_index(r.vertex_start[k], r.vertex_count[k])
-    rows = ragged_index(r.triangle_start[k], r.triangle_count[k])
-    return Piece(
-        piece.index[k],
-        PackedTriangulations(
-            r.vertices[vertex_rows], r.vertex_count[k], r.triangles[rows],
-            r.triangle_count[k], r.parent[rows], r.depth[rows], r.side[rows],
-        ),
-    )  # fmt: skip
+    kept = np.flatnonzero(keep)
+    return Piece(piece.index[kept], r.take(kept))
 
 
 def _globalised(piece: Piece, index: np.ndarray) -> Piece:

@@ -142,6 +142,15 @@ class PackedTriangulations:
             side=self.side[t : t + m],
         )
 
+    def take(self, polygons: np.ndarray) -> PackedTriangulations:
+        """The results of ``polygons`` (indices), in that order, without the errors."""
+        vertex_rows = ragged_index(self.vertex_start[polygons], self.vertex_count[polygons])
+        rows = ragged_index(self.triangle_start[polygons], self.triangle_count[polygons])
+        return PackedTriangulations(
+            self.vertices[vertex_rows], self.vertex_count[polygons], self.triangles[rows],
+            self.triangle_count[polygons], self.parent[rows], self.depth[rows], self.side[rows],
+        )  # fmt: skip
+
     def tree(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(parent, depth, side) of every triangle."""
         return self.parent, self.depth, self.side
@@ -213,11 +222,10 @@ def assemble(
     vertices, triangles, parent, depth, side = fields
     if len(index) > 1 and (np.diff(index) < 0).any():
         # pieces out of polygon order: one gather per field
-        order = np.argsort(index, kind="stable")
-        rows = ragged_index((np.cumsum(vcount) - vcount)[order], vcount[order])
-        vertices = vertices[rows]
-        rows = ragged_index((np.cumsum(tcount) - tcount)[order], tcount[order])
-        triangles, parent, depth, side = triangles[rows], parent[rows], depth[rows], side[rows]
+        joined = PackedTriangulations(vertices, vcount, triangles, tcount, parent, depth, side)
+        ordered = joined.take(np.argsort(index, kind="stable"))
+        vertices, triangles = ordered.vertices, ordered.triangles
+        parent, depth, side = ordered.parent, ordered.depth, ordered.side
     return PackedTriangulations(
         vertices, vertex_count, triangles, triangle_count, parent, depth, side, errors
     )
