@@ -18,6 +18,7 @@ from .predicates import orient_many
 from .rings import WALL_RATIO
 
 _EPS = 2.0**-53
+_FLOAT64 = np.dtype(np.float64)
 _UNDERFLOW_SLACK = 1e-300
 
 
@@ -87,11 +88,14 @@ def _parse_plain(polygons: Sequence[Sequence[object]]) -> tuple | None:
     arrays = list(chain.from_iterable(polygons))
     if not set(map(type, arrays)) <= {np.ndarray}:
         return None
-    if any(dtype != np.float64 for dtype in set(map(attrgetter("dtype"), arrays))):
+    if not set(map(attrgetter("dtype"), arrays)) <= {_FLOAT64}:
         return None
     if not set(map(attrgetter("ndim"), arrays)) <= {2}:
         return None
-    shapes = np.array(list(map(attrgetter("shape"), arrays)), dtype=np.int64).reshape(-1, 2)
+    # every shape has two entries: both columns of the (ring, entry) table in one pass
+    shapes = np.fromiter(
+        chain.from_iterable(map(attrgetter("shape"), arrays)), np.int64, 2 * len(arrays)
+    ).reshape(-1, 2)
     lengths, widths = shapes[:, 0], shapes[:, 1]
     if not ((lengths > 0) & (widths >= 2) & (widths <= 4)).all():
         return None
@@ -139,18 +143,36 @@ def as_xyz(points: np.ndarray) -> np.ndarray:
     return out
 
 
+def _joined(arrays: list[np.ndarray], width: int) -> np.ndarray:
+    """The float64 rings of ``width`` columns one after another, as one (N, width) array
+    (joined as bytes where every ring is C-contiguous: no step per ring in NumPy)."""
+    try:
+        return np.frombuffer(b"".join(arrays), dtype=np.float64).reshape(-1, width)
+    except (BufferError, TypeError, ValueError):
+        return np.concatenate(arrays)
+
+
 def stack_rings(arrays: list[np.ndarray], widths: np.ndarray) -> np.ndarray:
     """All rings (``widths`` columns each) as one (N, 3) array, z = 0 where absent."""
     if not arrays:
         return np.zeros((0, 3))
     if (widths == 2).all():
-        # straight into the x and y columns of the result
-        out = np.zeros((int(sum(map(len, arrays))), 3))
-        np.concatenate(arrays, out=out[:, :2])
-        return out
+        return _with_zero_z(_joined(arrays, 2))[0]
     if (widths == widths[0]).all():
-        return as_xyz(np.concatenate(arrays))
+        joined = _joined(arrays, int(widths[0]))
+        # a joined array may be read-only: as_xyz copies 4 columns, 3 are copied here
+        return joined.copy() if widths[0] == 3 else as_xyz(joined)
     return np.concatenate([as_xyz(a) for a in arrays])
+
+
+def _with_zero_z(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N, 3) points of the (N, 2) ``xy`` with z = 0, and their x and y as contiguous
+    arrays."""
+    x, y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
+    points = np.zeros((len(x), 3))
+    points[:, 0] = x
+    points[:, 1] = y
+    return points, x, y
 
 
 def _sum_with_bound(terms: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> tuple:
@@ -181,32 +203,43 @@ def _xy_is_working_plane(p: np.ndarray, starts: np.ndarray, counts: np.ndarray) 
     return flat | (clear & np.isfinite(nz))
 
 
-def _area_signs(x: np.ndarray, y: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Sign of each ring's shoelace area; 0 where it is zero or not surely decided."""
-    # the next point of each point in its ring (the rings cover x one after another)
+def _area_signs(
+    x: np.ndarray, y: np.ndarray, starts: np.ndarray, counts: np.ndarray
+) -> tuple[np.ndarray, bool]:
+    """Sign of each ring's shoelace area (0 where it is zero or not surely decided), and
+    whether every ring's sum of product magnitudes is finite (then so is every x and y: a
+    product with a non-finite factor is inf or NaN)."""
+    # the rings cover x one after another: the next point is the following one, except at
+    # each ring's last point (its first)
     last = starts + counts - 1
-    xn = np.empty_like(x)
-    xn[:-1] = x[1:]
-    xn[last] = x[starts]
-    yn = np.empty_like(y)
-    yn[:-1] = y[1:]
-    yn[last] = y[starts]
-    left = x * yn
-    right = xn * y
+    left = np.empty_like(x)
+    np.multiply(x[:-1], y[1:], out=left[:-1])
+    left[last] = x[last] * y[starts]
+    right = np.empty_like(x)
+    np.multiply(x[1:], y[:-1], out=right[:-1])
+    right[last] = x[starts] * y[last]
     total = np.add.reduceat(left - right, starts)
     np.abs(left, out=left)
     np.abs(right, out=right)
-    magnitude = np.add.reduceat(left + right, starts)
+    left += right
+    magnitude = np.add.reduceat(left, starts)
     bound = 2.0 * (magnitude * (counts + 4) * 2.0 * _EPS + _UNDERFLOW_SLACK * counts)
-    sure = (np.abs(total) > bound) & np.isfinite(total) & np.isfinite(bound)
-    return np.where(sure, np.sign(total), 0).astype(np.int64)
+    finite = np.isfinite(bound)
+    sure = (np.abs(total) > bound) & np.isfinite(total) & finite
+    return np.where(sure, np.sign(total), 0).astype(np.int64), bool(finite.all())
 
 
 def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> FlatRings:
     """Parse, clean and orient the rings of ``polygons`` (see the module docstring)."""
     arrays, ring_counts, widths, raw_len = _parse_plain(polygons) or _parse(polygons)
     counts = np.array(ring_counts, dtype=np.int64)
-    return flatten_points(stack_rings(arrays, widths), raw_len, counts, max_vertices, owned=True)
+    if len(arrays) and (widths == 2).all():
+        # x and y straight from the rings; z is 0 (finite, and no plane to check)
+        raw, x, y = _with_zero_z(_joined(arrays, 2))
+        return _flatten(raw, x, y, True, raw_len, counts, max_vertices, True)
+    raw = stack_rings(arrays, widths)
+    x, y = np.ascontiguousarray(raw[:, 0]), np.ascontiguousarray(raw[:, 1])
+    return _flatten(raw, x, y, False, raw_len, counts, max_vertices, True)
 
 
 def flatten_points(
@@ -220,6 +253,22 @@ def flatten_points(
     another, ``raw_len`` points per ring (none empty), ``ring_counts`` rings per polygon
     (-1: the polygon is not handled, and has no rings here). ``owned``: ``raw`` is the
     caller's own scratch array, which may become the result's ``vertices``."""
+    x, y = np.ascontiguousarray(raw[:, 0]), np.ascontiguousarray(raw[:, 1])
+    return _flatten(raw, x, y, False, raw_len, ring_counts, max_vertices, owned)
+
+
+def _flatten(
+    raw: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    zero_z: bool,
+    raw_len: np.ndarray,
+    ring_counts: np.ndarray,
+    max_vertices: int,
+    owned: bool,
+) -> FlatRings:
+    """:func:`flatten_points` with ``raw``'s x and y as contiguous arrays; ``zero_z``: every
+    z is 0."""
     count = len(ring_counts)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         handled = ring_counts > 0
@@ -227,18 +276,15 @@ def flatten_points(
         ring_poly = np.repeat(np.arange(count, dtype=np.int64), poly_rings)
         poly_ring0 = np.cumsum(poly_rings) - poly_rings
         raw_start = np.cumsum(raw_len) - raw_len
-        if len(raw) and not np.isfinite(raw).all():
-            finite = np.isfinite(raw).all(axis=1)
-            ring_finite = np.logical_and.reduceat(finite, raw_start)
-            handled[ring_poly[~ring_finite]] = False
-        if len(raw) and raw[:, 2].any():
+        if not zero_z:
+            _finite_rings(raw, raw_start, ring_poly, handled)
+        if not zero_z and len(raw) and raw[:, 2].any():
             outer_rings = poly_ring0[poly_rings > 0]
             outer_len = raw_len[outer_rings]
             outer_points = raw[ragged_index(raw_start[outer_rings], outer_len)]
             plane = _xy_is_working_plane(outer_points, np.cumsum(outer_len) - outer_len, outer_len)
             handled[ring_poly[outer_rings[~plane]]] = False
         # clean: consecutive duplicates in XY, then a closing point equal to the first
-        x, y = np.ascontiguousarray(raw[:, 0]), np.ascontiguousarray(raw[:, 1])
         keep = np.ones(len(raw), dtype=bool)
         keep[1:] = (x[1:] != x[:-1]) | (y[1:] != y[:-1])
         keep[raw_start] = True
@@ -271,11 +317,17 @@ def flatten_points(
         is_island = np.ones(len(ring_len), dtype=bool)
         is_island[poly_ring0[poly_rings > 0]] = False
         handled[ring_poly[too_small & is_island]] = False
-        signs = np.zeros(len(ring_len), dtype=np.int64)
         nonempty = ring_len > 0
-        if nonempty.any():
-            safe_len = np.maximum(ring_len, 1)
-            signs[nonempty] = _area_signs(vx, vy, ring_start[nonempty], safe_len[nonempty])
+        if nonempty.all():
+            signs, finite = _area_signs(vx, vy, ring_start, ring_len)
+        else:
+            signs, finite = np.zeros(len(ring_len), dtype=np.int64), True
+            if nonempty.any():
+                signs[nonempty], finite = _area_signs(
+                    vx, vy, ring_start[nonempty], ring_len[nonempty]
+                )
+        if zero_z and not finite:
+            _finite_rings(raw, raw_start, ring_poly, handled)
         outer_sign = np.zeros(count, dtype=np.int64)
         outer_sign[polys_with_rings] = signs[poly_ring0[polys_with_rings]]
         # an undecided sign: zero area (empty result) or too close to call (engine decides)
@@ -293,7 +345,7 @@ def flatten_points(
         vertices=points,
         vx=vx,
         vy=vy,
-        vz=np.ascontiguousarray(points[:, 2]),
+        vz=np.zeros(len(points)) if zero_z else np.ascontiguousarray(points[:, 2]),
         ring_start=ring_start,
         ring_len=ring_len,
         ring_poly=ring_poly,
@@ -306,6 +358,16 @@ def flatten_points(
         mirrored=mirrored,
         ring_reversed=ring_reversed,
     )
+
+
+def _finite_rings(
+    raw: np.ndarray, raw_start: np.ndarray, ring_poly: np.ndarray, handled: np.ndarray
+) -> None:
+    """Marks polygons with a non-finite coordinate in some ring as not handled."""
+    if len(raw) and not np.isfinite(raw).all():
+        finite = np.isfinite(raw).all(axis=1)
+        ring_finite = np.logical_and.reduceat(finite, raw_start)
+        handled[ring_poly[~ring_finite]] = False
 
 
 def _band_pairs(
@@ -434,20 +496,33 @@ def clear_area(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
     if nv == 0:
         return clear
     wy = flat.vy
-    poly_of = np.repeat(flat.ring_poly, flat.ring_len)
-    first = flat.ring_start[flat.poly_ring0[flat.poly_rings > 0]]
+    has = flat.poly_rings > 0
+    first = flat.ring_start[flat.poly_ring0[has]]
     x0 = np.zeros(count)
     y0 = np.zeros(count)
-    has = flat.poly_rings > 0
     x0[has], y0[has] = wx[first], wy[first]
-    nxt = np.arange(nv, dtype=np.int64) + 1
-    nxt[flat.ring_start + flat.ring_len - 1] = flat.ring_start
-    x, y = wx - x0[poly_of], wy - y0[poly_of]
-    left, right = x * y[nxt], x[nxt] * y
+    # each polygon's vertices are contiguous, poly_vcount of them
+    x = wx - np.repeat(x0, flat.poly_vcount)
+    y = wy - np.repeat(y0, flat.poly_vcount)
+    # x * y[next] and x[next] * y, the next point being the following one but at each
+    # ring's last point
+    start, last = flat.ring_start, flat.ring_start + flat.ring_len - 1
+    left = np.empty_like(x)
+    np.multiply(x[:-1], y[1:], out=left[:-1])
+    left[last] = x[last] * y[start]
+    right = np.empty_like(x)
+    np.multiply(x[1:], y[:-1], out=right[:-1])
+    right[last] = x[start] * y[last]
+    terms = left - right
     # traversal order: reversed islands count with the opposite sign
-    flip = np.repeat(np.where(flat.ring_reversed, -1.0, 1.0), flat.ring_len)
-    net = np.bincount(poly_of, weights=flip * (left - right), minlength=count)
-    magnitude = np.bincount(poly_of, weights=np.abs(left) + np.abs(right), minlength=count)
+    if flat.ring_reversed.any():
+        terms *= np.repeat(np.where(flat.ring_reversed, -1.0, 1.0), flat.ring_len)
+    poly_of = np.repeat(flat.ring_poly, flat.ring_len)
+    net = np.bincount(poly_of, weights=terms, minlength=count)
+    np.abs(left, out=left)
+    np.abs(right, out=right)
+    left += right
+    magnitude = np.bincount(poly_of, weights=left, minlength=count)
     # both sums are rounded (here and in the engine): a margin for any summation order
     margin = (8.0 + 8.0 * (flat.poly_vcount + 8)) * np.finfo(np.float64).eps * magnitude
     return np.isfinite(net) & np.isfinite(magnitude) & (np.abs(net) > margin)
