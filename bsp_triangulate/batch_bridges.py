@@ -68,15 +68,50 @@ def _inside_angle(
 class _Edges:
     """End points and bounding boxes of the edges of one bridging step."""
 
-    def __init__(self, wx: np.ndarray, wy: np.ndarray, a: np.ndarray | None, b: np.ndarray) -> None:
-        """Edges a -> b; ``a`` None: the edge of every vertex of wx, in vertex order."""
-        self.ax, self.ay = (wx, wy) if a is None else (wx[a], wy[a])
-        self.bx, self.by = wx[b], wy[b]
-        self.lo_x = np.minimum(self.ax, self.bx)
-        self.hi_x = np.maximum(self.ax, self.bx)
+    def __init__(self, ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray) -> None:
+        self.ax, self.ay, self.bx, self.by = ax, ay, bx, by
+        self.lo_x = np.minimum(ax, bx)
+        self.hi_x = np.maximum(ax, bx)
+
+    @classmethod
+    def of(cls, wx: np.ndarray, wy: np.ndarray, a: np.ndarray, b: np.ndarray) -> _Edges:
+        """Edges a -> b."""
+        return cls(wx[a], wy[a], wx[b], wy[b])
+
+    @classmethod
+    def of_rings(cls, flat: FlatRings, wx: np.ndarray, wy: np.ndarray) -> _Edges:
+        """The edge of every vertex to the next in its ring, in vertex order."""
+        start, last = flat.ring_start, flat.ring_start + flat.ring_len - 1
+        ends = []
+        for w in (wx, wy):
+            end = np.empty_like(w)
+            end[:-1] = w[1:]
+            end[last] = w[start]
+            ends.append(end)
+        return cls(wx, wy, ends[0], ends[1])
 
     def __len__(self) -> int:
         return len(self.bx)
+
+
+def _leftmost(
+    flat: FlatRings, wx: np.ndarray, wy: np.ndarray, trav: np.ndarray, island_rings: np.ndarray
+) -> np.ndarray:
+    """Traversal position of each island's leftmost vertex (smallest x, then y; the first in
+    traversal order)."""
+    rlen = flat.ring_len[island_rings]
+    pos = ragged_index(flat.ring_start[island_rings], rlen)
+    first_of = np.cumsum(rlen) - rlen
+    vid = trav[pos]
+    vx = wx[vid]
+    # the few vertices at their island's smallest x (one at least per island)
+    at_left = np.flatnonzero(vx == np.repeat(np.minimum.reduceat(vx, first_of), rlen))
+    owner = np.searchsorted(first_of, at_left, side="right") - 1
+    runs = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    low_y = wy[vid[at_left]]
+    at_low = low_y == np.repeat(np.minimum.reduceat(low_y, runs), np.diff(np.r_[runs, len(owner)]))
+    at_left, owner = at_left[at_low], owner[at_low]
+    return pos[at_left[np.r_[True, owner[1:] != owner[:-1]]]]
 
 
 def _segment_clear(
@@ -104,8 +139,9 @@ def _segment_clear(
     if e is not None:
         near = e[near]
     ay, by = edges.ay[near], edges.by[near]
-    near_y = (np.maximum(ay, by) >= np.minimum(uy, vy)[item]) & (
-        np.minimum(ay, by) <= np.maximum(uy, vy)[item]
+    near_y = np.flatnonzero(
+        (np.maximum(ay, by) >= np.minimum(uy, vy)[item])
+        & (np.minimum(ay, by) <= np.maximum(uy, vy)[item])
     )
     near, item, ay, by = near[near_y], item[near_y], ay[near_y], by[near_y]
     ux, uy, vx, vy = ux[item], uy[item], vx[item], vy[item]
@@ -129,40 +165,32 @@ def bridge_sequences(
     Returns the flat sequence of vertex ids, each polygon's start and length in it, and a mask
     of the polygons whose bridges were decided (the others are left to the engine).
     """
-    trav = traversal_ids(flat)
     ring0 = flat.poly_ring0[polys]
     islands = flat.poly_rings[polys] - 1
     seq_len = flat.ring_len[ring0].copy()
-    seq, _ = _segments(trav, flat.ring_start[ring0][:, None], seq_len[:, None])
+    # outer rings are traversed forwards: their traversal ids are their positions
+    seq = ragged_index(flat.ring_start[ring0], seq_len)
     seq_start = np.cumsum(seq_len) - seq_len
     ok = np.ones(len(polys), dtype=bool)
     if not (islands > 0).any():
         return seq, seq_start, seq_len, ok
+    trav = traversal_ids(flat)
     # islands of each polygon in the order of their leftmost vertex (x, then y)
     island_rings = ragged_index(ring0 + 1, islands)
     island_poly = np.repeat(np.arange(len(polys), dtype=np.int64), islands)
-    rlen = flat.ring_len[island_rings]
-    pos = ragged_index(flat.ring_start[island_rings], rlen)
-    ring_item = np.repeat(np.arange(len(island_rings), dtype=np.int64), rlen)
-    vid = trav[pos]
-    first_of = np.cumsum(rlen) - rlen
-    # leftmost vertex of each island (smallest x, then y; the first in traversal order)
-    vx, vy = wx[vid], wy[vid]
-    at_left = vx == np.minimum.reduceat(vx, first_of)[ring_item]
-    low_y = np.where(at_left, vy, np.inf)
-    at_left &= low_y == np.minimum.reduceat(low_y, first_of)[ring_item]
-    leftmost = np.minimum.reduceat(np.where(at_left, np.arange(len(pos)), len(pos)), first_of)
-    h_pos = pos[leftmost]  # traversal position of the leftmost vertex
+    h_pos = _leftmost(flat, wx, wy, trav, island_rings)
     h_index = h_pos - flat.ring_start[island_rings]
     h_id = trav[h_pos]
-    rank = np.lexsort((island_rings, wy[h_id], wx[h_id], island_poly))
-    island_first = np.cumsum(islands) - islands
-    step_of = np.empty(len(rank), dtype=np.int64)
-    step_of[rank] = np.arange(len(rank)) - np.repeat(island_first, islands)
+    if islands.max() == 1:
+        step_of = np.zeros(len(island_rings), dtype=np.int64)
+    else:
+        rank = np.lexsort((island_rings, wy[h_id], wx[h_id], island_poly))
+        island_first = np.cumsum(islands) - islands
+        step_of = np.empty(len(rank), dtype=np.int64)
+        step_of[rank] = np.arange(len(rank)) - np.repeat(island_first, islands)
     # ring edges of each polygon: (v, next in ring) for all its vertices
     nv = len(wx)
-    nxt = np.arange(nv, dtype=np.int64) + 1
-    nxt[flat.ring_start + flat.ring_len - 1] = flat.ring_start
+    nxt = None
     bridge_a: list[np.ndarray] = []
     bridge_b: list[np.ndarray] = []
     bridge_p: list[np.ndarray] = []
@@ -179,44 +207,52 @@ def bridge_sequences(
         vstart = flat.poly_vstart[polys[active]]
         vcount = flat.poly_vcount[polys[active]]
         e_count = vcount
-        every_vertex = covers_in_order(vstart, vcount, nv)
-        ea = np.arange(nv, dtype=np.int64) if every_vertex else ragged_index(vstart, vcount)
-        eb = nxt[ea]
-        if bridge_p:
-            every_vertex = False
-            e_owner = np.repeat(np.arange(len(active), dtype=np.int64), vcount)
-            slot = np.full(len(polys), -1, dtype=np.int64)
-            slot[active] = np.arange(len(active))
-            bp = slot[np.concatenate(bridge_p)]
-            keep = bp >= 0
-            ea = np.concatenate([ea, np.concatenate(bridge_a)[keep]])
-            eb = np.concatenate([eb, np.concatenate(bridge_b)[keep]])
-            e_owner = np.concatenate([e_owner, bp[keep]])
-            by_owner = np.argsort(e_owner, kind="stable")
-            ea, eb, e_owner = ea[by_owner], eb[by_owner], e_owner[by_owner]
-            e_count = np.bincount(e_owner, minlength=len(active))
+        if not bridge_p and covers_in_order(vstart, vcount, nv):
+            edges = _Edges.of_rings(flat, wx, wy)
+        else:
+            if nxt is None:
+                nxt = np.arange(nv, dtype=np.int64) + 1
+                nxt[flat.ring_start + flat.ring_len - 1] = flat.ring_start
+            ea = ragged_index(vstart, vcount)
+            eb = nxt[ea]
+            if bridge_p:
+                e_owner = np.repeat(np.arange(len(active), dtype=np.int64), vcount)
+                slot = np.full(len(polys), -1, dtype=np.int64)
+                slot[active] = np.arange(len(active))
+                bp = slot[np.concatenate(bridge_p)]
+                keep = bp >= 0
+                ea = np.concatenate([ea, np.concatenate(bridge_a)[keep]])
+                eb = np.concatenate([eb, np.concatenate(bridge_b)[keep]])
+                e_owner = np.concatenate([e_owner, bp[keep]])
+                by_owner = np.argsort(e_owner, kind="stable")
+                ea, eb, e_owner = ea[by_owner], eb[by_owner], e_owner[by_owner]
+                e_count = np.bincount(e_owner, minlength=len(active))
+            edges = _Edges.of(wx, wy, ea, eb)
         e_start = np.cumsum(e_count) - e_count
-        edges = _Edges(wx, wy, None if every_vertex else ea, eb)
         # candidates: every occurrence of the current sequences
         c_len = seq_len[active]
         c_start = np.cumsum(c_len) - c_len
-        all_active = covers_in_order(seq_start[active], c_len, len(seq))
-        c_pos = np.arange(len(seq)) if all_active else ragged_index(seq_start[active], c_len)
-        c_owner = np.repeat(np.arange(len(active), dtype=np.int64), c_len)
-        c_id = seq if all_active else seq[c_pos]
+        if covers_in_order(seq_start[active], c_len, len(seq)):
+            c_id = seq
+        else:
+            c_id = seq[ragged_index(seq_start[active], c_len)]
         c_x, c_y = wx[c_id], wy[c_id]
-        d2 = (c_x - np.repeat(hx, c_len)) ** 2 + (c_y - np.repeat(hy, c_len)) ** 2
-        local = np.arange(len(c_pos), dtype=np.int64) - c_start[c_owner]
-        remaining = np.ones(len(c_pos), dtype=bool)
+        d2 = c_x - np.repeat(hx, c_len)
+        d2 *= d2
+        dy = c_y - np.repeat(hy, c_len)
+        dy *= dy
+        d2 += dy
+        remaining = np.ones(len(c_id), dtype=bool)
         pending = np.ones(len(active), dtype=bool)
         k_of = np.full(len(active), -1, dtype=np.int64)
-        for _ in range(_MAX_TRIES):
+        for attempt in range(_MAX_TRIES):
             if not pending.any():
                 break
-            masked = np.where(remaining & pending[c_owner], d2, np.inf)
+            # the first attempt: every occurrence remains, every polygon is pending
+            masked = (
+                d2 if attempt == 0 else np.where(remaining & np.repeat(pending, c_len), d2, np.inf)
+            )
             low = np.minimum.reduceat(masked, c_start)
-            first = np.where(masked == low[c_owner], np.arange(len(masked)), len(masked))
-            best = np.minimum.reduceat(first, c_start)
             live = np.flatnonzero(pending & np.isfinite(low) & (low > 1e-200))
             dead = pending.copy()
             dead[live] = False
@@ -224,10 +260,15 @@ def bridge_sequences(
             ok[active[dead]] = False
             if len(live) == 0:
                 break
-            b = best[live]
-            k = local[b]
+            # the first occurrence at the lowest distance of each live polygon (one at least)
+            target = np.full(len(active), np.nan)
+            target[live] = low[live]
+            hits = np.flatnonzero(masked == np.repeat(target, c_len))
+            hit_owner = np.searchsorted(c_start, hits, side="right") - 1
+            b = hits[np.r_[True, hit_owner[1:] != hit_owner[:-1]]]
             n_len = c_len[live]
             seq0 = c_start[live]
+            k = b - seq0
             prev = c_id[seq0 + (k - 1) % n_len]
             nxt_occ = c_id[seq0 + (k + 1) % n_len]
             valid = _inside_angle(wx, wy, prev, c_id[b], nxt_occ, hx[live], hy[live])
@@ -248,12 +289,18 @@ def bridge_sequences(
             done = live[valid]
             if len(done):
                 # a different point at a near-equal distance: the engine decides exactly
-                bd = best[done]
-                best_rep = np.minimum(best, len(masked) - 1)[c_owner]
-                near = remaining & (d2 <= (low * (1 + _TIE))[c_owner])
-                other = near & ((c_x != c_x[best_rep]) | (c_y != c_y[best_rep]))
-                tie = np.bincount(c_owner[other], minlength=len(active)) > 0
-                k_of[done] = local[bd]
+                bd = b[valid]
+                limit = np.full(len(active), -np.inf)
+                limit[done] = low[done] * (1 + _TIE)
+                near = np.flatnonzero(d2 <= np.repeat(limit, c_len))
+                near = near[remaining[near]]
+                best = np.zeros(len(active), dtype=np.int64)
+                best[done] = bd
+                rep = best[np.searchsorted(c_start, near, side="right") - 1]
+                other = near[(c_x[near] != c_x[rep]) | (c_y[near] != c_y[rep])]
+                tie = np.zeros(len(active), dtype=bool)
+                tie[np.searchsorted(c_start, other, side="right") - 1] = True
+                k_of[done] = bd - c_start[done]
                 pending[done] = False
                 ok[active[done[tie[done]]]] = False
         ok[active[pending]] = False
