@@ -241,8 +241,10 @@ def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
     clockwise = det < -bound
     # winding number around the centre: edges crossing the horizontal ray to its right are
     # the upward ones of a counter-clockwise ring, the downward ones of a clockwise ring
-    upward = (ay <= 0) & (by > 0)
-    downward = (by <= 0) & (ay > 0)
+    # (a NaN coordinate rejects its ring through ``largest``: its crossings do not count)
+    above = ry > 0
+    upward = above[1:] > above[:-1]
+    downward = above[:-1] > above[1:]
     # pairs of consecutive points of one ring only: the pair from a ring's last point to the
     # next ring's first point counts for nothing
     junk = last[:-1]
@@ -318,15 +320,17 @@ def _check_islands(rings: _Rings, proven: np.ndarray) -> None:
     pair = np.repeat(np.arange(len(islands)), outer_edges)
     a = np.repeat(first[outers] - (np.cumsum(outer_edges) - outer_edges), outer_edges)
     a += np.arange(len(a))
-    ay, by = y[a], y[a + 1]
+    # y[1:][a] is y[a + 1] without the index array a + 1
+    ay, by = y[a], y[1:][a]
     point = first[islands]
     py = np.repeat(y[point], outer_edges)
     # ray crossings to the right of the point: only straddling edges need an orientation
     straddle = np.flatnonzero((ay > py) != (by > py))
+    a_straddle = a[straddle]
     side = _orientation(
-        x[a[straddle]],
+        x[a_straddle],
         ay[straddle],
-        x[a[straddle] + 1],
+        x[1:][a_straddle],
         by[straddle],
         x[point][pair[straddle]],
         py[straddle],
@@ -341,7 +345,8 @@ def _check_islands(rings: _Rings, proven: np.ndarray) -> None:
     )
     near = np.flatnonzero(near)
     owner_island = islands[pair[near]]
-    ax, bx = x[a[near]], x[a[near] + 1]
+    a_near = a[near]
+    ax, bx = x[a_near], x[1:][a_near]
     near = near[
         (np.maximum(ax, bx) >= rings.lo_x[owner_island])
         & (np.minimum(ax, bx) <= rings.hi_x[owner_island])
