@@ -56,18 +56,14 @@ class FlatRings:
 
 
 def ragged_index(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Concatenation of ``arange(s, s + c)`` for every (s, c)."""
-    keep = counts > 0
-    starts, counts = starts[keep], counts[keep]
-    total = int(counts.sum())
-    if total == 0:
-        return np.zeros(0, dtype=np.int64)
-    # steps of 1 inside a run, a jump to the next start between runs: one cumulative sum
-    steps = np.ones(total, dtype=np.int64)
-    steps[0] = starts[0]
-    firsts = np.cumsum(counts[:-1])
-    steps[firsts] = starts[1:] - (starts[:-1] + counts[:-1] - 1)
-    return np.cumsum(steps)
+    """Concatenation of ``arange(s, s + c)`` for every (s, c) (none where c <= 0)."""
+    counts = np.maximum(counts, 0)
+    ends = np.cumsum(counts)
+    total = int(ends[-1]) if len(ends) else 0
+    # each run's start minus the run's first output index, plus the output index
+    out = np.repeat((starts - ends + counts).astype(np.int64, copy=False), counts)
+    out += np.arange(total)
+    return out
 
 
 def covers_in_order(starts: np.ndarray, counts: np.ndarray, total: int) -> bool:

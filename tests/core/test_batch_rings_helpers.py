@@ -15,12 +15,27 @@ from bsp_triangulate.batch_rings import (
     clear_area,
     flatten_points,
     flatten_rings,
+    ragged_index,
     stack_rings,
 )
 
 from .random_polygons import random_polygon
 
 MAX = 10_000
+
+
+def test_ragged_index_equals_concatenated_ranges() -> None:
+    """Every run arange(s, s + c) in order; runs with c <= 0 give nothing; int64 always."""
+    rng = np.random.default_rng(5)
+    for trial in range(500):
+        n = int(rng.integers(0, 20))
+        starts, counts = rng.integers(-5, 100, n), rng.integers(-2, 6, n)
+        if trial % 3 == 0:
+            starts, counts = starts.astype(np.int32), counts.astype(np.int32)
+        runs = [np.arange(s, s + c, dtype=np.int64) for s, c in zip(starts, counts)]
+        got = ragged_index(starts, counts)
+        assert got.dtype == np.int64
+        assert np.array_equal(got, np.concatenate([np.zeros(0, np.int64), *runs]))
 
 
 def test_joined_equals_concatenate_for_contiguous_and_other_layouts() -> None:
