@@ -227,8 +227,9 @@ def _facing_ear(seqs: Sequences, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     at_c = np.take(seqs.table, c, axis=0)
     # a - c is the edge c -> c + 1; b - c
     dxa, dya = at_c[:, _EX], at_c[:, _EY]
-    dxb = seqs.sx[lo] - at_c[:, _X]
-    dyb = seqs.sy[lo] - at_c[:, _Y]
+    b = np.take(seqs.xy, lo, axis=0)
+    dxb = b[:, 0] - at_c[:, _X]
+    dyb = b[:, 1] - at_c[:, _Y]
     det = np.empty((3, n))
     np.multiply(dxa, dyb, out=det[0])
     det[0] -= dya * dxb
@@ -357,8 +358,8 @@ def _bent_in_triangle(
     or a bridge, with no vertex inside: 0.5 % of the benchmark's concave stars start again.
     """
     n = len(lo)
-    sx, sy = seqs.sx, seqs.sy
-    ax, ay, bx, by, cx, cy = sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]
+    corners = np.take(seqs.xy, np.stack([hi, lo, c]), axis=0)
+    (ax, bx, cx), (ay, by, cy) = corners[..., 0], corners[..., 1]
     bad = _bridge_at_corner(seqs, lo, hi, c)
     found = np.full(n, -1, dtype=np.int64)
     first = seqs.bent_rank[lo + 1]
@@ -482,8 +483,9 @@ def _cross(
     seqs: Sequences, u: np.ndarray, v: np.ndarray, p: np.ndarray, q: np.ndarray
 ) -> np.ndarray:
     """Per item: the segments s_u s_v and s_p s_q cross at a point inside both (exact)."""
-    sx, sy, exact = seqs.sx, seqs.sy, seqs.exact
-    ux, uy, vx, vy, px, py, qx, qy = sx[u], sy[u], sx[v], sy[v], sx[p], sy[p], sx[q], sy[q]
+    exact = seqs.exact
+    points = np.take(seqs.xy, np.stack([u, v, p, q]), axis=0)
+    (ux, vx, px, qx), (uy, vy, py, qy) = points[..., 0], points[..., 1]
     o1 = orient_items(ux, uy, vx, vy, px, py, exact)
     o2 = orient_items(ux, uy, vx, vy, qx, qy, exact)
     return crossing(o1, o2, px, py, qx, qy, ux, uy, vx, vy, exact)
@@ -675,10 +677,11 @@ def _strictly_inside(
     # the orientations, whose zeros would take the exact path
     inside = np.zeros(len(p), dtype=bool)
     t = np.flatnonzero(p != c)
-    a, b, c, p = a[t], b[t], c[t], p[t]
-    sx, sy = seqs.sx, seqs.sy
+    b = b[t]
+    points = np.take(seqs.xy, np.stack([a[t], b, c[t], p[t]]), axis=0)
+    (ax, bx, cx, px), (ay, by, cy, py) = points[..., 0], points[..., 1]
     bound = 4.0 * seqs.table[b, _BOUND]
-    signs = _side_signs(sx[a], sy[a], sx[b], sy[b], sx[c], sy[c], sx[p], sy[p], bound, seqs.exact)
+    signs = _side_signs(ax, ay, bx, by, cx, cy, px, py, bound, seqs.exact)
     inside[t] = (signs > 0).all(axis=0)
     return inside
 
