@@ -64,7 +64,8 @@ class Sequences:
     the extents of its sequence, and the ``table`` of the columns above; ``exact``: every
     float orientation is exact (grid coordinates). ``proven``: the position's polygon is
     proven valid; ``bent``: the positions of proven sequences that are not a strict left
-    turn or are a bridge end, and ``bent_rank[p]`` how many of them come before position p."""
+    turn or are a bridge end (``bent_xy``: their coordinates), and ``bent_rank[p]`` how many
+    of them come before position p."""
 
     sx: np.ndarray
     sy: np.ndarray
@@ -77,8 +78,7 @@ class Sequences:
     starts: np.ndarray
     proven: np.ndarray
     bent: np.ndarray
-    bent_x: np.ndarray
-    bent_y: np.ndarray
+    bent_xy: np.ndarray
     bent_rank: np.ndarray
     runs: RunBoxes | None = None
 
@@ -133,7 +133,7 @@ class Sequences:
         bent = np.flatnonzero(bent_at)
         return cls(
             sx, sy, xy, twin, extent_x, extent_y, table, exact, starts, proven_at, bent,
-            sx[bent], sy[bent], bent_rank,
+            xy[bent], bent_rank,
         )  # fmt: skip
 
 
@@ -367,7 +367,8 @@ def _bent_in_triangle(
     index = ragged_index(first, count)
     if not len(index):
         return bad, found
-    px, py = seqs.bent_x[index], seqs.bent_y[index]
+    pxy = np.take(seqs.bent_xy, index, axis=0)
+    px, py = pxy[:, 0], pxy[:, 1]
     # the bent positions in the triangle's bounding box
     near = px >= np.repeat(np.minimum(np.minimum(ax, bx), cx), count)
     near &= px <= np.repeat(np.maximum(np.maximum(ax, bx), cx), count)
