@@ -3,8 +3,7 @@
 Every open node (sub-polygon) of every polygon tests candidates in the same round; the tests
 are the engine's ``facing_candidates`` and ``correct_candidates`` over flat ragged arrays.
 Each node knows its pre-order index when it is created (a node on the range [lo, hi] has
-hi - lo - 1 triangles below and including it), so triangles are written straight into their
-final slots.
+hi - lo - 1 triangles below and including it), so its record goes straight to its final row.
 
 Where the time goes (rule "first"): conditions 1 and 4 are a few orientations per candidate
 (``_facing``); conditions 2 and 3 test every vertex of the sub-polygon (``_bad_rows``, padded
@@ -13,7 +12,7 @@ sub-polygon size as the trees are fan-shaped. A vertex found strictly inside a c
 triangle is tested first against the node's next candidates (``_strictly_inside``), which
 rules out most failing candidates without a table. Candidates in proven-valid polygons test
 only the sub-polygon's bent vertices (``_bent_in_triangle``); a tree that then does not
-complete is built again with every table (``build_trees``).
+complete is marked to be built again with every table (``Trees.again``).
 """
 
 from __future__ import annotations
@@ -350,12 +349,14 @@ def _bent_in_triangle(
     the open triangle, and so does an edge across a side; a vertex on a new side fails
     condition 3; and none lies on the base, a side of the correct parent (or a ring edge at
     the root). A candidate passed wrongly thus leaves a tree that cannot complete: some node
-    finds no candidate, and :func:`build_trees` builds that tree again with every table.
+    finds no candidate, and :func:`build_trees` marks that tree to be built again with every
+    table.
 
     These tests find most failures: any boundary inside an ear comes in across its only new
     side, and its vertex farthest from that side is bent (the part of the ear beyond it is
     interior). A triangle with two new sides can also be crossed by a notch of the exterior,
-    or a bridge, with no vertex inside: 0.5 % of the benchmark's concave stars start again.
+    or a bridge, with no vertex inside: 0.5 % of the benchmark's concave stars are built
+    again.
     """
     n = len(lo)
     corners = np.take(seqs.xy, np.stack([hi, lo, c]), axis=0)
