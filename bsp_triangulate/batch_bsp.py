@@ -115,8 +115,10 @@ class Sequences:
         if n > 2:
             px, py, vx, vy, nx, ny = sx[:-2], sy[:-2], sx[1:-1], sy[1:-1], sx[2:], sy[2:]
             turn = orient_items(px, py, vx, vy, nx, ny, exact).astype(np.float64)
-            spike = (turn == 0) & ((nx - vx) * (px - vx) + (ny - vy) * (py - vy) > 0)
-            turn[spike] = _SPIKE
+            z = np.flatnonzero(turn == 0)
+            if len(z):
+                dot = (nx[z] - vx[z]) * (px[z] - vx[z]) + (ny[z] - vy[z]) * (py[z] - vy[z])
+                turn[z[dot > 0]] = _SPIKE
             table[1:-1, _TURN] = turn
         extent_x, extent_y = np.repeat(extent_x, lengths), np.repeat(extent_y, lengths)
         xy = np.ascontiguousarray(table[:, :2])
