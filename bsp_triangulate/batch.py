@@ -279,7 +279,7 @@ class _Group:
         are to be built again."""
         trees = self.trees
         if trees is None:
-            return _piece(self.flat, self.empties, self.polys, None)
+            return _piece(self.flat, self.empties, self.polys, None, None)
         kept = trees.ok | trees.again
         return _piece(self.flat, self.empties, self.polys[kept], trees, kept)
 
@@ -344,7 +344,7 @@ def _piece(
     empties: np.ndarray,
     tree_polys: np.ndarray,
     trees: Trees | None,
-    kept: np.ndarray | None = None,
+    kept: np.ndarray | None,
 ) -> Piece:
     """The results of the polygons ``empties`` (no triangles) and ``tree_polys`` (the
     sequences ``kept`` of ``trees``, in order)."""
@@ -360,7 +360,6 @@ def _piece(
     if trees is None or not len(tree_polys):
         return Piece(index, PackedTriangulations.without_triangles(vertices, vertex_count))
     triangle_count = np.zeros(len(index), dtype=np.int64)
-    kept = trees.ok if kept is None else kept
     triangle_count[np.searchsorted(index, tree_polys)] = trees.count[kept]
     triangles, parent, depth, side = trees.triangles, trees.parent, trees.depth, trees.side
     if not kept.all():

@@ -393,7 +393,7 @@ def _bent_in_triangle(
         at, owner, qx, qy, oax, oay = (v[kept] for v in (at, owner, qx, qy, oax, oay))
     o = owner
     signs = _side_signs(
-        oax, oay, bx[o], by[o], cx[o], cy[o], qx, qy, 4.0 * seqs.table[lo, _BOUND][o], seqs.exact
+        oax, oay, bx[o], by[o], cx[o], cy[o], qx, qy, seqs.table[lo, _BOUND][o], seqs.exact
     )
     closed = (signs[0] >= 0) & (signs[1] >= 0) & (signs[2] >= 0)
     bad[owner[closed]] = True
@@ -421,8 +421,8 @@ def _side_signs(
     """:func:`_triangle_signs` where they decide whether q is in the closed triangle or
     strictly inside: -1 in every row where q is surely right of a side, 1 where it is surely
     left of all three. The float orientations, as (v - u) x (q - a) + (v - u) x (a - u), are
-    within ``bound`` (4 times the sequence's) of the exact ones; the lowest of them decides,
-    and only those within the bound of zero get exact signs."""
+    within 4 times the sequence's ``bound`` of the exact ones; the lowest of them decides,
+    and only those within that of zero get exact signs."""
     if exact:
         return _triangle_signs(ax, ay, bx, by, cx, cy, qx, qy, True)
     dx, dy = qx - ax, qy - ay
@@ -433,7 +433,7 @@ def _side_signs(
     side += ex * (ay - by) - ey * (ax - bx)
     np.minimum(low, side, out=low)
     signs = np.repeat(np.where(low > 0, 1, -1).astype(np.int8)[None], 3, axis=0)
-    u = np.flatnonzero(np.abs(low) <= bound)
+    u = np.flatnonzero(np.abs(low) <= 4.0 * bound)
     if len(u):
         signs[:, u] = _triangle_signs(ax[u], ay[u], bx[u], by[u], cx[u], cy[u], qx[u], qy[u], False)
     return signs
@@ -684,8 +684,7 @@ def _strictly_inside(
     b = b[t]
     points = np.take(seqs.xy, np.stack([a[t], b, c[t], p[t]]), axis=0)
     (ax, bx, cx, px), (ay, by, cy, py) = points[..., 0], points[..., 1]
-    bound = 4.0 * seqs.table[b, _BOUND]
-    signs = _side_signs(ax, ay, bx, by, cx, cy, px, py, bound, seqs.exact)
+    signs = _side_signs(ax, ay, bx, by, cx, cy, px, py, seqs.table[b, _BOUND], seqs.exact)
     inside[t] = (signs > 0).all(axis=0)
     return inside
 
@@ -1011,7 +1010,7 @@ def build_trees(
             found, apex, blocker = _first_correct(seqs, state)
             failed = ~found & (apex <= lo)
             retry = np.flatnonzero(~found & ~failed)
-        dead = np.unique(state[_SEQ, failed]) if failed.any() else None
+        dead = state[_SEQ, failed] if failed.any() else None
         emit = np.flatnonzero(found)
         done = np.take(state, emit, axis=1)
         done[_CAND] = apex[emit]
