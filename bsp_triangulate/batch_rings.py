@@ -233,9 +233,7 @@ def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> Fl
         # x and y straight from the rings; z is 0 (finite, and no plane to check)
         raw, x, y = _with_zero_z(_joined(arrays, 2))
         return _flatten(raw, x, y, True, raw_len, counts, max_vertices, True)
-    raw = stack_rings(arrays, widths)
-    x, y = np.ascontiguousarray(raw[:, 0]), np.ascontiguousarray(raw[:, 1])
-    return _flatten(raw, x, y, False, raw_len, counts, max_vertices, True)
+    return flatten_points(stack_rings(arrays, widths), raw_len, counts, max_vertices, True)
 
 
 def flatten_points(
