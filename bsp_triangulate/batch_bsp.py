@@ -605,8 +605,9 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
 
     A node tests its first candidate (hi - 1) alone; a node whose first candidate failed
     tests up to ``_SPAN`` candidates (``_SPAN_LARGE`` in large sub-polygons), its next ones
-    in order, for conditions 1 and 4 and against its recorded blocker; the first that passes
-    goes on to the tables. Returns per node whether its candidate ``apex`` is correct, the
+    in order, for conditions 1 and 4 and against its recorded blocker (in rounds of many
+    nodes, the next one alone first: :func:`_span_passing`); the first that passes goes on
+    to the tables. Returns per node whether its candidate ``apex`` is correct, the
     apex (or the next candidate to test) and the blocker to keep.
     """
     lo, hi, cand, block = state[_LO], state[_HI], state[_CAND], state[_BLOCK]
@@ -622,9 +623,7 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
         apex = cand.copy()
         passed[r:] = _facing_ear(seqs, lo[r:], hi[r:])
         if r:
-            passed[:r], apex[:r] = _first_passing(
-                seqs, lo, hi, block, np.arange(r), cand[:r], span[:r]
-            )
+            passed[:r], apex[:r] = _span_passing(seqs, lo, hi, block, r, cand[:r], span[:r])
     else:
         passed, apex = _first_passing(seqs, lo, hi, block, np.arange(n), cand, span)
     apex = np.where(passed, apex, cand - span)
@@ -639,6 +638,29 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
         # a failed candidate: the next round starts below it
         apex[table[bad]] -= 1
     return correct, apex, blocker
+
+
+def _span_passing(
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    block: np.ndarray,
+    r: int,
+    top: np.ndarray,
+    count: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_first_passing` of the nodes 0 .. r - 1 (nodes trying again) in two passes: a
+    small sub-polygon's next candidate alone, then the rest of its span where that fails (the
+    next candidate passes for over half of them); a large sub-polygon's whole span at once."""
+    ahead = np.where(hi[:r] - lo[:r] > _RUN_MIN, count, 1)
+    passed, apex = _first_passing(seqs, lo, hi, block, np.arange(r), top, ahead)
+    more = np.flatnonzero(~passed & (count > ahead))
+    if len(more):
+        skip = ahead[more]
+        hit, found = _first_passing(seqs, lo, hi, block, more, top[more] - skip, count[more] - skip)
+        passed[more[hit]] = True
+        apex[more[hit]] = found[hit]
+    return passed, apex
 
 
 def _first_passing(
