@@ -372,12 +372,13 @@ def _bent_in_triangle(
         return bad, found
     pxy = np.take(seqs.bent_xy, index, axis=0)
     px, py = pxy[:, 0], pxy[:, 1]
-    # the bent positions in the triangle's bounding box
-    near = px >= np.repeat(np.minimum(np.minimum(ax, bx), cx), count)
-    near &= px <= np.repeat(np.maximum(np.maximum(ax, bx), cx), count)
-    near &= py >= np.repeat(np.minimum(np.minimum(ay, by), cy), count)
-    near &= py <= np.repeat(np.maximum(np.maximum(ay, by), cy), count)
-    at = np.flatnonzero(near)
+    # the bent positions in the triangle's bounding box: both coordinates of a row within
+    # (a pair of True read as one 2-byte value)
+    low = np.repeat(np.minimum(np.minimum(corners[0], corners[1]), corners[2]), count, axis=0)
+    high = np.repeat(np.maximum(np.maximum(corners[0], corners[1]), corners[2]), count, axis=0)
+    within = pxy >= low
+    within &= pxy <= high
+    at = np.flatnonzero(within.view(np.uint16).ravel() == _BOTH)
     if not len(at):
         return bad, found
     owner = np.repeat(np.arange(n, dtype=np.int64), count)[at]
@@ -404,6 +405,10 @@ def _bent_in_triangle(
         head = strictly[np.r_[True, who[1:] != who[:-1]]]
         found[owner[head]] = seqs.bent[index[at[head]]]
     return bad, found
+
+
+# two True bytes read as one 2-byte value
+_BOTH = np.array([True, True]).view(np.uint16)[0]
 
 
 def _side_signs(
