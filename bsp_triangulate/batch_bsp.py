@@ -393,12 +393,11 @@ def _bent_in_triangle(
         kept = np.flatnonzero(away)
         at, owner, qx, qy, oax, oay = (v[kept] for v in (at, owner, qx, qy, oax, oay))
     o = owner
-    signs = _side_signs(
+    closed, strictly = _in_triangle(
         oax, oay, bx[o], by[o], cx[o], cy[o], qx, qy, seqs.table[lo, _BOUND][o], seqs.exact
     )
-    closed = (signs[0] >= 0) & (signs[1] >= 0) & (signs[2] >= 0)
     bad[owner[closed]] = True
-    strictly = np.flatnonzero((signs[0] > 0) & (signs[1] > 0) & (signs[2] > 0))
+    strictly = np.flatnonzero(strictly)
     if len(strictly):
         # the first position strictly inside, per candidate (owners and positions ascend)
         who = owner[strictly]
@@ -411,7 +410,7 @@ def _bent_in_triangle(
 _BOTH = np.array([True, True]).view(np.uint16)[0]
 
 
-def _side_signs(
+def _in_triangle(
     ax: np.ndarray,
     ay: np.ndarray,
     bx: np.ndarray,
@@ -422,14 +421,14 @@ def _side_signs(
     qy: np.ndarray,
     bound: np.ndarray,
     exact: bool,
-) -> np.ndarray:
-    """:func:`_triangle_signs` where they decide whether q is in the closed triangle or
-    strictly inside: -1 in every row where q is surely right of a side, 1 where it is surely
-    left of all three. The float orientations, as (v - u) x (q - a) + (v - u) x (a - u), are
-    within 4 times the sequence's ``bound`` of the exact ones; the lowest of them decides,
-    and only those within that of zero get exact signs."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each point q lies in the closed counter-clockwise triangle (a, b, c), and
+    whether strictly inside (exact). The float orientations, as (v - u) x (q - a) +
+    (v - u) x (a - u), are within 4 times the sequence's ``bound`` of the exact ones; the
+    lowest of them decides, and only where it is within that of zero do the exact signs."""
     if exact:
-        return _triangle_signs(ax, ay, bx, by, cx, cy, qx, qy, True)
+        signs = _triangle_signs(ax, ay, bx, by, cx, cy, qx, qy, True)
+        return (signs >= 0).all(axis=0), (signs > 0).all(axis=0)
     dx, dy = qx - ax, qy - ay
     ex, ey = cx - bx, cy - by
     low = (bx - ax) * dy - (by - ay) * dx
@@ -437,11 +436,15 @@ def _side_signs(
     side = ex * dy - ey * dx
     side += ex * (ay - by) - ey * (ax - bx)
     np.minimum(low, side, out=low)
-    signs = np.repeat(np.where(low > 0, 1, -1).astype(np.int8)[None], 3, axis=0)
-    u = np.flatnonzero(np.abs(low) <= 4.0 * bound)
+    tolerance = 4.0 * bound
+    strictly = low > tolerance
+    closed = strictly.copy()
+    u = np.flatnonzero(np.abs(low) <= tolerance)
     if len(u):
-        signs[:, u] = _triangle_signs(ax[u], ay[u], bx[u], by[u], cx[u], cy[u], qx[u], qy[u], False)
-    return signs
+        signs = _triangle_signs(ax[u], ay[u], bx[u], by[u], cx[u], cy[u], qx[u], qy[u], False)
+        closed[u] = (signs >= 0).all(axis=0)
+        strictly[u] = (signs > 0).all(axis=0)
+    return closed, strictly
 
 
 def _triangle_signs(
@@ -711,8 +714,7 @@ def _strictly_inside(
     b = b[t]
     points = np.take(seqs.xy, np.stack([a[t], b, c[t], p[t]]), axis=0)
     (ax, bx, cx, px), (ay, by, cy, py) = points[..., 0], points[..., 1]
-    signs = _side_signs(ax, ay, bx, by, cx, cy, px, py, seqs.table[b, _BOUND], seqs.exact)
-    inside[t] = (signs > 0).all(axis=0)
+    inside[t] = _in_triangle(ax, ay, bx, by, cx, cy, px, py, seqs.table[b, _BOUND], seqs.exact)[1]
     return inside
 
 
