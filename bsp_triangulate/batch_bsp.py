@@ -1025,7 +1025,9 @@ def build_trees(
     tri_count = np.maximum(m - 2, 0)
     tri_start = np.cumsum(tri_count) - tri_count
     total = int(tri_count.sum())
-    record = np.zeros((total, _RECORD), dtype=np.int64)
+    # half the memory where positions and rows fit (always, for groups of usual size)
+    small = max(len(sx), total) < 2**31
+    record = np.zeros((total, _RECORD), dtype=np.int32 if small else np.int64)
     ok = np.ones(count, dtype=bool)
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
     # rows are written as they are emitted; a sequence that fails is not read
@@ -1062,7 +1064,7 @@ def build_trees(
     triangles[:, 0] = ids[first]
     triangles[:, 1] = ids[second]
     triangles[:, 2] = ids[record[:, _CAND]]
-    parent, depth = record[:, _PARENT].copy(), record[:, _DEPTH].copy()
+    parent, depth = record[:, _PARENT].astype(np.int64), record[:, _DEPTH].astype(np.int64)
     side = record[:, _SIDE].astype(np.int8)
     return Trees(triangles, parent, depth, side, tri_start, tri_count, ok, again)
 
