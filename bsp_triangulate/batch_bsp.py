@@ -373,7 +373,6 @@ def _bent_in_triangle(
     pxy = np.take(seqs.bent_xy, index, axis=0)
     px, py = pxy[:, 0], pxy[:, 1]
     # the bent positions in the triangle's bounding box: both coordinates of a row within
-    # (a pair of True read as one 2-byte value)
     low = np.repeat(np.minimum(np.minimum(corners[0], corners[1]), corners[2]), count, axis=0)
     high = np.repeat(np.maximum(np.maximum(corners[0], corners[1]), corners[2]), count, axis=0)
     within = pxy >= low
@@ -425,7 +424,7 @@ def _in_triangle(
     """Whether each point q lies in the closed counter-clockwise triangle (a, b, c), and
     whether strictly inside (exact). The float orientations, as (v - u) x (q - a) +
     (v - u) x (a - u), are within 4 times the sequence's ``bound`` of the exact ones; the
-    lowest of them decides, and only where it is within that of zero do the exact signs."""
+    lowest of them decides, and only where it is within that of zero are exact signs taken."""
     if exact:
         signs = _triangle_signs(ax, ay, bx, by, cx, cy, qx, qy, True)
         return (signs >= 0).all(axis=0), (signs > 0).all(axis=0)
