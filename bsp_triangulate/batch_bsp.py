@@ -612,39 +612,67 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
 
     A node tests its first candidate (hi - 1) alone; a node whose first candidate failed
     tests up to ``_SPAN`` candidates (``_SPAN_LARGE`` in large sub-polygons), its next ones
-    in order, for conditions 1 and 4 and against its recorded blocker (in rounds of many
-    nodes, the next one alone first: :func:`_span_passing`); the first that passes goes on
-    to the tables. Returns per node whether its candidate ``apex`` is correct, the
-    apex (or the next candidate to test) and the blocker to keep.
+    in order, for conditions 1 and 4 and against its recorded blocker; the first that passes
+    goes on to the tables. In rounds of many nodes, a first candidate takes the cheaper ear
+    test, a node whose first candidate fails it goes on to its next ones at once (as it
+    would in the next round, which would cost bookkeeping), and the spans are tested in two
+    passes (:func:`_span_passing`). Returns per node whether its candidate ``apex`` is
+    correct, the apex (or the next candidate to test) and the blocker to keep.
     """
     lo, hi, cand, block = state[_LO], state[_HI], state[_CAND], state[_BLOCK]
     n = len(lo)
-    span = np.minimum(cand - lo, np.where(hi - lo > _RUN_MIN, _SPAN_LARGE, _SPAN))
     fresh = cand == hi - 1
-    span[fresh] = 1
     # nodes at their first candidate (no blocker yet) come after the ones that try again
-    # (see _next_state): in rounds of many nodes they take the cheaper ear test
+    # (see _next_state)
     r = n - int(np.count_nonzero(fresh))
     if n >= _EAR_ROUND and fresh[r:].all():
-        passed = np.empty(n, dtype=bool)
+        passed = np.zeros(n, dtype=bool)
         apex = cand.copy()
         passed[r:] = _facing_ear(seqs, lo[r:], hi[r:])
-        if r:
-            passed[:r], apex[:r] = _span_passing(seqs, lo, hi, block, r, cand[:r], span[:r])
+        apex[r:] -= ~passed[r:]
+        going = np.flatnonzero(~passed & (apex > lo))
+        span = np.minimum(apex[going] - lo[going], _span_limit(lo, hi, going))
+        hit, found = _span_passing(seqs, lo, hi, block, going, apex[going], span)
+        passed[going] = hit
+        apex[going] = np.where(hit, found, apex[going] - span)
     else:
-        passed, apex = _first_passing(seqs, lo, hi, block, np.arange(n), cand, span)
-    apex = np.where(passed, apex, cand - span)
-    correct = passed.copy()
+        span = np.minimum(cand - lo, _span_limit(lo, hi, slice(None)))
+        span[fresh] = 1
+        passed, found = _first_passing(seqs, lo, hi, block, np.arange(n), cand, span)
+        apex = np.where(passed, found, cand - span)
+    correct = np.zeros(n, dtype=bool)
     blocker = block.copy()
-    table = np.flatnonzero(passed & (hi - lo > 2))
+    _tables_of(seqs, lo, hi, np.flatnonzero(passed), apex, correct, blocker)
+    return correct, apex, blocker
+
+
+def _span_limit(lo: np.ndarray, hi: np.ndarray, nodes: np.ndarray | slice) -> np.ndarray:
+    """Candidates tested per node and pass, at most."""
+    return np.where(hi[nodes] - lo[nodes] > _RUN_MIN, _SPAN_LARGE, _SPAN)
+
+
+def _tables_of(
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    nodes: np.ndarray,
+    apex: np.ndarray,
+    correct: np.ndarray,
+    blocker: np.ndarray,
+) -> None:
+    """The tables (conditions 2 and 3) of the ``nodes``' candidates ``apex``, which pass
+    conditions 1 and 4: ``correct`` where they pass; where they fail, ``apex`` moves to the
+    next candidate and a vertex found strictly inside becomes the ``blocker``."""
+    small = hi[nodes] - lo[nodes] == 2
+    correct[nodes[small]] = True
+    table = nodes[~small]
     if len(table):
         bad, inside = _tables(seqs, lo[table], hi[table], apex[table])
-        correct[table[bad]] = False
+        correct[table[~bad]] = True
         found = inside >= 0
         blocker[table[found]] = inside[found]
-        # a failed candidate: the next round starts below it
+        # a failed candidate: the next test starts below it
         apex[table[bad]] -= 1
-    return correct, apex, blocker
 
 
 def _span_passing(
@@ -652,19 +680,21 @@ def _span_passing(
     lo: np.ndarray,
     hi: np.ndarray,
     block: np.ndarray,
-    r: int,
+    nodes: np.ndarray,
     top: np.ndarray,
     count: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_first_passing` of the nodes 0 .. r - 1 (nodes trying again) in two passes: a
+    """:func:`_first_passing` of the ``nodes`` (nodes trying again) in two passes: a
     small sub-polygon's next candidate alone, then the rest of its span where that fails (the
     next candidate passes for over half of them); a large sub-polygon's whole span at once."""
-    ahead = np.where(hi[:r] - lo[:r] > _RUN_MIN, count, 1)
-    passed, apex = _first_passing(seqs, lo, hi, block, np.arange(r), top, ahead)
+    ahead = np.where(hi[nodes] - lo[nodes] > _RUN_MIN, count, 1)
+    passed, apex = _first_passing(seqs, lo, hi, block, nodes, top, ahead)
     more = np.flatnonzero(~passed & (count > ahead))
     if len(more):
         skip = ahead[more]
-        hit, found = _first_passing(seqs, lo, hi, block, more, top[more] - skip, count[more] - skip)
+        hit, found = _first_passing(
+            seqs, lo, hi, block, nodes[more], top[more] - skip, count[more] - skip
+        )
         passed[more[hit]] = True
         apex[more[hit]] = found[hit]
     return passed, apex

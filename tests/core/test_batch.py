@@ -415,13 +415,23 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
 )
 def test_rounds_of_many_nodes_equal_engine(family: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """Rounds of many nodes (every round here) test a node's first candidate with
-    ``_facing_ear`` and the others' spans with ``_facing``: the ear test agrees with
+    ``_facing_ear`` and the others' spans with ``_facing``; a node whose first candidate
+    fails the ear test goes on to its next ones in the same round. The ear test agrees with
     ``_facing`` item by item, and all results equal the engine's."""
     from bsp_triangulate import batch_bsp
 
     monkeypatch.setattr(batch_bsp, "_EAR_ROUND", 0)
-    counts = {"ears": 0, "ears passed": 0, "spans": 0}
+    counts = {"ears": 0, "ears passed": 0, "spans": 0, "later apex at once": 0}
     facing_ear, first_passing = batch_bsp._facing_ear, batch_bsp._first_passing
+    first_correct = batch_bsp._first_correct
+
+    def counted_first_correct(seqs, state):
+        correct, apex, blocker = first_correct(seqs, state)
+        fresh = state[batch_bsp._CAND] == state[batch_bsp._HI] - 1
+        counts["later apex at once"] += int(
+            (fresh & correct & (apex < state[batch_bsp._HI] - 1)).sum()
+        )
+        return correct, apex, blocker
 
     def checked_ear(seqs, lo, hi):
         passed = facing_ear(seqs, lo, hi)
@@ -436,12 +446,14 @@ def test_rounds_of_many_nodes_equal_engine(family: str, monkeypatch: pytest.Monk
 
     monkeypatch.setattr(batch_bsp, "_facing_ear", checked_ear)
     monkeypatch.setattr(batch_bsp, "_first_passing", counted_first_passing)
+    monkeypatch.setattr(batch_bsp, "_first_correct", counted_first_correct)
     polygons = family_polygons(family)
     problems, handled = mismatches(polygons)
     assert problems == []
     assert handled >= 0.9 * len(polygons)
     assert counts["ears"] > counts["ears passed"] > 0
     assert counts["spans"] > 0
+    assert counts["later apex at once"] > 0
 
 
 def test_trees_built_again_that_fail_are_left_to_the_engine(
