@@ -137,13 +137,12 @@ class StageClock:
         for source in ("FlatElevation", "GeometryElevation", "ExpressionElevation"):
             self.wrap(getattr(elevation, source), "apply", "elevation")
         self.wrap(elevation.DemElevation, "apply", "elevation")
-        # the engine entry: packed since the algorithm hands over flat arrays, a list before
-        entry = (
-            "triangulate_packed"
-            if hasattr(algorithm, "triangulate_packed")
-            else ("triangulate_many")
-        )
-        self.wrap(algorithm, entry, "engine (triangulate_many)")
+        # the engine entry: in engine_runs since the engine runs moved there (packed), in the
+        # algorithm's module before (packed, or a list before that)
+        runs = sys.modules.get(f"{package}.processing_provider.engine_runs")
+        owner = runs if runs is not None and hasattr(runs, "triangulate_packed") else algorithm
+        entry = "triangulate_packed" if hasattr(owner, "triangulate_packed") else "triangulate_many"
+        self.wrap(owner, entry, "engine (triangulate_many)")
         self.wrap(outputs.BatchMesh, "build", "batch mesh arrays")
         self.wrap(outputs.MeshAccumulator, "add", "batch mesh arrays")
         self.wrap(outputs, "merge_identical_vertices", "mesh: vertex merge")
