@@ -1,4 +1,5 @@
-"""``triangulate_packed`` in worker processes, so that a large layer uses every core.
+"""``triangulate_packed`` (and the rows of large mesh files) in worker processes, so that a
+large layer uses every core.
 
 The engine is numpy code driven by Python, so one process uses one core. A
 :class:`WorkerPool` runs calls of :func:`~bsp_triangulate.engine.triangulate_packed` in other
@@ -171,10 +172,17 @@ class WorkerPool:
 
     def submit(self, polygons: PackedPolygons, **options: Any) -> Future:
         """``triangulate_packed(polygons, **options)`` in a worker."""
-        request = (polygons.points, polygons.ring_len, polygons.ring_count, options)
+        request = (
+            "triangulate",
+            (polygons.points, polygons.ring_len, polygons.ring_count, options),
+        )
         return self._threads.submit(self._run, request)
 
-    def _run(self, request: tuple) -> PackedTriangulations:
+    def write_rows(self, path: str, kind: str, first: int, rows: np.ndarray) -> Future:
+        """``mesh.write_rows(path, kind, first, rows)`` in a worker (a future of None)."""
+        return self._threads.submit(self._run, ("write_rows", (str(path), kind, first, rows)))
+
+    def _run(self, request: tuple) -> PackedTriangulations | None:
         worker = self._take()
         try:
             status, payload = worker.call(request)
@@ -187,6 +195,8 @@ class WorkerPool:
             if kind == TriangulationError.__name__:
                 raise TriangulationError(message)
             raise WorkerCallError(f"{kind}: {message}")
+        if request[0] != "triangulate":
+            return None
         arrays, errors = payload
         return PackedTriangulations(
             *arrays, errors={index: TriangulationError(text) for index, text in errors.items()}
@@ -250,22 +260,34 @@ def _send(channel: IO[bytes], message: object) -> None:
 def serve() -> None:
     """The worker's loop: one call from standard input, its reply to standard output, until
     the input closes. Anything else printed goes to standard error."""
-    from .engine import triangulate_packed
-
     requests = sys.stdin.buffer
     replies = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
     _send(replies, ("ready", tuple(sys.version_info[:2])))
     while True:
         try:
-            points, ring_len, ring_count, options = pickle.load(requests)
+            task, arguments = pickle.load(requests)
         except EOFError:
             return
         try:
-            result = triangulate_packed(PackedPolygons(points, ring_len, ring_count), **options)
-            arrays = tuple(np.asarray(getattr(result, name)) for name in _RESULT_FIELDS)
-            errors = {index: str(error) for index, error in result.errors.items()}
-            reply: tuple = ("ok", (arrays, errors))
+            reply: tuple = ("ok", _TASKS[task](*arguments))
         except Exception as error:  # the caller decides what a failed call means
             reply = ("error", (type(error).__name__, str(error)))
         _send(replies, reply)
+
+
+def _triangulate(points: np.ndarray, ring_len: np.ndarray, ring_count: np.ndarray, options: dict):
+    from .engine import triangulate_packed
+
+    result = triangulate_packed(PackedPolygons(points, ring_len, ring_count), **options)
+    arrays = tuple(np.asarray(getattr(result, name)) for name in _RESULT_FIELDS)
+    return arrays, {index: str(error) for index, error in result.errors.items()}
+
+
+def _write_rows(path: str, kind: str, first: int, rows: np.ndarray) -> None:
+    from .mesh import write_rows
+
+    write_rows(path, kind, first, rows)
+
+
+_TASKS = {"triangulate": _triangulate, "write_rows": _write_rows}

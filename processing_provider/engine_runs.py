@@ -118,6 +118,11 @@ class EngineRunner:
         self.workers_started = 0
 
     @property
+    def pool(self) -> WorkerPool | None:
+        """The running workers, if any (they can write a large 2DM mesh's lines too)."""
+        return self._pool
+
+    @property
     def parallel(self) -> bool:
         """Calls may run in workers: finish a batch after submitting the next one."""
         return self.workers > 1

@@ -39,6 +39,7 @@ from ..bsp_triangulate.batch_rings import ragged_index
 from ..bsp_triangulate.mesh import merge_meshes, write_2dm, write_ply
 from ..bsp_triangulate.packed import PackedTriangulations
 from ..bsp_triangulate.wkb import triangles_to_multipolygon_wkb
+from ..bsp_triangulate.workers import WorkerPool
 from .geometry_io import FeatureRings
 
 STYLE_PATH = Path(__file__).resolve().parent / "styles" / "triangles.qml"
@@ -379,9 +380,12 @@ class MeshAccumulator:
         self.fids.append(mesh.fid)
         self.depths.append(mesh.depth.astype(np.int32))
 
-    def stage(self, path: str, crs: QgsCoordinateReferenceSystem) -> StagedMesh:
+    def stage(
+        self, path: str, crs: QgsCoordinateReferenceSystem, pool: WorkerPool | None = None
+    ) -> StagedMesh:
         """Write .2dm or .ply (by extension) with face values feature_id and depth into a
-        hidden folder next to ``path``; nothing is at ``path`` until the result is committed."""
+        hidden folder next to ``path``; nothing is at ``path`` until the result is committed.
+        A large 2DM's lines are written by the ``pool``'s workers, if given."""
         dtype = _index_type(self.vertex_count)
         vertices = _joined(self.vertices, (0, 3), np.float64)
         faces = _joined(self.faces, (0, 3), dtype)
@@ -402,7 +406,7 @@ class MeshAccumulator:
                 )
             else:
                 written = write_2dm(
-                    folder / target.name, vertices, faces, datasets if len(faces) else None
+                    folder / target.name, vertices, faces, datasets if len(faces) else None, pool
                 )
                 staged.companions = [file.name for file in written[1:]]
         except BaseException:

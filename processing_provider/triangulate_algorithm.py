@@ -611,6 +611,11 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                     break
             while pending and not feedback.isCanceled() and write(pending.pop(0)):
                 pass
+            writer.close(sinks)  # a GeoPackage builds its spatial index here
+            if feedback.isCanceled():
+                raise self._cancelled()
+            # the workers, if any, write a large 2DM mesh's lines before they stop
+            staged = mesh.stage(mesh_path, crs, runner.pool) if mesh is not None else None
             runner.close()
             if runner.calls_in_workers:
                 feedback.pushInfo(
@@ -618,10 +623,6 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                         runner.calls_in_workers, runner.calls, runner.workers_started
                     )
                 )
-            writer.close(sinks)  # a GeoPackage builds its spatial index here
-            if feedback.isCanceled():
-                raise self._cancelled()
-            staged = mesh.stage(mesh_path, crs) if mesh is not None else None
             if staged is not None and feedback.isCanceled():
                 staged.discard()
                 raise self._cancelled()

@@ -188,3 +188,39 @@ def test_ascii_ply_float_and_negative_properties(tmp_path):
         "1.0 2.0 3.0",
         "3 0 1 2 -7 0.30000000000000004",
     ]
+
+
+class _FailingPool:
+    """A pool whose workers write their parts here, but fail the third (as a worker that
+    stops does), after the first two have been joined."""
+
+    count = 2
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def write_rows(self, path, kind, first, rows):
+        from concurrent.futures import Future
+
+        self.calls += 1
+        future = Future()
+        if self.calls == 3:
+            future.set_exception(RuntimeError("the worker stopped"))
+        else:
+            mesh_module.write_rows(path, kind, first, rows)
+            future.set_result(None)
+        return future
+
+
+def test_2dm_parts_that_fail_in_the_workers_are_written_here(tmp_path, monkeypatch):
+    """Where a worker fails its part of a 2DM, this process writes the whole file again: the
+    same bytes as without a pool, and no part file left."""
+    vertices = np.array([[0, 0, 1.5], [10, 0, 2.25], [10, 10, 3.125], [0, 10, 0.1], [5, 5, 9]])
+    faces = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+    alone = write_2dm(tmp_path / "alone.2dm", vertices, faces)
+    monkeypatch.setattr(mesh_module, "PARALLEL_LINES", 0)
+    pool = _FailingPool()
+    failed = write_2dm(tmp_path / "failed.2dm", vertices, faces, pool=pool)
+    assert pool.calls >= 4
+    assert failed[0].read_bytes() == alone[0].read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["alone.2dm", "failed.2dm"]

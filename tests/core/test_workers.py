@@ -148,3 +148,26 @@ def test_the_interpreter_found_is_this_python_version() -> None:
         timeout=60,
     )
     assert answer.stdout.strip() == str(tuple(sys.version_info[:2]))
+
+
+def test_workers_write_a_2dm_mesh_in_parts_byte_for_byte(tmp_path, monkeypatch) -> None:
+    """A 2DM mesh of the farms written by two workers in parts (every mesh is large enough
+    here) is the file this process writes alone, with its face-value companion; no part
+    file is left beside it."""
+    from bsp_triangulate import mesh
+
+    results = triangulate_packed(
+        PackedPolygons.of(farm_polygons(5000)), on_error="return"
+    ).to_list()
+    parts = [(r.vertices, r.triangles) for r in results if not isinstance(r, Exception)]
+    vertices, faces, part = mesh.merge_meshes(parts)
+    datasets = {"feature_id": part, "depth": np.arange(len(faces)) % 7}
+    alone = mesh.write_2dm(tmp_path / "alone.2dm", vertices, faces, datasets)
+    monkeypatch.setattr(mesh, "PARALLEL_LINES", 0)
+    with WorkerPool(2) as pool:
+        shared = mesh.write_2dm(tmp_path / "shared.2dm", vertices, faces, datasets, pool)
+        assert pool.started == 2
+    assert len(faces) > 20_000
+    for mine, theirs in zip(shared, alone):
+        assert mine.read_bytes() == theirs.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in [*shared, *alone])

@@ -49,11 +49,16 @@ def small_calls(monkeypatch: pytest.MonkeyPatch) -> list:
         def __init__(self, *args, **kwargs) -> None:
             super().__init__(*args, **kwargs)
             self.calls = 0
+            self.parts = 0
             pools.append(self)
 
         def submit(self, *args, **kwargs):
             self.calls += 1
             return super().submit(*args, **kwargs)
+
+        def write_rows(self, *args, **kwargs):
+            self.parts += 1
+            return super().write_rows(*args, **kwargs)
 
     monkeypatch.setattr(engine_runs, "WorkerPool", RecordingPool)
     monkeypatch.setattr(TriangulateAlgorithm, "CHUNK_VERTICES", 4_000)
@@ -91,13 +96,21 @@ def run_farms(path: Path, workers: int, feedback: RecordingFeedback, **parameter
 
 
 @pytest.mark.parametrize("invalid", [0, 2], ids=["repaired", "as_given"])
-def test_workers_write_what_one_process_writes(tmp_path: Path, small_calls: list, invalid):
+def test_workers_write_what_one_process_writes(
+    tmp_path: Path, small_calls: list, invalid, monkeypatch: pytest.MonkeyPatch
+):
+    """The same outputs; the workers also write the 2DM's lines in parts (every mesh is
+    large enough for that here)."""
+    from bsptriangulate.bsp_triangulate import mesh
+
+    monkeypatch.setattr(mesh, "PARALLEL_LINES", 0)
     alone, apart = RecordingFeedback(), RecordingFeedback()
     expected = run_farms(tmp_path, 1, alone, INVALID_POLYGONS=invalid)
     assert small_calls == []
     got = run_farms(tmp_path, 2, apart, INVALID_POLYGONS=invalid)
     (pool,) = small_calls
     assert pool.calls > 10
+    assert pool.parts >= 4
     assert pool.processes() == []  # closed with the run
     counts, mesh, rows = got
     assert counts == expected[0] and counts["FEATURE_COUNT"] == 2008
