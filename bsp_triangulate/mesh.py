@@ -172,6 +172,7 @@ def write_rows(path: str | os.PathLike, kind: str, first: int, rows: np.ndarray)
 # a 2DM of at least this many lines is written in parts by the pool's workers
 PARALLEL_LINES = 200_000
 _PARTS_PER_WORKER = 4
+_KERNEL_COPY = hasattr(os, "copy_file_range")
 
 
 def write_2dm(
@@ -220,7 +221,9 @@ def _parts_in_workers(
     """The 2DM's lines submitted to the pool's workers in parts of about equal work (node
     lines take about three times as long as face lines), or none; several parts per worker, so
     that the parts written first are joined while the workers write the others."""
-    if pool is None or len(vertices) + len(faces) < PARALLEL_LINES:
+    # without an in-kernel copy (Linux's copy_file_range), joining the parts costs about what
+    # the workers save
+    if pool is None or len(vertices) + len(faces) < PARALLEL_LINES or not _KERNEL_COPY:
         return []
     # lines 0 .. n - 1 are the nodes, n .. n + m - 1 the faces; a node line costs about as
     # much as 3 face lines

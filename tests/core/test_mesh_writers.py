@@ -219,6 +219,7 @@ def test_2dm_parts_that_fail_in_the_workers_are_written_here(tmp_path, monkeypat
     faces = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
     alone = write_2dm(tmp_path / "alone.2dm", vertices, faces)
     monkeypatch.setattr(mesh_module, "PARALLEL_LINES", 0)
+    monkeypatch.setattr(mesh_module, "_KERNEL_COPY", True)  # joined by copying where not
     pool = _FailingPool()
     failed = write_2dm(tmp_path / "failed.2dm", vertices, faces, pool=pool)
     assert pool.calls >= 4

@@ -164,6 +164,7 @@ def test_workers_write_a_2dm_mesh_in_parts_byte_for_byte(tmp_path, monkeypatch) 
     datasets = {"feature_id": part, "depth": np.arange(len(faces)) % 7}
     alone = mesh.write_2dm(tmp_path / "alone.2dm", vertices, faces, datasets)
     monkeypatch.setattr(mesh, "PARALLEL_LINES", 0)
+    monkeypatch.setattr(mesh, "_KERNEL_COPY", True)  # joined by copying where not
     with WorkerPool(2) as pool:
         shared = mesh.write_2dm(tmp_path / "shared.2dm", vertices, faces, datasets, pool)
         assert pool.started == 2

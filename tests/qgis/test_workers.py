@@ -104,6 +104,7 @@ def test_workers_write_what_one_process_writes(
     from bsptriangulate.bsp_triangulate import mesh
 
     monkeypatch.setattr(mesh, "PARALLEL_LINES", 0)
+    monkeypatch.setattr(mesh, "_KERNEL_COPY", True)  # joined by copying where not
     alone, apart = RecordingFeedback(), RecordingFeedback()
     expected = run_farms(tmp_path, 1, alone, INVALID_POLYGONS=invalid)
     assert small_calls == []
