@@ -605,19 +605,22 @@ _SPAN_LARGE = 12
 _ELEVATION_TRIES = 16
 # rounds of at least this many nodes test first candidates with _facing_ear
 _EAR_ROUND = 1024
+# candidates tested per node in rounds of fewer nodes, its first one included
+_SMALL_ROUND_SPAN = 16
 
 
 def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One round of rule "first" for the open nodes ``state``.
 
-    A node tests its first candidate (hi - 1) alone; a node whose first candidate failed
-    tests up to ``_SPAN`` candidates (``_SPAN_LARGE`` in large sub-polygons), its next ones
-    in order, for conditions 1 and 4 and against its recorded blocker; the first that passes
-    goes on to the tables. In rounds of many nodes, a first candidate takes the cheaper ear
-    test, a node whose first candidate fails it goes on to its next ones at once (as it
-    would in the next round, which would cost bookkeeping), and the spans are tested in two
-    passes (:func:`_span_passing`). Returns per node whether its candidate ``apex`` is
-    correct, the apex (or the next candidate to test) and the blocker to keep.
+    A node tests a span of its candidates in order for conditions 1 and 4 and against its
+    recorded blocker; the first that passes goes on to the tables. In rounds of many nodes, a
+    node tests its first candidate (hi - 1) alone with the cheaper ear test, and where that
+    fails, or where the first candidate failed in an earlier round, up to ``_SPAN``
+    candidates (``_SPAN_LARGE`` in large sub-polygons) in two passes (:func:`_span_passing`),
+    in the same round. In rounds of fewer nodes, whose cost is mostly their fixed numpy calls,
+    a node tests up to ``_SMALL_ROUND_SPAN`` candidates at once. Returns per node whether its
+    candidate ``apex`` is correct, the apex (or the next candidate to test) and the blocker
+    to keep.
     """
     lo, hi, cand, block = state[_LO], state[_HI], state[_CAND], state[_BLOCK]
     n = len(lo)
@@ -636,8 +639,8 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
         passed[going] = hit
         apex[going] = np.where(hit, found, apex[going] - span)
     else:
-        span = np.minimum(cand - lo, _span_limit(lo, hi, slice(None)))
-        span[fresh] = 1
+        # few nodes: the round costs mostly its fixed numpy calls, a longer span little
+        span = np.minimum(cand - lo, _SMALL_ROUND_SPAN)
         passed, found = _first_passing(seqs, lo, hi, block, np.arange(n), cand, span)
         apex = np.where(passed, found, cand - span)
     correct = np.zeros(n, dtype=bool)
@@ -646,7 +649,7 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     return correct, apex, blocker
 
 
-def _span_limit(lo: np.ndarray, hi: np.ndarray, nodes: np.ndarray | slice) -> np.ndarray:
+def _span_limit(lo: np.ndarray, hi: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     """Candidates tested per node and pass, at most."""
     return np.where(hi[nodes] - lo[nodes] > _RUN_MIN, _SPAN_LARGE, _SPAN)
 
