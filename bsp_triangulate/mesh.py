@@ -207,11 +207,7 @@ def write_2dm(
             write_face_dat(dat, len(vertices), len(faces), face_datasets)
         _write_nodes_and_faces(path, vertices, faces, parts)
     finally:
-        for future, part in parts:
-            future.cancel()
-            with contextlib.suppress(Exception):
-                future.result()
-            part.unlink(missing_ok=True)
+        _discard(parts)
     return [path, dat] if face_datasets else [path]
 
 
@@ -232,16 +228,28 @@ def _parts_in_workers(
     work = [k * (3 * n + m) // count for k in range(1, count)]
     cuts = [w // 3 if w <= 3 * n else n + w - 3 * n for w in work]
     bounds = sorted({0, n, n + m, *cuts})
-    parts = []
-    for index, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
-        part = path.with_name(f".{path.name}.{index}.part")
-        if b <= len(vertices):
-            future = pool.write_rows(str(part), "ND", a, vertices[a:b])
-        else:
-            start = len(vertices)
-            future = pool.write_rows(str(part), "E3T", a - start, faces[a - start : b - start])
-        parts.append((future, part))
+    parts: list[tuple[Future, Path]] = []
+    try:
+        for index, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+            part = path.with_name(f".{path.name}.{index}.part")
+            if b <= n:
+                future = pool.write_rows(str(part), "ND", a, vertices[a:b])
+            else:
+                future = pool.write_rows(str(part), "E3T", a - n, faces[a - n : b - n])
+            parts.append((future, part))
+    except Exception:  # the pool takes no more calls (closed): this process writes it all
+        _discard(parts)
+        return []
     return parts
+
+
+def _discard(parts: list[tuple[Future, Path]]) -> None:
+    """Wait for the parts' workers (or cancel the calls not started) and remove the parts."""
+    for future, part in parts:
+        future.cancel()
+        with contextlib.suppress(Exception):
+            future.result()
+        part.unlink(missing_ok=True)
 
 
 def _append(source, target) -> None:

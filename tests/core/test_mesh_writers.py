@@ -225,3 +225,38 @@ def test_2dm_parts_that_fail_in_the_workers_are_written_here(tmp_path, monkeypat
     assert pool.calls >= 4
     assert failed[0].read_bytes() == alone[0].read_bytes()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["alone.2dm", "failed.2dm"]
+
+
+class _ClosedPool:
+    """A pool that takes two calls, then refuses more (as a closed pool does)."""
+
+    count = 2
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def write_rows(self, path, kind, first, rows):
+        from concurrent.futures import Future
+
+        self.calls += 1
+        if self.calls > 2:
+            raise RuntimeError("cannot schedule new futures after shutdown")
+        mesh_module.write_rows(path, kind, first, rows)
+        future = Future()
+        future.set_result(None)
+        return future
+
+
+def test_2dm_with_a_pool_that_refuses_calls_is_written_here(tmp_path, monkeypatch):
+    """A pool that stops taking calls while the parts are handed out: this process writes
+    the file, and the parts already written are removed."""
+    vertices = np.array([[0, 0, 1.5], [10, 0, 2.25], [10, 10, 3.125], [0, 10, 0.1], [5, 5, 9]])
+    faces = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+    alone = write_2dm(tmp_path / "alone.2dm", vertices, faces)
+    monkeypatch.setattr(mesh_module, "PARALLEL_LINES", 0)
+    monkeypatch.setattr(mesh_module, "_KERNEL_COPY", True)
+    pool = _ClosedPool()
+    refused = write_2dm(tmp_path / "refused.2dm", vertices, faces, pool=pool)
+    assert pool.calls == 3
+    assert refused[0].read_bytes() == alone[0].read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["alone.2dm", "refused.2dm"]
