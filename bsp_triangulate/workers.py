@@ -258,8 +258,9 @@ def _send(channel: IO[bytes], message: object) -> None:
 
 
 def serve() -> None:
-    """The worker's loop: one call from standard input, its reply to standard output, until
-    the input closes. Anything else printed goes to standard error."""
+    """The worker's loop: one task (its name and arguments, see ``_TASKS``) from standard
+    input, its reply to standard output, until the input closes. Anything else printed goes
+    to standard error."""
     requests = sys.stdin.buffer
     replies = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
@@ -276,7 +277,10 @@ def serve() -> None:
         _send(replies, reply)
 
 
-def _triangulate(points: np.ndarray, ring_len: np.ndarray, ring_count: np.ndarray, options: dict):
+def _triangulate(
+    points: np.ndarray, ring_len: np.ndarray, ring_count: np.ndarray, options: dict
+) -> tuple[tuple[np.ndarray, ...], dict[int, str]]:
+    """Task "triangulate": the result's arrays and error messages, as plain values."""
     from .engine import triangulate_packed
 
     result = triangulate_packed(PackedPolygons(points, ring_len, ring_count), **options)
@@ -285,6 +289,7 @@ def _triangulate(points: np.ndarray, ring_len: np.ndarray, ring_count: np.ndarra
 
 
 def _write_rows(path: str, kind: str, first: int, rows: np.ndarray) -> None:
+    """Task "write_rows": a part of a 2DM file (``mesh.write_rows``)."""
     from .mesh import write_rows
 
     write_rows(path, kind, first, rows)
