@@ -199,21 +199,28 @@ def _xy_is_working_plane(p: np.ndarray, starts: np.ndarray, counts: np.ndarray) 
     return flat | (clear & np.isfinite(nz))
 
 
+def _shoelace_products(
+    x: np.ndarray, y: np.ndarray, start: np.ndarray, last: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """x * y[next] and x[next] * y per point of rings laid out one after another (ring i at
+    ``start[i]`` .. ``last[i]``): the next point is the following one, except at each ring's
+    last point, where it is the ring's first."""
+    left = np.empty_like(x)
+    np.multiply(x[:-1], y[1:], out=left[:-1])
+    left[last] = x[last] * y[start]
+    right = np.empty_like(x)
+    np.multiply(x[1:], y[:-1], out=right[:-1])
+    right[last] = x[start] * y[last]
+    return left, right
+
+
 def _area_signs(
     x: np.ndarray, y: np.ndarray, starts: np.ndarray, counts: np.ndarray
 ) -> tuple[np.ndarray, bool]:
     """Sign of each ring's shoelace area (0 where it is zero or not surely decided), and
     whether every ring's sum of product magnitudes is finite (then so is every x and y: a
     product with a non-finite factor is inf or NaN)."""
-    # the rings cover x one after another: the next point is the following one, except at
-    # each ring's last point (its first)
-    last = starts + counts - 1
-    left = np.empty_like(x)
-    np.multiply(x[:-1], y[1:], out=left[:-1])
-    left[last] = x[last] * y[starts]
-    right = np.empty_like(x)
-    np.multiply(x[1:], y[:-1], out=right[:-1])
-    right[last] = x[starts] * y[last]
+    left, right = _shoelace_products(x, y, starts, starts + counts - 1)
     total = np.add.reduceat(left - right, starts)
     np.abs(left, out=left)
     np.abs(right, out=right)
@@ -498,15 +505,8 @@ def clear_area(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
     # each polygon's vertices are contiguous, poly_vcount of them
     x = wx - np.repeat(x0, flat.poly_vcount)
     y = wy - np.repeat(y0, flat.poly_vcount)
-    # x * y[next] and x[next] * y, the next point being the following one but at each
-    # ring's last point
-    start, last = flat.ring_start, flat.ring_start + flat.ring_len - 1
-    left = np.empty_like(x)
-    np.multiply(x[:-1], y[1:], out=left[:-1])
-    left[last] = x[last] * y[start]
-    right = np.empty_like(x)
-    np.multiply(x[1:], y[:-1], out=right[:-1])
-    right[last] = x[start] * y[last]
+    start = flat.ring_start
+    left, right = _shoelace_products(x, y, start, start + flat.ring_len - 1)
     terms = left - right
     # traversal order: reversed islands count with the opposite sign
     if flat.ring_reversed.any():
