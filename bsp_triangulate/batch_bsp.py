@@ -81,6 +81,11 @@ class Sequences:
     bent_rank: np.ndarray
     runs: RunBoxes | None = None
 
+    def rows_at(self, positions: np.ndarray) -> np.ndarray:
+        """The ``table`` rows of ``positions`` (gathered as four complex numbers per row,
+        which numpy copies faster than eight floats)."""
+        return np.take(self.table.view(np.complex128), positions, axis=0).view(np.float64)
+
     def run_boxes(self) -> RunBoxes:
         """The boxes of the runs of every sequence (computed once, when first needed)."""
         if self.runs is None:
@@ -176,7 +181,7 @@ def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> n
     """Per candidate position ``c`` on the base of the sub-polygon [lo, hi]: conditions 1 (c
     strictly left of the chord s_hi -> s_lo) and 4 (the interior angle at c)."""
     n = len(c)
-    at_c = np.take(seqs.table, c, axis=0)
+    at_c = seqs.rows_at(c)
     # d[0] = a - c, d[1] = b - c (a = s_hi, b = s_lo), as (x, y) pairs
     d = np.take(seqs.xy, np.stack([hi, lo]), axis=0)
     d -= at_c[:, :2]
@@ -225,7 +230,7 @@ def _facing_ear(seqs: Sequences, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     right of the edge c - 1 -> c (the same float determinants as :func:`_facing`'s)."""
     n = len(lo)
     c = hi - 1
-    at_c = np.take(seqs.table, c, axis=0)
+    at_c = seqs.rows_at(c)
     # a - c is the edge c -> c + 1; b - c
     dxa, dya = at_c[:, _EX], at_c[:, _EY]
     b = np.take(seqs.xy, lo, axis=0)
@@ -1060,6 +1065,9 @@ def build_trees(
     # half the memory where positions and rows fit (always, for groups of usual size)
     small = max(len(sx), total) < 2**31
     record = np.zeros((total, _RECORD), dtype=np.int32 if small else np.int64)
+    # one record as one item: numpy scatters those faster than rows of a 2-D array
+    record_item = np.dtype((np.void, record.itemsize * _RECORD))
+    records = record.view(record_item).reshape(total)
     ok = np.ones(count, dtype=bool)
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
     # rows are written as they are emitted; a sequence that fails is not read
@@ -1077,7 +1085,9 @@ def build_trees(
         emit = np.flatnonzero(found)
         done = np.take(state, emit, axis=1)
         done[_CAND] = apex[emit]
-        record[done[_ROW]] = done[:_RECORD].T
+        emitted = np.empty((len(emit), _RECORD), dtype=record.dtype)
+        emitted[...] = done[:_RECORD].T
+        records[done[_ROW]] = emitted.view(record_item).reshape(len(emit))
         if retry is None:
             retry, blocker = np.zeros(0, dtype=np.int64), apex
         state = _next_state(state, emit, done, apex, retry, blocker)
