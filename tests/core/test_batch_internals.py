@@ -186,3 +186,43 @@ def test_ear_facing_equals_facing_on_near_collinear_combs(wobble: float) -> None
     passed = batch_bsp._facing_ear(seqs, lo, hi)
     assert 0.05 < passed.mean() < 0.95
     assert np.array_equal(passed, batch_bsp._facing(seqs, lo, hi, hi - 1))
+
+
+def test_facing_known_zeros_equal_exact_signs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``_facing`` leaves out of the exact signs the determinants that are zero because the
+    candidate is at a corner or a base end is the twin of the candidate's neighbour (bridged
+    stars); on every candidate of every sub-polygon it decides as with every exact sign, on
+    those stars and on combs whose other unsure determinants are not zero."""
+    from bsp_triangulate import batch_bsp
+
+    rng = np.random.default_rng(47)
+    rings = [near_collinear_polygon(rng, int(rng.integers(5, 25)), 1e-15)[0] for _ in range(30)]
+    parts = [(np.concatenate([r, r[:1]]), np.full(len(r) + 1, -1)) for r in rings]
+    parts += [bridged_star(rng, int(rng.integers(6, 30)), False) for _ in range(30)]
+    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+    seq = np.concatenate([p[0] for p in parts])
+    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
+    seqs = batch_bsp.Sequences.of(seq[:, 0].copy(), seq[:, 1].copy(), twin, starts, False)
+    lo, hi, c = [], [], []
+    for (points, _), start in zip(parts, starts):
+        last = start + len(points) - 1
+        for low in range(start + 1, last - 1):
+            for high in range(low + 2, last + 1):
+                lo += [low] * (high - low - 1)
+                hi += [high] * (high - low - 1)
+                c += list(range(low + 1, high))
+    lo, hi, c = np.array(lo), np.array(hi), np.array(c)
+    cleared = []
+    drop = batch_bsp._drop_known_zeros
+
+    def counting(seqs, lo, hi, c, dx, dy, unsure):
+        before = int(unsure.sum())
+        drop(seqs, lo, hi, c, dx, dy, unsure)
+        cleared.append(before - int(unsure.sum()))
+
+    monkeypatch.setattr(batch_bsp, "_drop_known_zeros", counting)
+    passed = batch_bsp._facing(seqs, lo, hi, c)
+    monkeypatch.setattr(batch_bsp, "_drop_known_zeros", lambda *args: None)
+    exact = batch_bsp._facing(seqs, lo, hi, c)
+    assert sum(cleared) > 100 and 0.05 < passed.mean() < 0.95
+    assert np.array_equal(passed, exact)
