@@ -161,6 +161,21 @@ def test_runs_decide_like_the_whole_table(grid: bool) -> None:
         assert (orient_many(sx[u], sy[u], sx[v], sy[v], sx[p], sy[p]) > 0).all()
 
 
+def combs_and_stars(rng: np.random.Generator, combs: int, stars: int, wobble: float) -> tuple:
+    """Near-collinear combs (5-24 vertices) and bridged stars (6-29 points) laid out as the
+    batch path lays out sequences: (parts as (points, twin), starts, ``Sequences``)."""
+    from bsp_triangulate import batch_bsp
+
+    rings = [near_collinear_polygon(rng, int(rng.integers(5, 25)), wobble)[0] for _ in range(combs)]
+    parts = [(np.concatenate([r, r[:1]]), np.full(len(r) + 1, -1)) for r in rings]
+    parts += [bridged_star(rng, int(rng.integers(6, 30)), False) for _ in range(stars)]
+    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+    seq = np.concatenate([p[0] for p in parts])
+    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
+    seqs = batch_bsp.Sequences.of(seq[:, 0].copy(), seq[:, 1].copy(), twin, starts, False)
+    return parts, starts, seqs
+
+
 @pytest.mark.parametrize("wobble", [0.0, 1e-15, 1e-12])
 def test_ear_facing_equals_facing_on_near_collinear_combs(wobble: float) -> None:
     """``_facing_ear`` (a node's first candidate hi - 1) decides like ``_facing`` on every
@@ -168,14 +183,7 @@ def test_ear_facing_equals_facing_on_near_collinear_combs(wobble: float) -> None
     through others, and of bridged stars (bridge ends at the same point)."""
     from bsp_triangulate import batch_bsp
 
-    rng = np.random.default_rng(43)
-    rings = [near_collinear_polygon(rng, int(rng.integers(5, 25)), wobble)[0] for _ in range(40)]
-    parts = [(np.concatenate([r, r[:1]]), np.full(len(r) + 1, -1)) for r in rings]
-    parts += [bridged_star(rng, int(rng.integers(6, 30)), False) for _ in range(20)]
-    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
-    seq = np.concatenate([p[0] for p in parts])
-    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
-    seqs = batch_bsp.Sequences.of(seq[:, 0].copy(), seq[:, 1].copy(), twin, starts, False)
+    parts, starts, seqs = combs_and_stars(np.random.default_rng(43), 40, 20, wobble)
     lo, hi = [], []
     for (points, _), start in zip(parts, starts):
         last = start + len(points) - 1
@@ -195,14 +203,7 @@ def test_facing_known_zeros_equal_exact_signs(monkeypatch: pytest.MonkeyPatch) -
     those stars and on combs whose other unsure determinants are not zero."""
     from bsp_triangulate import batch_bsp
 
-    rng = np.random.default_rng(47)
-    rings = [near_collinear_polygon(rng, int(rng.integers(5, 25)), 1e-15)[0] for _ in range(30)]
-    parts = [(np.concatenate([r, r[:1]]), np.full(len(r) + 1, -1)) for r in rings]
-    parts += [bridged_star(rng, int(rng.integers(6, 30)), False) for _ in range(30)]
-    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
-    seq = np.concatenate([p[0] for p in parts])
-    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
-    seqs = batch_bsp.Sequences.of(seq[:, 0].copy(), seq[:, 1].copy(), twin, starts, False)
+    parts, starts, seqs = combs_and_stars(np.random.default_rng(47), 30, 30, 1e-15)
     lo, hi, c = [], [], []
     for (points, _), start in zip(parts, starts):
         last = start + len(points) - 1
