@@ -63,8 +63,9 @@ class Sequences:
     the extents of its sequence, and the ``table`` of the columns above; ``exact``: every
     float orientation is exact (grid coordinates). ``proven``: the position's polygon is
     proven valid; ``bent``: the positions of proven sequences that are not a strict left
-    turn or are a bridge end (``bent_xy``: their coordinates), and ``bent_rank[p]`` how many
-    of them come before position p."""
+    turn or are a bridge end (``bent_xy``: their coordinates; ``bent_xy32``: the same rounded
+    to float32, one complex64 each), and ``bent_rank[p]`` how many of them come before
+    position p."""
 
     sx: np.ndarray
     sy: np.ndarray
@@ -78,6 +79,7 @@ class Sequences:
     proven: np.ndarray
     bent: np.ndarray
     bent_xy: np.ndarray
+    bent_xy32: np.ndarray
     bent_rank: np.ndarray
     runs: RunBoxes | None = None
 
@@ -137,9 +139,12 @@ class Sequences:
         bent_rank = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(bent_at, out=bent_rank[1:])
         bent = np.flatnonzero(bent_at)
+        bent_xy = xy[bent]
+        with np.errstate(over="ignore"):  # beyond float32's range: +-inf, still in order
+            bent_xy32 = bent_xy.astype(np.float32).view(np.complex64).ravel()
         return cls(
             sx, sy, xy, twin, extent_x, extent_y, table, exact, starts, proven_at, bent,
-            xy[bent], bent_rank,
+            bent_xy, bent_xy32, bent_rank,
         )  # fmt: skip
 
 
@@ -400,18 +405,23 @@ def _bent_in_triangle(
     index = ragged_index(first, count)
     if not len(index):
         return bad, found
-    pxy = np.take(seqs.bent_xy, index, axis=0)
-    px, py = pxy[:, 0], pxy[:, 1]
-    # the bent positions in the triangle's bounding box: both coordinates of a row within
-    low = np.repeat(np.minimum(np.minimum(corners[0], corners[1]), corners[2]), count, axis=0)
-    high = np.repeat(np.maximum(np.maximum(corners[0], corners[1]), corners[2]), count, axis=0)
+    # the bent positions in the triangle's bounding box, first in float32: rounding is
+    # monotone, so a point within the box is within it after rounding too (half the bytes
+    # of float64 per entry; the exact tests below decide)
+    with np.errstate(over="ignore"):
+        low = np.minimum(np.minimum(corners[0], corners[1]), corners[2]).astype(np.float32)
+        high = np.maximum(np.maximum(corners[0], corners[1]), corners[2]).astype(np.float32)
+    low = np.repeat(low.view(np.complex64).ravel(), count).view(np.float32)
+    high = np.repeat(high.view(np.complex64).ravel(), count).view(np.float32)
+    pxy = np.take(seqs.bent_xy32, index).view(np.float32)
     within = pxy >= low
     within &= pxy <= high
-    at = np.flatnonzero(within.view(np.uint16).ravel() == _BOTH)
+    at = np.flatnonzero(within.view(np.uint16) == _BOTH)
     if not len(at):
         return bad, found
     owner = np.repeat(np.arange(n, dtype=np.int64), count)[at]
-    qx, qy = px[at], py[at]
+    qxy = np.take(seqs.bent_xy, index[at], axis=0)
+    qx, qy = qxy[:, 0], qxy[:, 1]
     # a position at a corner's point (the candidate itself, a bridge end's twin) is neither
     # inside nor a failure: left out before any orientation (its signs are zeros)
     oax, oay = ax[owner], ay[owner]

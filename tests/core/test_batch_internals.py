@@ -227,3 +227,61 @@ def test_facing_known_zeros_equal_exact_signs(monkeypatch: pytest.MonkeyPatch) -
     exact = batch_bsp._facing(seqs, lo, hi, c)
     assert sum(cleared) > 100 and 0.05 < passed.mean() < 0.95
     assert np.array_equal(passed, exact)
+
+
+@pytest.mark.parametrize("scale", [1.0, 0.005, 1e100])
+def test_bent_vertices_in_triangle_equal_every_bent_vertex_tested(scale: float) -> None:
+    """``_bent_in_triangle`` (a box filter in float32, then exact signs) finds what testing
+    every bent position between lo and hi exactly finds, on bridged stars far from the
+    origin; at scale 0.005 (radius 0.5 m, float32 spacing 0.5 m there) float32 rounding
+    merges most coordinates and the filter passes them to the exact signs; at scale 1e100
+    every coordinate is beyond float32's range (infinite there, still in order)."""
+    from bsp_triangulate import batch_bsp
+    from bsp_triangulate.predicates import orient_many
+
+    rng = np.random.default_rng(53)
+    offset = np.array([512_345.678, 6_012_345.25])
+    parts = []
+    for _ in range(40):
+        seq, twin = bridged_star(rng, int(rng.integers(6, 30)), False)
+        parts.append(((seq - offset) * scale + offset, twin))
+    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+    seq = np.concatenate([p[0] for p in parts])
+    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
+    sx, sy = seq[:, 0].copy(), seq[:, 1].copy()
+    seqs = batch_bsp.Sequences.of(sx, sy, twin, starts, False, np.ones(len(parts), dtype=bool))
+    lo, hi, c = [], [], []
+    for (points, _), start in zip(parts, starts):
+        last = start + len(points) - 1
+        for low in range(start + 1, last - 1):
+            for high in range(low + 3, last + 1):
+                lo += [low] * (high - low - 1)
+                hi += [high] * (high - low - 1)
+                c += list(range(low + 1, high))
+    lo, hi, c = np.array(lo), np.array(hi), np.array(c)
+    ccw = orient_many(sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]) > 0
+    lo, hi, c = lo[ccw], hi[ccw], c[ccw]
+    bad, found = batch_bsp._bent_in_triangle(seqs, lo, hi, c)
+    # every bent position strictly between lo and hi, not at a corner's point
+    owner = np.repeat(np.arange(len(lo)), hi - lo - 1)
+    p = ragged_index(lo + 1, hi - lo - 1)
+    keep = seqs.proven[p] & np.isin(p, seqs.bent)
+    for corner in (hi, lo, c):
+        keep &= (sx[p] != sx[corner[owner]]) | (sy[p] != sy[corner[owner]])
+    owner, p = owner[keep], p[keep]
+    signs = np.stack(
+        [
+            orient_many(sx[u[owner]], sy[u[owner]], sx[v[owner]], sy[v[owner]], sx[p], sy[p])
+            for u, v in ((hi, lo), (lo, c), (c, hi))
+        ]
+    )
+    closed = np.bincount(owner[(signs >= 0).all(axis=0)], minlength=len(lo)) > 0
+    expected_bad = closed | batch_bsp._bridge_at_corner(seqs, lo, hi, c)
+    strictly = (signs > 0).all(axis=0)
+    expected_found = np.full(len(lo), len(sx))
+    np.minimum.at(expected_found, owner[strictly], p[strictly])
+    expected_found[expected_found == len(sx)] = -1
+    assert len(lo) > 20_000 and 0.05 < expected_bad.mean() < 0.95
+    assert (expected_found >= 0).sum() > 1_000
+    assert np.array_equal(bad, expected_bad)
+    assert np.array_equal(found, expected_found)
