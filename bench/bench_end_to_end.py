@@ -8,9 +8,9 @@ process, then with the per-triangle output to memory and to a GeoPackage),
 writing one feature per triangle) for reference. Times include
 qgis_process's start-up (first row). ``3d:tessellate`` and our four mesh-only runs come first,
 in three alternated rounds (one with ``--quick``), and each gives its best time; the runs that
-write large GeoPackages come after them, once each. Then a layer of building footprints (twice as many
-polygons, z from the geometry): ``3d:tessellate`` and our mesh-only runs, alternated, best of
-three each. Peak memory adds the peaks of the worker processes to qgis_process's own.
+write large GeoPackages come after them, once each. Then a layer of building footprints (twice
+as many polygons, z from the geometry): ``3d:tessellate`` and our mesh-only runs, alternated,
+best of three each. Peak memory adds the peaks of the worker processes to qgis_process's own.
 
 Usage: python bench/bench_end_to_end.py [--quick]
 """
