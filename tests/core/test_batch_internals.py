@@ -125,6 +125,32 @@ def bridged_star(rng: np.random.Generator, count: int, grid: bool) -> tuple:
     return seq, twin
 
 
+def laid_out(parts: list, exact: bool, proven: np.ndarray | None = None) -> tuple:
+    """Parts as (points, twin) laid out one after another as the batch path lays out its
+    sequences: (starts, ``Sequences``)."""
+    from bsp_triangulate import batch_bsp
+
+    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+    seq = np.concatenate([p[0] for p in parts])
+    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
+    sx, sy = seq[:, 0].copy(), seq[:, 1].copy()
+    return starts, batch_bsp.Sequences.of(sx, sy, twin, starts, exact, proven)
+
+
+def every_candidate(parts: list, starts: np.ndarray, smallest: int) -> tuple:
+    """(lo, hi, c) of every candidate c of every sub-polygon [lo, hi] with hi - lo at least
+    ``smallest`` of the laid-out parts, by lo, then hi, then c."""
+    lo, hi, c = [], [], []
+    for (points, _), start in zip(parts, starts):
+        last = start + len(points) - 1
+        for low in range(start + 1, last - 1):
+            for high in range(low + smallest, last + 1):
+                lo += [low] * (high - low - 1)
+                hi += [high] * (high - low - 1)
+                c += list(range(low + 1, high))
+    return np.array(lo, dtype=np.int64), np.array(hi, dtype=np.int64), np.array(c, dtype=np.int64)
+
+
 @pytest.mark.parametrize("grid", [True, False])
 def test_runs_decide_like_the_whole_table(grid: bool) -> None:
     from bsp_triangulate import batch_bsp
@@ -132,11 +158,8 @@ def test_runs_decide_like_the_whole_table(grid: bool) -> None:
 
     rng = np.random.default_rng(41)
     parts = [bridged_star(rng, int(rng.integers(70, 200)), grid) for _ in range(30)]
-    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
-    seq = np.concatenate([p[0] for p in parts])
-    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
-    sx, sy = seq[:, 0].copy(), seq[:, 1].copy()
-    seqs = batch_bsp.Sequences.of(sx, sy, twin, starts, grid)
+    starts, seqs = laid_out(parts, grid)
+    sx, sy, twin = seqs.sx, seqs.sy, seqs.twin
     # random sub-polygons [lo, hi] of more than 64 vertices and counter-clockwise candidates
     owner = rng.integers(0, len(parts), 20_000)
     length = np.array([len(p[0]) for p in parts])[owner]
@@ -164,16 +187,10 @@ def test_runs_decide_like_the_whole_table(grid: bool) -> None:
 def combs_and_stars(rng: np.random.Generator, combs: int, stars: int, wobble: float) -> tuple:
     """Near-collinear combs (5-24 vertices) and bridged stars (6-29 points) laid out as the
     batch path lays out sequences: (parts as (points, twin), starts, ``Sequences``)."""
-    from bsp_triangulate import batch_bsp
-
     rings = [near_collinear_polygon(rng, int(rng.integers(5, 25)), wobble)[0] for _ in range(combs)]
     parts = [(np.concatenate([r, r[:1]]), np.full(len(r) + 1, -1)) for r in rings]
     parts += [bridged_star(rng, int(rng.integers(6, 30)), False) for _ in range(stars)]
-    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
-    seq = np.concatenate([p[0] for p in parts])
-    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
-    seqs = batch_bsp.Sequences.of(seq[:, 0].copy(), seq[:, 1].copy(), twin, starts, False)
-    return parts, starts, seqs
+    return (parts, *laid_out(parts, False))
 
 
 @pytest.mark.parametrize("wobble", [0.0, 1e-15, 1e-12])
@@ -184,13 +201,8 @@ def test_ear_facing_equals_facing_on_near_collinear_combs(wobble: float) -> None
     from bsp_triangulate import batch_bsp
 
     parts, starts, seqs = combs_and_stars(np.random.default_rng(43), 40, 20, wobble)
-    lo, hi = [], []
-    for (points, _), start in zip(parts, starts):
-        last = start + len(points) - 1
-        for low in range(start + 1, last - 1):
-            lo += [low] * (last - low - 1)
-            hi += list(range(low + 2, last + 1))
-    lo, hi = np.array(lo), np.array(hi)
+    lo, hi, c = every_candidate(parts, starts, 2)
+    lo, hi = lo[c == hi - 1], hi[c == hi - 1]
     passed = batch_bsp._facing_ear(seqs, lo, hi)
     assert 0.05 < passed.mean() < 0.95
     assert np.array_equal(passed, batch_bsp._facing(seqs, lo, hi, hi - 1))
@@ -204,15 +216,7 @@ def test_facing_known_zeros_equal_exact_signs(monkeypatch: pytest.MonkeyPatch) -
     from bsp_triangulate import batch_bsp
 
     parts, starts, seqs = combs_and_stars(np.random.default_rng(47), 30, 30, 1e-15)
-    lo, hi, c = [], [], []
-    for (points, _), start in zip(parts, starts):
-        last = start + len(points) - 1
-        for low in range(start + 1, last - 1):
-            for high in range(low + 2, last + 1):
-                lo += [low] * (high - low - 1)
-                hi += [high] * (high - low - 1)
-                c += list(range(low + 1, high))
-    lo, hi, c = np.array(lo), np.array(hi), np.array(c)
+    lo, hi, c = every_candidate(parts, starts, 2)
     cleared = []
     drop = batch_bsp._drop_known_zeros
 
@@ -245,20 +249,9 @@ def test_bent_vertices_in_triangle_equal_every_bent_vertex_tested(scale: float) 
     for _ in range(40):
         seq, twin = bridged_star(rng, int(rng.integers(6, 30)), False)
         parts.append(((seq - offset) * scale + offset, twin))
-    starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
-    seq = np.concatenate([p[0] for p in parts])
-    twin = np.concatenate([np.where(p[1] >= 0, p[1] + s, -1) for p, s in zip(parts, starts)])
-    sx, sy = seq[:, 0].copy(), seq[:, 1].copy()
-    seqs = batch_bsp.Sequences.of(sx, sy, twin, starts, False, np.ones(len(parts), dtype=bool))
-    lo, hi, c = [], [], []
-    for (points, _), start in zip(parts, starts):
-        last = start + len(points) - 1
-        for low in range(start + 1, last - 1):
-            for high in range(low + 3, last + 1):
-                lo += [low] * (high - low - 1)
-                hi += [high] * (high - low - 1)
-                c += list(range(low + 1, high))
-    lo, hi, c = np.array(lo), np.array(hi), np.array(c)
+    starts, seqs = laid_out(parts, False, np.ones(len(parts), dtype=bool))
+    sx, sy = seqs.sx, seqs.sy
+    lo, hi, c = every_candidate(parts, starts, 3)
     ccw = orient_many(sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]) > 0
     lo, hi, c = lo[ccw], hi[ccw], c[ccw]
     bad, found = batch_bsp._bent_in_triangle(seqs, lo, hi, c)
