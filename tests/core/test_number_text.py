@@ -171,9 +171,7 @@ def test_bit_pattern_random_doubles_read_back(pattern):
 def test_decimals_of_up_to_15_digits_equal_repr(digits, decimals):
     value = digits / 10**decimals
     check_tokens([value])
-    assert significant_digits(repr(value)) > 15 or float_tokens(np.array([value])) == [
-        repr(value)
-    ]
+    assert significant_digits(repr(value)) > 15 or float_tokens(np.array([value])) == [repr(value)]
 
 
 @examples(200)
