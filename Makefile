@@ -41,6 +41,7 @@ pytest: venv
 
 lint: venv
 	$(PY) -m ruff check .
+	$(PY) -m ruff format --check .
 
 # QGIS from Debian when its Python bindings are missing; python3-venv, without which Debian's
 # python3 makes venvs without pip.
