@@ -674,8 +674,9 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
         passed[r:] = _facing_ear(seqs, lo[r:], hi[r:])
         apex[r:] -= ~passed[r:]
         going = np.flatnonzero(~passed & (apex > lo))
-        span = np.minimum(apex[going] - lo[going], _span_limit(lo, hi, going))
-        hit, found = _span_passing(seqs, lo, hi, block, going, apex[going], span)
+        large = hi[going] - lo[going] > _RUN_MIN
+        span = np.minimum(apex[going] - lo[going], np.where(large, _SPAN_LARGE, _SPAN))
+        hit, found = _span_passing(seqs, lo, hi, block, going, apex[going], span, large)
         passed[going] = hit
         apex[going] = np.where(hit, found, apex[going] - span)
     else:
@@ -687,11 +688,6 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     blocker = block.copy()
     _tables_of(seqs, lo, hi, np.flatnonzero(passed), apex, correct, blocker)
     return correct, apex, blocker
-
-
-def _span_limit(lo: np.ndarray, hi: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """Candidates tested per node and pass, at most."""
-    return np.where(hi[nodes] - lo[nodes] > _RUN_MIN, _SPAN_LARGE, _SPAN)
 
 
 def _tables_of(
@@ -726,11 +722,13 @@ def _span_passing(
     nodes: np.ndarray,
     top: np.ndarray,
     count: np.ndarray,
+    large: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_first_passing` of the ``nodes`` (nodes trying again) in two passes: a
     small sub-polygon's next candidate alone, then the rest of its span where that fails (the
-    next candidate passes for over half of them); a large sub-polygon's whole span at once."""
-    ahead = np.where(hi[nodes] - lo[nodes] > _RUN_MIN, count, 1)
+    next candidate passes for over half of them); a ``large`` sub-polygon's (tested run by
+    run) whole span at once."""
+    ahead = np.where(large, count, 1)
     passed, apex = _first_passing(seqs, lo, hi, block, nodes, top, ahead)
     more = np.flatnonzero(~passed & (count > ahead))
     if len(more):
