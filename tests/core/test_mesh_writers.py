@@ -190,21 +190,26 @@ def test_ascii_ply_float_and_negative_properties(tmp_path):
     ]
 
 
-class _FailingPool:
-    """A pool whose workers write their parts here, but fail the third (as a worker that
-    stops does), after the first two have been joined."""
+class _PartPool:
+    """A pool of two workers whose parts are written here: its call ``fail_call`` fails (as a
+    worker that stops does), and calls after ``refuse_after`` are refused (as a closed pool
+    refuses them)."""
 
     count = 2
 
-    def __init__(self) -> None:
+    def __init__(self, fail_call: int = 0, refuse_after: int | None = None) -> None:
         self.calls = 0
+        self.fail_call = fail_call
+        self.refuse_after = refuse_after
 
     def write_rows(self, path, kind, first, rows):
         from concurrent.futures import Future
 
         self.calls += 1
+        if self.refuse_after is not None and self.calls > self.refuse_after:
+            raise RuntimeError("cannot schedule new futures after shutdown")
         future = Future()
-        if self.calls == 3:
+        if self.calls == self.fail_call:
             future.set_exception(RuntimeError("the worker stopped"))
         else:
             mesh_module.write_rows(path, kind, first, rows)
@@ -212,51 +217,37 @@ class _FailingPool:
         return future
 
 
-def test_2dm_parts_that_fail_in_the_workers_are_written_here(tmp_path, monkeypatch):
-    """Where a worker fails its part of a 2DM, this process writes the whole file again: the
-    same bytes as without a pool, and no part file left."""
-    vertices = np.array([[0, 0, 1.5], [10, 0, 2.25], [10, 10, 3.125], [0, 10, 0.1], [5, 5, 9]])
-    faces = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
-    alone = write_2dm(tmp_path / "alone.2dm", vertices, faces)
+@pytest.fixture
+def parts_everywhere(monkeypatch):
+    """Every 2DM is written in parts where a pool is given (joined by copying where the
+    system has no in-kernel copy)."""
     monkeypatch.setattr(mesh_module, "PARALLEL_LINES", 0)
-    monkeypatch.setattr(mesh_module, "_KERNEL_COPY", True)  # joined by copying where not
-    pool = _FailingPool()
-    failed = write_2dm(tmp_path / "failed.2dm", vertices, faces, pool=pool)
+    monkeypatch.setattr(mesh_module, "_KERNEL_COPY", True)
+
+
+# a square fan of four faces around its centre
+_FAN_VERTICES = np.array([[0, 0, 1.5], [10, 0, 2.25], [10, 10, 3.125], [0, 10, 0.1], [5, 5, 9]])
+_FAN_FACES = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+
+
+def test_2dm_parts_that_fail_in_the_workers_are_written_here(tmp_path, parts_everywhere):
+    """Where a worker fails its part of a 2DM (the third, after the first two have been
+    joined), this process writes the whole file again: the same bytes as without a pool, and
+    no part file left."""
+    alone = write_2dm(tmp_path / "alone.2dm", _FAN_VERTICES, _FAN_FACES)
+    pool = _PartPool(fail_call=3)
+    failed = write_2dm(tmp_path / "failed.2dm", _FAN_VERTICES, _FAN_FACES, pool=pool)
     assert pool.calls >= 4
     assert failed[0].read_bytes() == alone[0].read_bytes()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["alone.2dm", "failed.2dm"]
 
 
-class _ClosedPool:
-    """A pool that takes two calls, then refuses more (as a closed pool does)."""
-
-    count = 2
-
-    def __init__(self) -> None:
-        self.calls = 0
-
-    def write_rows(self, path, kind, first, rows):
-        from concurrent.futures import Future
-
-        self.calls += 1
-        if self.calls > 2:
-            raise RuntimeError("cannot schedule new futures after shutdown")
-        mesh_module.write_rows(path, kind, first, rows)
-        future = Future()
-        future.set_result(None)
-        return future
-
-
-def test_2dm_with_a_pool_that_refuses_calls_is_written_here(tmp_path, monkeypatch):
-    """A pool that stops taking calls while the parts are handed out: this process writes
-    the file, and the parts already written are removed."""
-    vertices = np.array([[0, 0, 1.5], [10, 0, 2.25], [10, 10, 3.125], [0, 10, 0.1], [5, 5, 9]])
-    faces = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
-    alone = write_2dm(tmp_path / "alone.2dm", vertices, faces)
-    monkeypatch.setattr(mesh_module, "PARALLEL_LINES", 0)
-    monkeypatch.setattr(mesh_module, "_KERNEL_COPY", True)
-    pool = _ClosedPool()
-    refused = write_2dm(tmp_path / "refused.2dm", vertices, faces, pool=pool)
+def test_2dm_with_a_pool_that_refuses_calls_is_written_here(tmp_path, parts_everywhere):
+    """A pool that stops taking calls while the parts are handed out (after two): this
+    process writes the file, and the parts already written are removed."""
+    alone = write_2dm(tmp_path / "alone.2dm", _FAN_VERTICES, _FAN_FACES)
+    pool = _PartPool(refuse_after=2)
+    refused = write_2dm(tmp_path / "refused.2dm", _FAN_VERTICES, _FAN_FACES, pool=pool)
     assert pool.calls == 3
     assert refused[0].read_bytes() == alone[0].read_bytes()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["alone.2dm", "refused.2dm"]
