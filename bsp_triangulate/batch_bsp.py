@@ -209,9 +209,13 @@ def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> n
         # exact zeros: a is c + 1 (the candidate next to hi), b is c - 1
         unsure[1] &= c + 1 != hi
         unsure[4] &= c - 1 != lo
-        if unsure.any():
-            _drop_known_zeros(seqs, lo, hi, c, dx, dy, unsure)
-            if unsure.any():
+        items = np.flatnonzero(unsure.any(axis=0))
+        if len(items):
+            # few items, mostly at bridge ends: the known zeros are looked up for them alone
+            some = unsure[:, items]
+            _drop_known_zeros(seqs, lo[items], hi[items], c[items], d[:, items], some)
+            unsure[:, items] = some
+            if some.any():
                 _decide(seqs, lo, hi, c, unsure, positive, negative, _ALL_ROWS)
     turn = at_c[:, _TURN]
     after_next = ~negative[1:3]
@@ -229,16 +233,15 @@ def _drop_known_zeros(
     lo: np.ndarray,
     hi: np.ndarray,
     c: np.ndarray,
-    dx: np.ndarray,
-    dy: np.ndarray,
+    d: np.ndarray,
     unsure: np.ndarray,
 ) -> None:
     """Clears the ``unsure`` entries of :func:`_facing`'s determinants that are exactly 0
-    because their point is one of their line's points: c at a or at b (``dx``, ``dy``: a - c
-    and b - c, exactly 0 only there), or a or b the other position (twin) of the line's end
-    c + 1 or c - 1, a bridge end. These are most of the unsure entries in polygons with
+    because their point is one of their line's points: c at a or at b (``d``: a - c and b - c
+    as (x, y) pairs, exactly 0 only there), or a or b the other position (twin) of the line's
+    end c + 1 or c - 1, a bridge end. These are most of the unsure entries in polygons with
     islands, and :func:`_decide` would find them at a higher fixed cost."""
-    at_c = (dx == 0) & (dy == 0)
+    at_c = (d == 0).all(axis=2)
     unsure[0] &= ~(at_c[0] | at_c[1])
     unsure[1:3] &= ~at_c
     unsure[3:5] &= ~at_c
