@@ -1017,10 +1017,11 @@ def _extents(sx: np.ndarray, sy: np.ndarray, starts: np.ndarray) -> tuple[np.nda
 
 
 # rows of the open-node state (one column per node): sub-polygon [lo, hi], next candidate,
-# parent (pre-order index), depth, side, output row of the node, output row of its
-# sequence's first triangle, V1 at hi (1) or at lo (0), sequence, a position to test first
-# (or -1); an emitted node's first _RECORD rows (its apex in _CAND) are its output record
-_LO, _HI, _CAND, _PARENT, _DEPTH, _SIDE, _ROW, _FIRST, _AT_HI, _SEQ, _BLOCK = range(11)
+# parent (pre-order index), depth, side, output row of the node, V1 at hi (1) or at lo (0),
+# output row of its sequence's first triangle, sequence, a position to test first (or -1);
+# an emitted node's first _RECORD rows (its apex in _CAND) are its output record, and its
+# rows up to _AT_HI all that its emission reads
+_LO, _HI, _CAND, _PARENT, _DEPTH, _SIDE, _ROW, _AT_HI, _FIRST, _SEQ, _BLOCK = range(11)
 _RECORD = 6
 
 
@@ -1117,7 +1118,14 @@ def build_trees(
             found, apex, blocker = _first_correct(seqs, state)
             failed = ~found & (apex <= lo)
             retry = np.flatnonzero(~found & ~failed)
-        dead = state[_SEQ, failed] if failed.any() else None
+        if failed.any():
+            # a failed tree's other nodes leave: none is emitted or tried again
+            seq = state[_SEQ]
+            ok[seq[failed]] = False
+            alive = ok[seq]
+            found &= alive
+            if retry is not None:
+                retry = retry[alive[retry]]
         emit = np.flatnonzero(found)
         done = np.take(state, emit, axis=1)
         done[_CAND] = apex[emit]
@@ -1127,10 +1135,6 @@ def build_trees(
         if retry is None:
             retry, blocker = np.zeros(0, dtype=np.int64), apex
         state = _next_state(state, emit, done, apex, retry, blocker)
-        if dead is not None:
-            # a failed tree's other nodes leave
-            ok[dead] = False
-            state = state[:, ok[state[_SEQ]]]
     again = ~ok & seqs.proven[seq_start]
     # triangles (s_hi, s_lo, apex), (s_lo, s_hi, apex) where mirrored: counter-clockwise in
     # the output coordinates
