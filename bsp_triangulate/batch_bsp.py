@@ -1127,7 +1127,7 @@ def build_trees(
             if retry is not None:
                 retry = retry[alive[retry]]
         emit = np.flatnonzero(found)
-        done = np.take(state, emit, axis=1)
+        done = np.take(state[: _AT_HI + 1], emit, axis=1)
         done[_CAND] = apex[emit]
         emitted = np.empty((len(emit), _RECORD), dtype=record.dtype)
         emitted[...] = done[:_RECORD].T
