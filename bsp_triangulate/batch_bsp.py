@@ -404,7 +404,8 @@ def _bent_in_triangle(
     bad = _bridge_at_corner(seqs, lo, hi, c)
     found = np.full(n, -1, dtype=np.int64)
     first = seqs.bent_rank[lo + 1]
-    count = seqs.bent_rank[hi] - first
+    # an ear's range ends before its candidate hi - 1, a corner (bent in most tests)
+    count = seqs.bent_rank[np.where(c == hi - 1, c, hi)] - first
     index = ragged_index(first, count)
     if not len(index):
         return bad, found
