@@ -187,10 +187,10 @@ def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> n
     strictly left of the chord s_hi -> s_lo) and 4 (the interior angle at c)."""
     n = len(c)
     at_c = seqs.rows_at(c)
-    # d[0] = a - c, d[1] = b - c (a = s_hi, b = s_lo), as (x, y) pairs
-    d = np.take(seqs.xy, np.stack([hi, lo]), axis=0)
-    d -= at_c[:, :2]
-    dx, dy = d[:, :, 0], d[:, :, 1]
+    # dx[0], dy[0] = a - c, dx[1], dy[1] = b - c (a = s_hi, b = s_lo)
+    ab = np.take(seqs.xy, np.stack([hi, lo]), axis=0)
+    dx = ab[..., 0] - at_c[:, _X]
+    dy = ab[..., 1] - at_c[:, _Y]
     det = np.empty((5, n))
     # 0: orient(a, b, c) = (a - c) x (b - c); 1, 2: orient(c, c+1, t) = e_c x (t - c);
     # 3, 4: orient(c-1, c, t) = e_{c-1} x (t - c), t = a, b (each one float orientation with
@@ -213,18 +213,21 @@ def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> n
         if len(items):
             # few items, mostly at bridge ends: the known zeros are looked up for them alone
             some = unsure[:, items]
-            _drop_known_zeros(seqs, lo[items], hi[items], c[items], d[:, items], some)
+            near_x, near_y = dx[:, items], dy[:, items]
+            _drop_known_zeros(seqs, lo[items], hi[items], c[items], near_x, near_y, some)
             unsure[:, items] = some
             if some.any():
                 _decide(seqs, lo, hi, c, unsure, positive, negative, _ALL_ROWS)
     turn = at_c[:, _TURN]
-    after_next = ~negative[1:3]
-    after_prev = ~negative[3:5]
-    angle = np.where(
-        turn == 1.0,
-        after_next & after_prev,
-        np.where(turn == -1.0, after_next | after_prev, after_next | (turn == _SPIKE)),
-    )
+    # a and b not right of the edge after c, and not right of the edge before c: the angle
+    # holds them where c is a strict left turn if both hold, at a right turn if either
+    # does, where straight if the first does, and at a spike always
+    angle = ~negative[1:3]
+    before = ~negative[3:5]
+    angle &= before | (turn != 1.0)
+    before &= turn == -1.0
+    angle |= before
+    angle |= turn == _SPIKE
     return positive[0] & angle[0] & angle[1]
 
 
@@ -233,15 +236,16 @@ def _drop_known_zeros(
     lo: np.ndarray,
     hi: np.ndarray,
     c: np.ndarray,
-    d: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
     unsure: np.ndarray,
 ) -> None:
     """Clears the ``unsure`` entries of :func:`_facing`'s determinants that are exactly 0
-    because their point is one of their line's points: c at a or at b (``d``: a - c and b - c
-    as (x, y) pairs, exactly 0 only there), or a or b the other position (twin) of the line's
-    end c + 1 or c - 1, a bridge end. These are most of the unsure entries in polygons with
+    because their point is one of their line's points: c at a or at b (``dx``, ``dy``: a - c
+    and b - c, exactly 0 only there), or a or b the other position (twin) of the line's end
+    c + 1 or c - 1, a bridge end. These are most of the unsure entries in polygons with
     islands, and :func:`_decide` would find them at a higher fixed cost."""
-    at_c = (d == 0).all(axis=2)
+    at_c = (dx == 0) & (dy == 0)
     unsure[0] &= ~(at_c[0] | at_c[1])
     unsure[1:3] &= ~at_c
     unsure[3:5] &= ~at_c

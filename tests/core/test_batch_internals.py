@@ -220,9 +220,9 @@ def test_facing_known_zeros_equal_exact_signs(monkeypatch: pytest.MonkeyPatch) -
     cleared = []
     drop = batch_bsp._drop_known_zeros
 
-    def counting(seqs, lo, hi, c, d, unsure):
+    def counting(seqs, lo, hi, c, dx, dy, unsure):
         before = int(unsure.sum())
-        drop(seqs, lo, hi, c, d, unsure)
+        drop(seqs, lo, hi, c, dx, dy, unsure)
         cleared.append(before - int(unsure.sum()))
 
     monkeypatch.setattr(batch_bsp, "_drop_known_zeros", counting)
