@@ -1115,10 +1115,11 @@ def build_trees(
     # rows are written as they are emitted; a sequence that fails is not read
     while state.shape[1]:
         lo = state[_LO]
-        retry = None
         if exhaustive:
             found, apex = _elevation_apex(seqs, sz, state)
             failed = ~found
+            # no node tries again: the rule tested all its candidates
+            retry, blocker = np.zeros(0, dtype=np.int64), apex
         else:
             found, apex, blocker = _first_correct(seqs, state)
             failed = ~found & (apex <= lo)
@@ -1129,16 +1130,13 @@ def build_trees(
             ok[seq[failed]] = False
             alive = ok[seq]
             found &= alive
-            if retry is not None:
-                retry = retry[alive[retry]]
+            retry = retry[alive[retry]]
         emit = np.flatnonzero(found)
         done = np.take(state[: _AT_HI + 1], emit, axis=1)
         done[_CAND] = apex[emit]
         emitted = np.empty((len(emit), _RECORD), dtype=record.dtype)
         emitted[...] = done[:_RECORD].T
         records[done[_ROW]] = emitted.view(record_item).reshape(len(emit))
-        if retry is None:
-            retry, blocker = np.zeros(0, dtype=np.int64), apex
         state = _next_state(state, emit, done, apex, retry, blocker)
     again = ~ok & seqs.proven[seq_start]
     # triangles (s_hi, s_lo, apex), (s_lo, s_hi, apex) where mirrored: counter-clockwise in
