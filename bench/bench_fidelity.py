@@ -24,8 +24,8 @@ from common import SHARED_DATA, BudgetExceededError, Row, markdown_table, within
 from osgeo import gdal, ogr, osr
 
 from bsp_triangulate import triangulate_many
-from bsp_triangulate.densify import densify_rings
-from bsp_triangulate.raster_sampling import fill_along_ring, sample_grid
+from bsp_triangulate.terrain.densify import densify_rings
+from bsp_triangulate.terrain.raster_sampling import fill_along_ring, sample_grid
 
 SWELLENDAM = SHARED_DATA / "swellendam"
 DEM_PATH = SWELLENDAM / "srtm_41_19.tif"

@@ -27,7 +27,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bsp_triangulate.mesh import write_2dm, write_ply  # noqa: E402
+from bsp_triangulate.formats.mesh import write_2dm, write_ply  # noqa: E402
 
 _CHUNK_ROWS = 100_000
 OLD, NEW, PLY = "2DM old (%r)", "2DM number_text", "PLY binary"

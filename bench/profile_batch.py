@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from bsp_triangulate import TriangulationError, batch, batch_bsp, triangulate  # noqa: E402
-from bsp_triangulate.batch import triangulate_batch  # noqa: E402
+from bsp_triangulate.tree.batch import triangulate_batch  # noqa: E402
 
 FARMS = ROOT.parent / "shared" / "data" / "swellendam" / "farms_33S.shp"
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")

@@ -3,7 +3,7 @@
 Pure Python (numpy); no QGIS import anywhere in this package.
 """
 
-from .engine import triangulate, triangulate_many, triangulate_packed
+from .api import triangulate, triangulate_many, triangulate_packed
 from .packed import PackedPolygons, PackedTriangulations
 from .rules import RULES, ApexRule, get_rule, register_rule
 from .triangulation import Triangulation, TriangulationError

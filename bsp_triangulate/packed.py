@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .batch_rings import ragged_index, stack_rings
+from .geometry.rings_batch import ragged_index, stack_rings
 from .triangulation import Triangulation, TriangulationError
 
 

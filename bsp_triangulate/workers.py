@@ -2,7 +2,7 @@
 large layer uses every core.
 
 The engine is numpy code driven by Python, so one process uses one core. A
-:class:`WorkerPool` runs calls of :func:`~bsp_triangulate.engine.triangulate_packed` in other
+:class:`WorkerPool` runs calls of :func:`~bsp_triangulate.api.triangulate_packed` in other
 Python processes of the same version (this interpreter's own executable, found with
 :func:`python_interpreter`), each started once and fed one call after another through its
 standard input and output. Calls and results cross as pickles of plain arrays, so the results
@@ -281,7 +281,7 @@ def _triangulate(
     points: np.ndarray, ring_len: np.ndarray, ring_count: np.ndarray, options: dict
 ) -> tuple[tuple[np.ndarray, ...], dict[int, str]]:
     """Task "triangulate": the result's arrays and error messages, as plain values."""
-    from .engine import triangulate_packed
+    from .api import triangulate_packed
 
     result = triangulate_packed(PackedPolygons(points, ring_len, ring_count), **options)
     arrays = tuple(np.asarray(getattr(result, name)) for name in _RESULT_FIELDS)
@@ -290,7 +290,7 @@ def _triangulate(
 
 def _write_rows(path: str, kind: str, first: int, rows: np.ndarray) -> None:
     """Task "write_rows": a part of a 2DM file (``mesh.write_rows``)."""
-    from .mesh import write_rows
+    from .formats.mesh import write_rows
 
     write_rows(path, kind, first, rows)
 

@@ -18,7 +18,7 @@ from qgis.core import (
     QgsRectangle,
 )
 
-from ..bsp_triangulate.raster_sampling import PreparedGrid, fill_along_ring
+from ..bsp_triangulate.terrain.raster_sampling import PreparedGrid, fill_along_ring
 from .geometry_io import FeatureRings
 
 ELEVATION_NONE = 0

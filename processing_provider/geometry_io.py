@@ -7,9 +7,9 @@ from collections.abc import Iterable, Iterator
 import numpy as np
 from qgis.core import QgsFeature, QgsFeedback, QgsGeometry, QgsWkbTypes
 
-from ..bsp_triangulate.rings import working_axes
-from ..bsp_triangulate.validity import proven_valid
-from ..bsp_triangulate.wkb import polygon_table, polygons_from_wkb
+from ..bsp_triangulate.formats.wkb import polygon_table, polygons_from_wkb
+from ..bsp_triangulate.geometry.rings import working_axes
+from ..bsp_triangulate.geometry.validity import proven_valid
 
 INVALID_REPAIR = 0
 INVALID_FAIL = 1

@@ -35,10 +35,10 @@ from qgis.core import (
 from qgis.PyQt.QtCore import QMetaType, QVariant
 
 from ..bsp_triangulate import metrics
-from ..bsp_triangulate.batch_rings import ragged_index
-from ..bsp_triangulate.mesh import merge_meshes, write_2dm, write_ply
+from ..bsp_triangulate.formats.mesh import merge_meshes, write_2dm, write_ply
+from ..bsp_triangulate.formats.wkb import triangles_to_multipolygon_wkb
+from ..bsp_triangulate.geometry.rings_batch import ragged_index
 from ..bsp_triangulate.packed import PackedTriangulations
-from ..bsp_triangulate.wkb import triangles_to_multipolygon_wkb
 from ..bsp_triangulate.workers import WorkerPool
 from .geometry_io import FeatureRings
 
@@ -583,7 +583,7 @@ def merge_identical_vertices(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Vertices with identical x, y and z as one, in order of first appearance.
 
-    The same result as ``bsp_triangulate.mesh.merge_meshes`` (0.0 and -0.0 are equal, other
+    The same result as ``bsp_triangulate.formats.mesh.merge_meshes`` (0.0 and -0.0 are equal, other
     values compare by their bits), found by sorting one 64-bit hash per vertex instead of
     24-byte rows; every merge is checked on the full coordinates, and a hash collision between
     different vertices falls back to the exact row sort. ``vertices`` (the caller's own

@@ -38,7 +38,7 @@ from qgis.core import (
 from qgis.PyQt.QtCore import QCoreApplication
 from qgis.PyQt.QtGui import QIcon
 
-from ..bsp_triangulate.densify import densify_ring
+from ..bsp_triangulate.terrain.densify import densify_ring
 from . import elevation
 from .engine_runs import BatchJob, EngineOptions, EngineRunner
 from .geometry_io import INVALID_AS_GIVEN, FeatureRings, feature_batches

@@ -16,13 +16,14 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from bsp_triangulate import predicates, triangulate
-from bsp_triangulate.bridges import bridge_islands, remove_spikes, split_touching
-from bsp_triangulate.engine import _edge_blocks, _Tree, facing_one
-from bsp_triangulate.predicates import ring_area_sign
-from bsp_triangulate.rings import normalise_rings, prepare
+from bsp_triangulate import triangulate
+from bsp_triangulate.geometry import predicates
+from bsp_triangulate.geometry.bridges import bridge_islands, remove_spikes, split_touching
+from bsp_triangulate.geometry.predicates import ring_area_sign
+from bsp_triangulate.geometry.rings import normalise_rings, prepare
+from bsp_triangulate.geometry.spatial_index import ChainBoxes
 from bsp_triangulate.rules import get_rule
-from bsp_triangulate.spatial_index import ChainBoxes
+from bsp_triangulate.tree.one_polygon import _edge_blocks, _Tree, facing_one
 
 from .checks import check_triangulation
 from .random_polygons import random_polygon

@@ -20,11 +20,11 @@ from bsp_triangulate import (
     triangulate_many,
     triangulate_packed,
 )
-from bsp_triangulate.batch import MID_MIN_COUNT
+from bsp_triangulate.tree.batch import MID_MIN_COUNT
 
 from ..conftest import SHARED_DATA
 from .random_polygons import random_polygon, with_z
-from .test_batch import farm_polygons, first_differing_field, mid_size_polygons
+from .tree.test_batch import farm_polygons, first_differing_field, mid_size_polygons
 
 EARCUT = SHARED_DATA / "earcut" / "fixtures"
 

@@ -16,8 +16,8 @@ from bsp_triangulate.workers import WorkerCallError, WorkerError, WorkerPool, py
 
 from ..conftest import SHARED_DATA
 from .random_polygons import random_polygon, with_z
-from .test_batch import farm_polygons
 from .test_packed import as_arrays
+from .tree.test_batch import farm_polygons
 
 EARCUT = SHARED_DATA / "earcut" / "fixtures"
 FIELDS = ("vertices", "vertex_count", "triangles", "triangle_count", "parent", "depth", "side")
@@ -154,7 +154,7 @@ def test_workers_write_a_2dm_mesh_in_parts_byte_for_byte(tmp_path, monkeypatch) 
     """A 2DM mesh of the farms written by two workers in parts (every mesh is large enough
     here) is the file this process writes alone, with its face-value companion; no part
     file is left beside it."""
-    from bsp_triangulate import mesh
+    from bsp_triangulate.formats import mesh
 
     results = triangulate_packed(
         PackedPolygons.of(farm_polygons(5000)), on_error="return"

@@ -10,7 +10,7 @@ from tests.conftest import load_plugin_package
 
 load_plugin_package()
 
-from bsptriangulate.bsp_triangulate.raster_sampling import fill_along_ring  # noqa: E402
+from bsptriangulate.bsp_triangulate.terrain.raster_sampling import fill_along_ring  # noqa: E402
 from bsptriangulate.processing_provider import elevation  # noqa: E402
 from bsptriangulate.processing_provider.geometry_io import FeatureRings  # noqa: E402
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from qgis.core import QgsMesh, QgsMeshDatasetGroupMetadata, QgsMeshDatasetIndex, QgsMeshLayer
 
-from bsp_triangulate.mesh import merge_meshes, write_2dm, write_ply
+from bsp_triangulate.formats.mesh import merge_meshes, write_2dm, write_ply
 
 
 @pytest.fixture

@@ -9,7 +9,7 @@ from tests.conftest import load_plugin_package
 
 load_plugin_package()
 
-from bsptriangulate.bsp_triangulate.mesh import merge_meshes  # noqa: E402
+from bsptriangulate.bsp_triangulate.formats.mesh import merge_meshes  # noqa: E402
 from bsptriangulate.processing_provider.outputs import merge_identical_vertices  # noqa: E402
 
 

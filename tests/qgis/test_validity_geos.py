@@ -14,8 +14,8 @@ from tests.core.validity_cases import all_cases
 @pytest.fixture(scope="module")
 def proof():
     load_plugin_package()
-    from bsptriangulate.bsp_triangulate.validity import proven_valid
-    from bsptriangulate.bsp_triangulate.wkb import polygon_table
+    from bsptriangulate.bsp_triangulate.formats.wkb import polygon_table
+    from bsptriangulate.bsp_triangulate.geometry.validity import proven_valid
 
     def proven(wkbs: list[bytes]) -> np.ndarray:
         return proven_valid(polygon_table(wkbs), np.ones(len(wkbs), dtype=bool))

@@ -22,9 +22,9 @@ from fractions import Fraction
 
 import numpy as np
 
-from .batch_predicates import crossing, orient_items, orient_rows, row_bound
-from .batch_rings import ragged_index
-from .predicates import CCW_ERRBOUND, grid_exact, orient_many, strictly_between
+from ..geometry.predicates import CCW_ERRBOUND, grid_exact, orient_many, strictly_between
+from ..geometry.predicates_batch import crossing, orient_items, orient_rows, row_bound
+from ..geometry.rings_batch import ragged_index
 
 # test items x sub-polygon vertices per numpy pass: tables of about 1 MB stay in the cache
 _CHUNK_ELEMENTS = 1 << 17

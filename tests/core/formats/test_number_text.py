@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from bsp_triangulate.number_text import (
+from bsp_triangulate.formats.number_text import (
     float_field,
     float_tokens,
     int_field,

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 import pytest
 
-from bsp_triangulate.raster_sampling import PreparedGrid, world_to_pixel
+from bsp_triangulate.terrain.raster_sampling import PreparedGrid, world_to_pixel
 
 GT = (1000.0, 10.0, 0.0, 2000.0, 0.0, -10.0)
 

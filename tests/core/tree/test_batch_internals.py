@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bsp_triangulate.batch_rings import _band_pairs, ragged_index
+from bsp_triangulate.geometry.rings_batch import _band_pairs, ragged_index
 
 
 def reference_band_pairs(
@@ -72,7 +72,7 @@ def near_collinear_polygon(rng: np.random.Generator, count: int, wobble: float) 
 def batch_equals_engine(polygons: list) -> int:
     """Assert that every batch result equals the engine's; return how many were batched."""
     from bsp_triangulate import TriangulationError, triangulate
-    from bsp_triangulate.batch import triangulate_batch
+    from bsp_triangulate.tree.batch import triangulate_batch
 
     handled = 0
     for rings, mine in zip(polygons, triangulate_batch(polygons)):
@@ -128,7 +128,7 @@ def bridged_star(rng: np.random.Generator, count: int, grid: bool) -> tuple:
 def laid_out(parts: list, exact: bool, proven: np.ndarray | None = None) -> tuple:
     """Parts as (points, twin) laid out one after another as the batch path lays out its
     sequences: (starts, ``Sequences``)."""
-    from bsp_triangulate import batch_bsp
+    from bsp_triangulate.tree import lockstep as batch_bsp
 
     starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
     seq = np.concatenate([p[0] for p in parts])
@@ -153,8 +153,8 @@ def every_candidate(parts: list, starts: np.ndarray, smallest: int) -> tuple:
 
 @pytest.mark.parametrize("grid", [True, False])
 def test_runs_decide_like_the_whole_table(grid: bool) -> None:
-    from bsp_triangulate import batch_bsp
-    from bsp_triangulate.predicates import orient_many
+    from bsp_triangulate.geometry.predicates import orient_many
+    from bsp_triangulate.tree import lockstep as batch_bsp
 
     rng = np.random.default_rng(41)
     parts = [bridged_star(rng, int(rng.integers(70, 200)), grid) for _ in range(30)]
@@ -198,7 +198,7 @@ def test_ear_facing_equals_facing_on_near_collinear_combs(wobble: float) -> None
     """``_facing_ear`` (a node's first candidate hi - 1) decides like ``_facing`` on every
     sub-polygon [lo, hi] of combs whose vertices lie within rounding distance of the lines
     through others, and of bridged stars (bridge ends at the same point)."""
-    from bsp_triangulate import batch_bsp
+    from bsp_triangulate.tree import lockstep as batch_bsp
 
     parts, starts, seqs = combs_and_stars(np.random.default_rng(43), 40, 20, wobble)
     lo, hi, c = every_candidate(parts, starts, 2)
@@ -213,7 +213,7 @@ def test_facing_known_zeros_equal_exact_signs(monkeypatch: pytest.MonkeyPatch) -
     candidate is at a corner or a base end is the twin of the candidate's neighbour (bridged
     stars); on every candidate of every sub-polygon it decides as with every exact sign, on
     those stars and on combs whose other unsure determinants are not zero."""
-    from bsp_triangulate import batch_bsp
+    from bsp_triangulate.tree import lockstep as batch_bsp
 
     parts, starts, seqs = combs_and_stars(np.random.default_rng(47), 30, 30, 1e-15)
     lo, hi, c = every_candidate(parts, starts, 2)
@@ -240,8 +240,8 @@ def test_bent_vertices_in_triangle_equal_every_bent_vertex_tested(scale: float) 
     origin; at scale 0.005 (radius 0.5 m, float32 spacing 0.5 m there) float32 rounding
     merges most coordinates and the filter passes them to the exact signs; at scale 1e100
     every coordinate is beyond float32's range (infinite there, still in order)."""
-    from bsp_triangulate import batch_bsp
-    from bsp_triangulate.predicates import orient_many
+    from bsp_triangulate.geometry.predicates import orient_many
+    from bsp_triangulate.tree import lockstep as batch_bsp
 
     rng = np.random.default_rng(53)
     offset = np.array([512_345.678, 6_012_345.25])

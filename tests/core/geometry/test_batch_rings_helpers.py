@@ -8,7 +8,7 @@ import random
 import numpy as np
 import pytest
 
-from bsp_triangulate.batch_rings import (
+from bsp_triangulate.geometry.rings_batch import (
     _area_signs,
     _joined,
     _with_zero_z,
@@ -19,7 +19,7 @@ from bsp_triangulate.batch_rings import (
     stack_rings,
 )
 
-from .random_polygons import random_polygon
+from ..random_polygons import random_polygon
 
 MAX = 10_000
 

@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 
 from bsp_triangulate import TriangulationError, triangulate
-from bsp_triangulate.batch import MAX_VERTICES, MID_MIN_COUNT, MID_VERTICES, triangulate_batch
+from bsp_triangulate.tree.batch import MAX_VERTICES, MID_MIN_COUNT, MID_VERTICES, triangulate_batch
 
-from ..conftest import SHARED_DATA
-from .random_polygons import (
+from ...conftest import SHARED_DATA
+from ..random_polygons import (
     add_islands,
     is_valid,
     random_polygon,
@@ -266,7 +266,8 @@ def test_batch_equals_engine_on_swellendam_farms() -> None:
 def test_polygons_the_caller_proved_valid_skip_the_search_with_the_same_results(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    from bsp_triangulate import batch, triangulate_many
+    from bsp_triangulate import triangulate_many
+    from bsp_triangulate.tree import batch
 
     rnd = random.Random(31)
     valid = [random_polygon(rnd, islands=rnd.randint(0, 2)) for _ in range(40)]
@@ -351,7 +352,7 @@ class RestartLog:
     sequence) pairs."""
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
-        from bsp_triangulate import batch
+        from bsp_triangulate.tree import batch
 
         self.call = 0
         self.restarted: set[tuple[int, int]] = set()
@@ -374,7 +375,7 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
     a rejection agrees with the whole table, and a candidate it passes but the table rejects
     stops its tree, which is then built again with every table; all results equal the
     engine's."""
-    from bsp_triangulate import batch_bsp
+    from bsp_triangulate.tree import lockstep as batch_bsp
 
     counts = {"passed": 0, "rejected": 0, "passed ears": 0, "passed and bad": 0}
     wrong: set[tuple[int, int]] = set()
@@ -418,7 +419,7 @@ def test_rounds_of_many_nodes_equal_engine(family: str, monkeypatch: pytest.Monk
     ``_facing_ear`` and the others' spans with ``_facing``; a node whose first candidate
     fails the ear test goes on to its next ones in the same round. The ear test agrees with
     ``_facing`` item by item, and all results equal the engine's."""
-    from bsp_triangulate import batch_bsp
+    from bsp_triangulate.tree import lockstep as batch_bsp
 
     monkeypatch.setattr(batch_bsp, "_EAR_ROUND", 0)
     counts = {"ears": 0, "ears passed": 0, "spans": 0, "later apex at once": 0}
@@ -463,8 +464,9 @@ def test_trees_built_again_that_fail_are_left_to_the_engine(
     it is built; where that build does not complete either, the polygon leaves the batch
     results (to the engine), in the listed and the packed results alike, and the others are
     untouched."""
-    from bsp_triangulate import batch, engine
+    from bsp_triangulate import api
     from bsp_triangulate.packed import PackedPolygons
+    from bsp_triangulate.tree import batch
 
     polygons = concave_stars(random.Random(43), 300)
     log = RestartLog(monkeypatch)
@@ -483,7 +485,7 @@ def test_trees_built_again_that_fail_are_left_to_the_engine(
     assert sum(result is None for result in listed) == again
     problems, handled = mismatches(polygons)
     assert problems == [] and handled == len(polygons) - again
-    packed = engine.triangulate_packed(PackedPolygons.of(polygons))
+    packed = api.triangulate_packed(PackedPolygons.of(polygons))
     for rings, result in zip(polygons, packed.to_list()):
         assert first_differing_field(result, triangulate(rings)) is None
 

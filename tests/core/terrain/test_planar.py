@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bsp_triangulate.planar import snap_to_plane
+from bsp_triangulate.terrain.planar import snap_to_plane
 
 
 def _plane_residual(rings: list[np.ndarray]) -> float:

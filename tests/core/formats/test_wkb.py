@@ -10,9 +10,13 @@ import pytest
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
 
-from bsp_triangulate.wkb import polygons_from_wkb, triangles_to_multipolygon_wkb, triangles_to_wkb
+from bsp_triangulate.formats.wkb import (
+    polygons_from_wkb,
+    triangles_to_multipolygon_wkb,
+    triangles_to_wkb,
+)
 
-SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+SHARED_DATA = Path(__file__).resolve().parents[3].parent / "shared" / "data"
 SQUARE_WITH_HOLE = Polygon(
     [(0, 0, 1), (10, 0, 2), (10, 10, 3), (0, 10, 4)],
     [[(2, 2, 5), (2, 4, 6), (4, 4, 7), (4, 2, 8)]],

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bsp_triangulate import mesh as mesh_module
-from bsp_triangulate.mesh import merge_meshes, write_2dm, write_face_dat, write_ply
+from bsp_triangulate.formats import mesh as mesh_module
+from bsp_triangulate.formats.mesh import merge_meshes, write_2dm, write_face_dat, write_ply
 
 SQUARE = (
     np.array([[0, 0, 1.5], [10, 0, 2.25], [10, 10, 3.125], [0, 10, 0.1]]),

@@ -9,10 +9,10 @@ import heapq
 
 import numpy as np
 
+from ..triangulation import TriangulationError
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
 from .spatial_index import PointColumns, SegmentGrid
-from .triangulation import TriangulationError
 
 # relative margin within which float squared distances are re-compared exactly
 _DISTANCE_MARGIN = 1e-9

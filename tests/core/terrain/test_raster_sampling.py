@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bsp_triangulate.raster_sampling import fill_along_ring, sample_grid, world_to_pixel
+from bsp_triangulate.terrain.raster_sampling import fill_along_ring, sample_grid, world_to_pixel
 
 SRTM = (
-    Path(__file__).resolve().parents[2].parent / "shared" / "data" / "swellendam" / "srtm_41_19.tif"
+    Path(__file__).resolve().parents[3].parent / "shared" / "data" / "swellendam" / "srtm_41_19.tif"
 )
 GT = (1000.0, 10.0, 0.0, 2000.0, 0.0, -10.0)  # 10 m cells, top-left corner at (1000, 2000)
 

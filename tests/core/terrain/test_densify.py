@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from bsp_triangulate.densify import densify_ring, densify_rings
+from bsp_triangulate.terrain.densify import densify_ring, densify_rings
 
 SQUARE = np.array([[0, 0, 0], [10, 0, 10], [10, 10, 10], [0, 10, 0]], dtype=float)
 

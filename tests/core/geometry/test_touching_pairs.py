@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bsp_triangulate.bridges import _ring_edges, _touching_pairs
-from bsp_triangulate.predicates import orient_exact, strictly_between_one
+from bsp_triangulate.geometry.bridges import _ring_edges, _touching_pairs
+from bsp_triangulate.geometry.predicates import orient_exact, strictly_between_one
 
 
 def _all_pairs(x: np.ndarray, y: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> set:

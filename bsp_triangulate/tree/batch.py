@@ -31,9 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .batch_bridges import bridge_sequences
-from .batch_bsp import Trees, build_trees
-from .batch_rings import (
+from ..geometry.bridges_batch import bridge_sequences
+from ..geometry.rings_batch import (
     FlatRings,
     as_xyz,
     clear_area,
@@ -42,9 +41,10 @@ from .batch_rings import (
     ragged_index,
     touching_polygons,
 )
-from .packed import PackedPolygons, PackedTriangulations, Piece
-from .triangulation import Triangulation
-from .validity import proven_valid_rings
+from ..geometry.validity import proven_valid_rings
+from ..packed import PackedPolygons, PackedTriangulations, Piece
+from ..triangulation import Triangulation
+from .lockstep import Trees, build_trees
 
 # Larger polygons go to the engine (its grid index beats the all-edges tests there)...
 MAX_VERTICES = 256

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..triangulation import TriangulationError
 from .predicates import ring_area_sign
-from .triangulation import TriangulationError
 
 
 def ring_label(ring_number: int) -> str:

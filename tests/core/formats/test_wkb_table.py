@@ -9,8 +9,8 @@ import pytest
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
 
-from bsp_triangulate.wkb import polygon_table, polygons_from_wkb
-from tests.core.test_wkb import SHARED_DATA, SQUARE_WITH_HOLE
+from bsp_triangulate.formats.wkb import polygon_table, polygons_from_wkb
+from tests.core.formats.test_wkb import SHARED_DATA, SQUARE_WITH_HOLE
 
 
 def _ring(points: list[tuple[float, ...]], endian: str = "<") -> bytes:

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .batch_predicates import crossing, orient_items
-from .batch_rings import FlatRings, covers_in_order, ragged_index
 from .predicates import strictly_between
+from .predicates_batch import crossing, orient_items
+from .rings_batch import FlatRings, covers_in_order, ragged_index
 
 # relative margin within which two squared distances count as a tie (left to the engine)
 _TIE = 1e-12

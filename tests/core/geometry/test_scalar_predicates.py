@@ -10,14 +10,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bsp_triangulate.engine import facing_candidates, facing_one, pair_fails, pairs_failing
-from bsp_triangulate.predicates import (
+from bsp_triangulate.geometry.predicates import (
     orient,
     orient_exact,
     orient_float,
     orient_many,
     strictly_between,
     strictly_between_one,
+)
+from bsp_triangulate.tree.one_polygon import (
+    facing_candidates,
+    facing_one,
+    pair_fails,
+    pairs_failing,
 )
 
 SCALES = [1.0, 0.1, 1e-9 / 3, 1e15]

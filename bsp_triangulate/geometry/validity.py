@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .batch_rings import covers_in_order
+from ..formats.wkb import PolygonTable
 from .predicates import CCW_ERRBOUND
-from .wkb import PolygonTable
+from .rings_batch import covers_in_order
 
 # Coordinates beyond this stay finite in every product below.
 _LARGEST = 1e150

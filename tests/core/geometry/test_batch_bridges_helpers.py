@@ -7,10 +7,10 @@ import random
 
 import numpy as np
 
-from bsp_triangulate.batch_bridges import _Edges, _leftmost, traversal_ids
-from bsp_triangulate.batch_rings import flatten_rings
+from bsp_triangulate.geometry.bridges_batch import _Edges, _leftmost, traversal_ids
+from bsp_triangulate.geometry.rings_batch import flatten_rings
 
-from .random_polygons import random_polygon
+from ..random_polygons import random_polygon
 
 
 def flat_and_working_x(polygons: list):

@@ -7,9 +7,9 @@ import warnings
 import numpy as np
 import shapely
 
-from bsp_triangulate.batch_rings import flatten_rings, touching_polygons
-from bsp_triangulate.validity import proven_valid, proven_valid_rings
-from bsp_triangulate.wkb import polygon_table
+from bsp_triangulate.formats.wkb import polygon_table
+from bsp_triangulate.geometry.rings_batch import flatten_rings, touching_polygons
+from bsp_triangulate.geometry.validity import proven_valid, proven_valid_rings
 from tests.core.validity_cases import all_cases, footprint_cases, special_cases, star_cases
 
 

@@ -1,0 +1,157 @@
+"""The public entry points: one polygon, many polygons, packed polygons.
+
+Many polygons go to the lock-step batch builder (:mod:`.tree.batch`) where it decides them
+exactly; the rest, and every single polygon, to the one-polygon builder
+(:mod:`.tree.one_polygon`). Both give the same triangles (``docs/architecture.md``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .geometry.rings import normalise_rings
+from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
+from .rules import get_rule
+from .tree.one_polygon import _as_given, _triangulate
+from .triangulation import Triangulation, TriangulationError
+
+
+def triangulate(
+    rings: Sequence[object],
+    *,
+    rule: str = "first",
+    planar_tolerance: float = 0.0,
+    invalid: str = "fail",
+) -> Triangulation:
+    """Triangulate one polygon given as ``[outer ring, island, ...]`` (points (x, y[, z])).
+
+    Degenerate input (zero area, fewer than 3 distinct points, or an area that is zero to
+    within double rounding) gives an empty result. A polygon that has no correct triangle on
+    some base (a self-intersecting ring, crossing rings) raises :class:`TriangulationError`
+    naming the ring with ``invalid="fail"``. With ``invalid="as_given"`` it is triangulated
+    anyway, as earcut does with such input: where no correct triangle exists the apex is
+    chosen so that the triangles' areas still add up to the polygon's (zero-area triangles
+    drop pinches and zero-width spikes; triangles may overlap); where crossing rings make that
+    impossible, the polygon is repaired (shapely's make_valid) and its valid parts are
+    triangulated, the crossing points becoming vertices.
+    """
+    # overflow in float filters only routes values to the exact path
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        return _triangulate(rings, rule=rule, planar_tolerance=planar_tolerance, invalid=invalid)
+
+
+def triangulate_many(
+    polygons: Sequence[Sequence[object]],
+    *,
+    rule: str = "first",
+    planar_tolerance: float = 0.0,
+    on_error: str = "raise",
+    invalid: str = "fail",
+    proven: Sequence[bool] | None = None,
+) -> list:
+    """Triangulate many polygons; results in input order, equal to :func:`triangulate`'s.
+
+    Small polygons go through the vectorised batch path (``batch.py``), the rest through the
+    engine one by one. With ``on_error="return"`` a polygon that fails gets its
+    ``TriangulationError`` in its slot instead of stopping the batch. ``proven``: per
+    polygon, True where ``validity.proven_valid`` has proven it valid (it spares the batch
+    path its own search for touching rings).
+    """
+    polygons = list(polygons)
+    _check_many_options(rule, invalid, on_error, proven, len(polygons))
+    results: list = [None] * len(polygons)
+    if planar_tolerance <= 0 and len(polygons) > 1:
+        # many small polygons in lock-step; it leaves (None) what it does not decide exactly
+        from .tree.batch import triangulate_batch
+
+        try:
+            results = list(triangulate_batch(polygons, rule, proven=proven))
+        except (ArithmeticError, ValueError, TypeError):
+            # malformed or non-finite input broke the lock-step path: batch only the polygons
+            # that normalise, the engine names the ring of the others
+            results = _batch_well_formed(polygons, rule, triangulate_batch)
+    for index, rings in enumerate(polygons):
+        done = results[index]
+        if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
+            if isinstance(done, TriangulationError) and on_error == "raise":
+                raise done
+            continue
+        results[index] = _engine_result(rings, rule, planar_tolerance, invalid, on_error)
+    return results
+
+
+def _check_many_options(
+    rule: str, invalid: str, on_error: str, proven: Sequence[bool] | None, count: int
+) -> None:
+    """The options of :func:`triangulate_many` and :func:`triangulate_packed`, or ValueError."""
+    if on_error not in ("raise", "return"):
+        raise ValueError(f"on_error must be 'raise' or 'return', not {on_error!r}")
+    get_rule(rule)
+    _as_given(invalid)
+    if proven is not None and len(proven) != count:
+        raise ValueError(f"proven has {len(proven)} flags for {count} polygons")
+
+
+def _engine_result(
+    rings: Sequence[object], rule: str, planar_tolerance: float, invalid: str, on_error: str
+) -> Triangulation | TriangulationError:
+    """:func:`triangulate` of one polygon of many: its error is returned (``on_error`` is
+    "return") or raised."""
+    try:
+        return triangulate(rings, rule=rule, planar_tolerance=planar_tolerance, invalid=invalid)
+    except TriangulationError as exc:
+        if on_error == "raise":
+            raise
+        return exc
+
+
+def triangulate_packed(
+    polygons: PackedPolygons,
+    *,
+    rule: str = "first",
+    planar_tolerance: float = 0.0,
+    on_error: str = "raise",
+    invalid: str = "fail",
+    proven: Sequence[bool] | None = None,
+) -> PackedTriangulations:
+    """:func:`triangulate_many` of packed polygons, with packed results: the same vertices,
+    triangles and trees, in flat arrays (no object per polygon). A polygon that fails with
+    ``on_error="return"`` has no vertices or triangles and its error in ``errors``."""
+    _check_many_options(rule, invalid, on_error, proven, len(polygons))
+    pieces: list[Piece] = []
+    if planar_tolerance <= 0 and len(polygons) > 1:
+        from .tree.batch import triangulate_batch_packed
+
+        try:
+            pieces = triangulate_batch_packed(polygons, rule, proven=proven)
+        except (ArithmeticError, ValueError, TypeError):
+            pieces = []  # the engine takes every polygon and names what is wrong
+    decided = np.zeros(len(polygons), dtype=bool)
+    for piece in pieces:
+        decided[piece.index] = True
+    errors: dict[int, TriangulationError] = {}
+    for index in np.flatnonzero(~decided).tolist():
+        rings = polygons.rings(index)
+        result = _engine_result(rings, rule, planar_tolerance, invalid, on_error)
+        if isinstance(result, TriangulationError):
+            errors[index] = result
+        else:
+            pieces.append(Piece.of(index, result))
+    return assemble(len(polygons), pieces, errors)
+
+
+def _batch_well_formed(polygons: list, rule: str, batch) -> list:
+    """Batch results for the polygons whose rings normalise; None (engine) for the others."""
+    good = []
+    for index, rings in enumerate(polygons):
+        try:
+            normalise_rings(rings)
+        except TriangulationError:
+            continue
+        good.append(index)
+    results: list = [None] * len(polygons)
+    for index, result in zip(good, batch([polygons[i] for i in good], rule)):
+        results[index] = result
+    return results

@@ -1,0 +1,1 @@
+"""Input and output formats: WKB in, mesh files and number text out."""

@@ -1,0 +1,1 @@
+"""Exact predicates, rings, bridges, validity and the spatial indexes."""

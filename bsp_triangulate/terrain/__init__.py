@@ -1,0 +1,1 @@
+"""Elevation helpers: raster sampling, planar snapping, densification."""
