@@ -1,0 +1,116 @@
+"""Checks of written 3D models shared by the core and QGIS tests: the Khronos glTF Validator
+(npm package ``gltf-validator``, installed on first use into build/node), trimesh read-back,
+and the closed-solid edge check.
+
+Import the fixture into a test module with ``from tests.model_checks import gltf_validator``.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import ROOT
+
+NODE_PREFIX = ROOT / "build" / "node"
+VALIDATOR_PACKAGE = "gltf-validator@2.0.0-dev.3.10"
+VALIDATE_SCRIPT = Path(__file__).resolve().parent / "tools" / "validate_gltf.js"
+NPM_TIMEOUT_S = 300
+
+
+def _install_validator() -> str | None:
+    """Install the validator into build/node once (idempotent); the reason when it cannot."""
+    node, npm = shutil.which("node"), shutil.which("npm")
+    if node is None or npm is None:
+        return "node and npm are needed for the Khronos glTF Validator (npm gltf-validator)"
+    if (NODE_PREFIX / "node_modules" / "gltf-validator" / "package.json").is_file():
+        return None
+    NODE_PREFIX.mkdir(parents=True, exist_ok=True)
+    try:
+        proc = subprocess.run(
+            [npm, "install", "--no-save", "--prefix", str(NODE_PREFIX), VALIDATOR_PACKAGE],
+            capture_output=True,
+            text=True,
+            timeout=NPM_TIMEOUT_S,
+            stdin=subprocess.DEVNULL,
+        )
+    except (OSError, subprocess.TimeoutExpired) as error:
+        return f"npm install {VALIDATOR_PACKAGE} failed: {error}"
+    if proc.returncode != 0:
+        return f"npm install {VALIDATOR_PACKAGE} failed: {proc.stderr[-500:]}"
+    return None
+
+
+Validate = Callable[[Sequence[Path]], list[dict]]
+
+
+@pytest.fixture(scope="session")
+def gltf_validator() -> Validate:
+    """``validate(paths)``: one report (``errors``, ``warnings``, ``messages``) per file."""
+    reason = _install_validator()
+    if reason is not None:
+        pytest.skip(reason)
+
+    def validate(paths: Sequence[Path]) -> list[dict]:
+        proc = subprocess.run(
+            ["node", str(VALIDATE_SCRIPT), str(NODE_PREFIX / "node_modules"), *map(str, paths)],
+            capture_output=True,
+            text=True,
+            timeout=NPM_TIMEOUT_S,
+            stdin=subprocess.DEVNULL,
+        )
+        assert proc.returncode == 0, proc.stderr
+        reports = [json.loads(line) for line in proc.stdout.splitlines() if line.strip()]
+        assert len(reports) == len(paths), proc.stdout
+        return reports
+
+    return validate
+
+
+def assert_valid_gltf(validate: Validate, *paths: Path) -> None:
+    for report in validate(paths):
+        assert report["errors"] == 0, report
+
+
+def trimesh_read(path: Path):
+    """The model as one trimesh mesh (node transforms applied), vertices as written."""
+    import trimesh
+
+    loaded = trimesh.load(str(path), process=False)
+    if isinstance(loaded, trimesh.Scene):
+        return loaded.to_geometry() if hasattr(loaded, "to_geometry") else loaded.dump(True)
+    return loaded
+
+
+def directed_edges(triangles: np.ndarray) -> np.ndarray:
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    return np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+
+
+def closed_and_oriented(triangles: np.ndarray) -> bool:
+    """Every edge used exactly twice, once in each direction (by vertex index)."""
+    edges = directed_edges(triangles)
+    if not len(edges):
+        return False
+    # each directed edge once, and its reverse present
+    keys = np.unique(edges, axis=0, return_counts=True)
+    if (keys[1] != 1).any():
+        return False
+    forward = {tuple(edge) for edge in keys[0].tolist()}
+    return all((b, a) in forward for a, b in forward)
+
+
+def signed_volume(vertices: np.ndarray, triangles: np.ndarray) -> float:
+    """Volume enclosed by outward-oriented triangles (divergence theorem), about the centroid
+    of the vertices for accuracy."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    corners = vertices[np.asarray(triangles)] - vertices.mean(axis=0)
+    return float(
+        np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6.0
+    )
