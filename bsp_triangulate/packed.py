@@ -1,6 +1,6 @@
 """Many polygons and their triangulations as flat arrays, with no Python object per polygon.
 
-``PackedPolygons`` is the input of ``engine.triangulate_packed`` and ``PackedTriangulations``
+``PackedPolygons`` is the input of ``api.triangulate_packed`` and ``PackedTriangulations``
 its output: the same polygons and results as lists of rings and of :class:`Triangulation`,
 laid out one after another, so that a whole layer goes in and out with a few numpy arrays.
 """

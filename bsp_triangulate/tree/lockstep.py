@@ -1,7 +1,7 @@
 """The BSP tree of many bridged sequences in lock-step rounds (docs/algorithm.md, 3-5).
 
 Every open node (sub-polygon) of every polygon tests candidates in the same round; the tests
-are the engine's ``facing_candidates`` and ``correct_candidates`` over flat ragged arrays.
+are those of ``one_polygon.facing_candidates`` and ``correct_candidates`` over flat ragged arrays.
 Each node knows its pre-order index when it is created (a node on the range [lo, hi] has
 hi - lo - 1 triangles below and including it), so its record goes straight to its final row.
 
@@ -399,8 +399,8 @@ def _bent_in_triangle(
     These tests find most failures: any boundary inside an ear comes in across its only new
     side, and its vertex farthest from that side is bent (the part of the ear beyond it is
     interior). A triangle with two new sides can also be crossed by a notch of the exterior,
-    or a bridge, with no vertex inside: 0.5 % of the benchmark's concave stars are built
-    again.
+    or a bridge, with no vertex inside; such trees are rare, so building them again costs
+    little.
     """
     n = len(lo)
     corners = np.take(seqs.xy, np.stack([hi, lo, c]), axis=0)
