@@ -114,3 +114,46 @@ def signed_volume(vertices: np.ndarray, triangles: np.ndarray) -> float:
     return float(
         np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6.0
     )
+
+
+CITYJSON_SCHEMAS = ROOT.parent / "shared" / "data" / "cityjson" / "schemas"
+
+
+def cityjson_validator():
+    """A draft-07 validator of CityJSON 2.0 documents with the official schemas, their
+    ``$ref``s resolved from the shared folder (never fetched)."""
+    jsonschema = pytest.importorskip("jsonschema")
+    if not (CITYJSON_SCHEMAS / "cityjson.schema.json").is_file():
+        pytest.skip(f"the CityJSON schemas are not at {CITYJSON_SCHEMAS}")
+    store = {}
+    for path in CITYJSON_SCHEMAS.glob("*.schema.json"):
+        if ".min." in path.name:
+            continue
+        schema = json.loads(path.read_text(encoding="utf-8"))
+        store[schema["$id"]] = schema
+    root = json.loads((CITYJSON_SCHEMAS / "cityjson.schema.json").read_text(encoding="utf-8"))
+    resolver = jsonschema.RefResolver(root["$id"], root, store=store)
+    return jsonschema.Draft7Validator(root, resolver=resolver)
+
+
+def cityjson_solids(document: dict) -> list[tuple[str, list[list[int]]]]:
+    """(city object id, rings of one shell) for every shell of every Solid and MultiSolid."""
+    shells = []
+    for name, city_object in document["CityObjects"].items():
+        for geometry in city_object.get("geometry", []):
+            solids = {"Solid": [geometry["boundaries"]], "MultiSolid": geometry["boundaries"]}
+            for solid in solids.get(geometry["type"], []):
+                for shell in solid:
+                    rings = [ring for surface in shell for ring in surface]
+                    shells.append((name, rings))
+    return shells
+
+
+def ring_edges_closed(rings: list[list[int]]) -> bool:
+    """Every edge of the rings used exactly twice, once each way."""
+    edges = [(ring[i], ring[(i + 1) % len(ring)]) for ring in rings for i in range(len(ring))]
+    return (
+        len(edges) > 0
+        and len(set(edges)) == len(edges)
+        and all((b, a) in set(edges) for a, b in edges)
+    )
