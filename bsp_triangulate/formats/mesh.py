@@ -189,7 +189,10 @@ def write_2dm(
     ``number_text``).
     2DM itself carries no named face values, so ``face_datasets`` go to a companion
     ``<name>_els.dat`` (ASCII DAT, one scalar group per dataset, on faces), which MDAL reads
-    when it is added to the mesh layer as an extra dataset. Returns the written paths.
+    when it is added to the mesh layer as an extra dataset (QGIS does not find it by itself).
+    2DM has no place for a CRS either, and MDAL's 2DM driver reads none (no ``.prj`` beside
+    it): a 2DM opened later has no CRS; PLY carries both (:func:`write_ply`). Returns the
+    written paths.
 
     With a ``pool`` (``workers.WorkerPool``) a large mesh's lines are written in parts by its
     workers, in parallel, and joined (the text is formatted in Python, one core per process);
@@ -345,6 +348,18 @@ def _ply_scalar(name: str, values: np.ndarray) -> np.ndarray:
     return values.astype(values.dtype.newbyteorder("<"))
 
 
+def ply_crs_comment(crs: str) -> str:
+    """The PLY header line that carries ``crs`` (WKT or an authority id) as MDAL reads it.
+
+    MDAL (libplyxx ``addMetadata``) splits a comment at its first colon into key and value and
+    takes the value of key ``crs`` as the mesh CRS, trimmed; MDAL writes ``comment crs: ...``
+    itself. A multi-line WKT is joined into one line (each line's indentation dropped, the
+    text inside quotes kept).
+    """
+    text = " ".join(line.strip() for line in crs.strip().splitlines() if line.strip())
+    return "comment crs: " + text
+
+
 def write_ply(
     path: str | os.PathLike,
     vertices: np.ndarray,
@@ -357,8 +372,11 @@ def write_ply(
 
     Face properties (e.g. feature id, depth) follow ``vertex_indices`` and MDAL shows them as
     face datasets (QGIS 3.22 reads both the binary little-endian default and ``binary=False``
-    ASCII). ``crs_wkt`` goes into a ``comment crs`` header line, which newer MDAL versions use
-    as the mesh CRS; QGIS 3.22 ignores it, so set the layer's CRS as well.
+    ASCII). ``crs_wkt`` (WKT, or an authority id such as ``EPSG:32733``) goes into the header
+    line ``comment crs: <crs>``, which MDAL reads as the mesh's CRS: its PLY header parser
+    takes a comment's text up to the first colon as a metadata key, and the ``crs`` key as the
+    CRS (QGIS 3.22's MDAL 0.9.4 and later; without the colon the comment is anonymous and the
+    mesh has no CRS). The CRS is written on one line, in UTF-8.
     """
     vertices, faces = _check_mesh(vertices, faces)
     properties = {
@@ -370,7 +388,7 @@ def write_ply(
             raise ValueError(f"PLY property name {name!r} must be a plain identifier")
     header = ["ply", f"format {'binary_little_endian' if binary else 'ascii'} 1.0"]
     if crs_wkt:
-        header.append("comment crs " + " ".join(crs_wkt.split()))
+        header.append(ply_crs_comment(crs_wkt))
     header += [
         f"element vertex {len(vertices)}",
         "property double x",
@@ -385,7 +403,7 @@ def write_ply(
     header.append("end_header")
     path = Path(path)
     with open(path, "wb") as handle:
-        handle.write(("\n".join(header) + "\n").encode("ascii"))
+        handle.write(("\n".join(header) + "\n").encode("utf-8"))
         if binary:
             # no copy where the vertices are little-endian doubles already
             np.ascontiguousarray(vertices, dtype="<f8").tofile(handle)

@@ -19,10 +19,10 @@ NEIGHBOUR = (
 )
 
 
-def _read_ply(path):
+def _read_ply(path, encoding="ascii"):
     data = path.read_bytes()
     end = data.index(b"end_header\n") + len(b"end_header\n")
-    header = data[:end].decode("ascii").splitlines()
+    header = data[:end].decode(encoding).splitlines()
     return header, data[end:]
 
 
@@ -90,7 +90,7 @@ def test_binary_ply_header_and_records(tmp_path):
     assert header[:3] == [
         "ply",
         "format binary_little_endian 1.0",
-        'comment crs PROJCS["a", GEOGCS["b"]]',
+        'comment crs: PROJCS["a", GEOGCS["b"]]',
     ]
     assert header[3:] == [
         "element vertex 4",
@@ -111,6 +111,21 @@ def test_binary_ply_header_and_records(tmp_path):
     np.testing.assert_array_equal(records["v"], SQUARE[1])
     np.testing.assert_array_equal(records["fid"], [7, 9])
     np.testing.assert_array_equal(records["slope"], [1.5, 2.5])
+
+
+def test_ply_crs_comment_is_keyed_as_mdal_splits_it_and_written_in_utf8(tmp_path):
+    # MDAL takes a comment's text up to its first colon as the key and "crs" as the CRS:
+    # the key must come first, whatever colons the WKT itself holds.
+    wkt = 'PROJCRS["x",\n    USAGE[AREA["12°E to 18°E: south"]]]'
+    path = write_ply(tmp_path / "c.ply", *SQUARE, crs_wkt=wkt, binary=False)
+    header, _body = _read_ply(path, encoding="utf-8")
+    line = 'comment crs: PROJCRS["x", USAGE[AREA["12°E to 18°E: south"]]]'
+    assert header[2] == line
+    key, value = line[len("comment ") :].split(":", 1)
+    assert (key, value.strip()) == ("crs", wkt.replace("\n    ", " "))
+    assert mesh_module.ply_crs_comment("EPSG:32733") == "comment crs: EPSG:32733"
+    no_crs, _body = _read_ply(write_ply(tmp_path / "n.ply", *SQUARE), encoding="utf-8")
+    assert not any(h.startswith("comment") for h in no_crs)
 
 
 def test_ascii_ply_reads_back_with_loadtxt(tmp_path):
