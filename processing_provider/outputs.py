@@ -14,25 +14,39 @@ from pathlib import Path
 import numpy as np
 from qgis.core import (
     Qgis,
+    QgsApplication,
+    QgsClassificationCustom,
+    QgsColorRampShader,
     QgsCoordinateReferenceSystem,
     QgsDataSourceUri,
     QgsFeature,
+    QgsFeatureRequest,
     QgsFeatureSink,
     QgsField,
     QgsFields,
     QgsGeometry,
+    QgsGradientColorRamp,
     QgsGraduatedSymbolRenderer,
     QgsMapLayer,
+    QgsMeshDatasetIndex,
     QgsMeshLayer,
+    QgsMeshRendererMeshSettings,
+    QgsMeshRendererScalarSettings,
+    QgsMeshRendererSettings,
     QgsProcessingContext,
     QgsProcessingFeedback,
     QgsProcessingLayerPostProcessorInterface,
     QgsProcessingUtils,
     QgsProviderRegistry,
+    QgsReadWriteContext,
+    QgsRendererRange,
+    QgsUnitTypes,
     QgsVectorFileWriter,
     QgsVectorLayer,
+    QgsVectorLayerSimpleLabeling,
 )
-from qgis.PyQt.QtCore import QMetaType, QVariant
+from qgis.PyQt.QtCore import QCoreApplication, QMetaType, QThread, QVariant
+from qgis.PyQt.QtXml import QDomDocument
 
 from ..bsp_triangulate import metrics
 from ..bsp_triangulate.formats.mesh import merge_meshes, write_2dm, write_ply
@@ -42,7 +56,10 @@ from ..bsp_triangulate.packed import PackedTriangulations
 from ..bsp_triangulate.workers import WorkerPool
 from .geometry_io import FeatureRings
 
-STYLE_PATH = Path(__file__).resolve().parent / "styles" / "triangles.qml"
+STYLE_DIR = Path(__file__).resolve().parent / "styles"
+STYLE_PATH = STYLE_DIR / "triangles.qml"
+# The mesh layer's 3D renderer (a surface coloured as the 2D map, true vertical scale).
+MESH_3D_STYLE_PATH = STYLE_DIR / "mesh_3d.qml"
 MESH_EXTENSIONS = ("2dm", "ply")
 SOURCE_PREFIX = "src_"
 # Features built and written at a time: bounded memory, few sink calls.
@@ -401,14 +418,19 @@ class MeshAccumulator:
         staged = StagedMesh(target, folder, len(vertices), len(faces))
         try:
             if mesh_format(path) == "ply":
-                write_ply(
-                    folder / target.name, vertices, faces, datasets, crs_wkt=crs.toWkt() or None
-                )
+                write_ply(folder / target.name, vertices, faces, datasets, crs_wkt=crs_text(crs))
             else:
                 written = write_2dm(
                     folder / target.name, vertices, faces, datasets if len(faces) else None, pool
                 )
                 staged.companions = [file.name for file in written[1:]]
+            if len(faces):
+                # the default style QGIS loads with the file (Layer > Add Mesh Layer too)
+                style = folder / mesh_style_name(target)
+                z = vertices[:, 2]
+                document = mesh_style_document(float(z.min()), float(z.max()))
+                style.write_text(document.toString(2), encoding="utf-8")
+                staged.sidecars = [style.name]
         except BaseException:
             staged.discard()
             raise
@@ -427,16 +449,20 @@ class StagedMesh:
     folder: Path
     vertex_count: int
     face_count: int
+    # face value files (2DM's <name>_els.dat), added to the layer as extra datasets
     companions: list[str] = field(default_factory=list)
+    # other files beside the mesh (its default style <name>.qml)
+    sidecars: list[str] = field(default_factory=list)
 
     def commit(self) -> tuple[int, int, list[str]]:
         """Rename into place, companions first; returns (vertices, faces, dataset files)."""
         try:
-            for name in self.companions:
+            for name in self.companions + self.sidecars:
                 os.replace(self.folder / name, self.target.with_name(name))
-            if mesh_format(str(self.target)) == "2dm" and not self.companions:
+            dat = self.target.stem + "_els.dat"
+            if mesh_format(str(self.target)) == "2dm" and dat not in self.companions:
                 # a face value file left by an earlier run would not match the new mesh
-                self.target.with_name(self.target.stem + "_els.dat").unlink(missing_ok=True)
+                self.target.with_name(dat).unlink(missing_ok=True)
             os.replace(self.folder / self.target.name, self.target)
         finally:
             self.discard()
@@ -645,6 +671,85 @@ def mesh_format(path: str) -> str:
     return "ply" if Path(path).suffix.lower() == ".ply" else "2dm"
 
 
+def crs_text(crs: QgsCoordinateReferenceSystem) -> str | None:
+    """The CRS as WKT (WKT2 where PROJ has it) for the mesh file; None when it is not valid."""
+    if not crs.isValid():
+        return None
+    return crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED) or crs.toWkt() or None
+
+
+def mesh_style_name(path: str | os.PathLike) -> str:
+    """The default style file QGIS looks for beside a layer's file: the name up to its last
+    dot, then .qml (``QgsMapLayer::styleURI``)."""
+    return Path(path).stem + ".qml"
+
+
+# A terrain ramp for the mesh's elevation: low green, then ochre and brown, high near white.
+_ELEVATION_RAMP = {
+    "color1": "38,115,77,255",
+    "color2": "250,250,250,255",
+    "stops": "0.25;132,168,86,255:0.5;222,196,120,255:0.75;164,113,75,255",
+}
+# The first dataset group MDAL gives a 2DM or PLY mesh: z of its vertices.
+BED_ELEVATION_GROUP = 0
+
+
+def ensure_3d_renderers() -> bool:
+    """Whether QGIS can read a mesh 3D renderer here: QGIS desktop registers the 3D renderer
+    types at start; a script (or qgis_process) has them registered here, on the main thread,
+    when it has not."""
+    registry = QgsApplication.renderer3DRegistry()
+    if "mesh" in registry.renderersList():
+        return True
+    app = QCoreApplication.instance()
+    if app is None or QThread.currentThread() is not app.thread():
+        return False
+    try:
+        from qgis._3d import Qgs3D  # "qgis.3d" cannot be imported by name
+    except ImportError:
+        return False
+    Qgs3D.initialize()
+    return "mesh" in registry.renderersList()
+
+
+def mesh_style_document(z_min: float, z_max: float) -> QDomDocument:
+    """The mesh layer's style as a QML document: the 2D map colours the surface by its
+    elevation (z_min to z_max, terrain ramp, interpolated); the 3D renderer draws it in 3D
+    views with the same colours (styles/mesh_3d.qml)."""
+    if not z_max > z_min:
+        z_max = z_min + 1.0
+    document = QDomDocument()
+    document.setContent(MESH_3D_STYLE_PATH.read_text(encoding="utf-8"))
+    root = document.documentElement()
+    root.setAttribute("styleCategories", "Symbology|Symbology3D")
+    shader = QgsColorRampShader(z_min, z_max, QgsGradientColorRamp.create(_ELEVATION_RAMP))
+    shader.classifyColorRamp(5)
+    scalar = QgsMeshRendererScalarSettings()
+    scalar.setClassificationMinimumMaximum(z_min, z_max)
+    scalar.setColorRampShader(shader)
+    settings = QgsMeshRendererSettings()
+    settings.setScalarSettings(BED_ELEVATION_GROUP, scalar)
+    settings.setActiveScalarDatasetGroup(BED_ELEVATION_GROUP)
+    frame = QgsMeshRendererMeshSettings()
+    frame.setEnabled(False)  # the triangles output draws the edges
+    settings.setNativeMeshSettings(frame)
+    root.appendChild(settings.writeXml(document, QgsReadWriteContext()))
+    return document
+
+
+def apply_mesh_style(layer: QgsMeshLayer) -> bool:
+    """Give a loaded mesh layer the plugin's 2D style and, where QGIS can read it, its 3D
+    renderer; True when the 3D renderer is set."""
+    meta = layer.datasetGroupMetadata(QgsMeshDatasetIndex(BED_ELEVATION_GROUP))
+    document = mesh_style_document(meta.minimum(), meta.maximum())
+    categories = QgsMapLayer.Symbology
+    with_3d = ensure_3d_renderers()
+    if with_3d:
+        categories |= QgsMapLayer.Symbology3D
+    layer.importNamedStyle(document, categories)
+    return with_3d and layer.renderer3D() is not None
+
+
 def load_mesh_on_completion(
     path: str,
     crs: QgsCoordinateReferenceSystem,
@@ -652,7 +757,8 @@ def load_mesh_on_completion(
     output_name: str,
     dataset_files: Sequence[str] = (),
 ) -> str | None:
-    """Open the written mesh as an MDAL layer with ``crs`` and ask Processing to load it."""
+    """Open the written mesh as an MDAL layer with ``crs`` and its style (2D and 3D) and ask
+    Processing to load it."""
     name = Path(path).stem
     layer = QgsMeshLayer(path, name, "mdal")
     if not layer.isValid():
@@ -660,6 +766,7 @@ def load_mesh_on_completion(
     layer.setCrs(crs)
     for dataset_file in dataset_files:
         layer.addDatasets(dataset_file)
+    apply_mesh_style(layer)
     context.temporaryLayerStore().addMapLayer(layer)
     details = QgsProcessingContext.LayerDetails(
         name, context.project(), output_name, QgsProcessingUtils.LayerHint.Mesh
@@ -672,9 +779,8 @@ _POST_PROCESSORS: list[QgsProcessingLayerPostProcessorInterface] = []
 
 
 class TriangleStylePostProcessor(QgsProcessingLayerPostProcessorInterface):
-    """Applies styles/triangles.qml and re-classes the depth ramp on the loaded layer."""
-
-    CLASSES = 6
+    """Applies styles/triangles.qml, then the depth classes and the label scale of the layer's
+    own data (see :func:`style_triangles`)."""
 
     @classmethod
     def create(cls) -> TriangleStylePostProcessor:
@@ -692,7 +798,100 @@ class TriangleStylePostProcessor(QgsProcessingLayerPostProcessorInterface):
         if not ok:
             feedback.pushInfo(f"Default style not applied: {_message}")
             return
-        renderer = layer.renderer()
-        if isinstance(renderer, QgsGraduatedSymbolRenderer) and layer.featureCount() > 0:
-            renderer.updateClasses(layer, self.CLASSES)
+        style_triangles(layer)
         layer.triggerRepaint()
+
+
+def depth_classes(deepest: int) -> list[tuple[int, int]]:
+    """Depth classes that double: 0, 1, 2-3, 4-7, 8-15, ... up to ``deepest``.
+
+    A BSP tree has up to 2**d triangles at depth d, and most of a layer's triangles sit at
+    small depths with a long tail of deep ones (equal intervals put about 97 % of the
+    Swellendam farms' triangles in the first class): doubling classes spread them over the
+    legend and stay readable whatever the deepest level.
+    """
+    classes = [(0, 0)]
+    low = 1
+    while low <= max(deepest, 0):
+        classes.append((low, min(2 * low - 1, deepest)))
+        low *= 2
+    return classes
+
+
+def _class_label(low: int, high: int) -> str:
+    return str(low) if low == high else f"{low} - {high}"
+
+
+# Labels are drawn where a typical triangle is at least this wide on the screen.
+LABEL_MIN_SIZE_M = 0.012
+LABEL_SAMPLE = 20_000
+DEFAULT_LABEL_SCALE = 5_000.0
+
+
+def label_scale(typical_size_m: float | None) -> float:
+    """The most zoomed-out scale (denominator) at which a triangle of ``typical_size_m``
+    (metres on the ground) is ``LABEL_MIN_SIZE_M`` wide on the map, rounded down to 1, 2 or 5
+    times a power of ten."""
+    if not typical_size_m or not np.isfinite(typical_size_m) or typical_size_m <= 0:
+        return DEFAULT_LABEL_SCALE
+    scale = typical_size_m / LABEL_MIN_SIZE_M
+    power = 10.0 ** np.floor(np.log10(scale))
+    step = max(s for s in (1.0, 2.0, 5.0) if s * power <= scale)
+    return max(float(step * power), 1.0)
+
+
+def _typical_triangle_size(layer: QgsVectorLayer) -> float | None:
+    """About a triangle's edge length in metres: from the median area_2d of (up to
+    ``LABEL_SAMPLE``) triangles."""
+    index = layer.fields().indexOf("area_2d")
+    if index < 0:
+        return None
+    request = QgsFeatureRequest().setFlags(QgsFeatureRequest.NoGeometry)
+    request.setSubsetOfAttributes([index]).setLimit(LABEL_SAMPLE)
+    areas = [f.attribute(index) for f in layer.getFeatures(request)]
+    areas = np.array([a for a in areas if isinstance(a, (int, float))], dtype=np.float64)
+    if not len(areas):
+        return None
+    to_metres = QgsUnitTypes.fromUnitToUnitFactor(
+        layer.crs().mapUnits(), QgsUnitTypes.DistanceMeters
+    )
+    return float(np.sqrt(2.0 * np.median(areas))) * to_metres
+
+
+def style_triangles(layer: QgsVectorLayer) -> None:
+    """The triangle layer's classes and labels from its own data.
+
+    - depth: :func:`depth_classes` up to the deepest triangle, coloured along the style's
+      ramp, set as a new renderer so the legend (Layers panel) and the map are the same;
+    - labels (triangle order): only from the scale where a typical triangle is about 12 mm
+      wide, only inside their triangle, never overlapping.
+    """
+    renderer = layer.renderer()
+    depth = layer.fields().indexOf("depth")
+    if isinstance(renderer, QgsGraduatedSymbolRenderer) and depth >= 0:
+        deepest = layer.maximumValue(depth)
+        deepest = int(deepest) if isinstance(deepest, (int, float)) else 0
+        classes = depth_classes(deepest)
+        ramp = renderer.sourceColorRamp()
+        ranges = []
+        for index, (low, high) in enumerate(classes):
+            symbol = renderer.sourceSymbol().clone()
+            if ramp is not None:
+                symbol.setColor(ramp.color(index / max(len(classes) - 1, 1)))
+            ranges.append(QgsRendererRange(low, high, symbol, _class_label(low, high)))
+        classified = QgsGraduatedSymbolRenderer("depth", ranges)
+        classified.setSourceSymbol(renderer.sourceSymbol().clone())
+        if ramp is not None:
+            classified.setSourceColorRamp(ramp.clone())
+        classified.setClassificationMethod(QgsClassificationCustom())
+        layer.setRenderer(classified)
+    labeling = layer.labeling()
+    if labeling is not None and hasattr(labeling, "settings"):
+        settings = labeling.settings()
+        settings.scaleVisibility = True
+        settings.minimumScale = label_scale(_typical_triangle_size(layer))
+        settings.maximumScale = 0.0
+        settings.fitInPolygonOnly = True
+        settings.displayAll = False
+        layer.setLabeling(QgsVectorLayerSimpleLabeling(settings))
+        layer.setLabelsEnabled(True)
