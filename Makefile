@@ -2,10 +2,12 @@
 # QGIS from Debian's packages, then a venv on /usr/bin/python3 with the pinned dev packages.
 #
 #   make demo       set up, then run scripts/demo.py
-#   make test       set up, then the whole suite on this machine's QGIS (3.22 on Debian 12)
-#                   and on QGIS 3.40 (Debian 13 chroot, built once and cached), plus ruff
+#   make test       set up, then the whole suite on this machine's QGIS (3.22 on Debian 12),
+#                   on QGIS 3.40 and on QGIS 3.44 (two Debian 13 chroots, each built once and
+#                   cached), plus ruff
 #   make test-host  the suite on this machine's QGIS only, plus ruff (fast, for development)
-#   make test-340   the suite on QGIS 3.40 in the chroot only
+#   make test-340   the suite on QGIS 3.40 (Debian 13) in its chroot only
+#   make test-344   the suite on QGIS 3.44 (Debian 13 + trixie-backports) in its chroot only
 #   make package    dist/bsptriangulate-<version>.zip for the QGIS plugin manager
 #   make bench      benchmarks against earcut, GEOS and QGIS (minutes)
 #   make fuzz       the property tests with many more examples (minutes)
@@ -20,19 +22,21 @@ APT_PACKAGES := python3-qgis qgis python3-venv
 
 export QT_QPA_PLATFORM := offscreen
 
-.PHONY: demo test test-host test-340 pytest lint qgis venv package bench fuzz clean
+.PHONY: demo test test-host test-340 test-344 pytest lint qgis venv package bench fuzz clean
 
 demo: venv
 	$(PY) scripts/demo.py
 
-# The two suites are independent: run them side by side, each one's output printed whole.
+# The three suites are independent: run them side by side (each chroot has its own folder and
+# lock, so the first run builds both at once), each one's output printed whole when it ends.
 test: qgis
-	$(MAKE) -j2 --output-sync=target test-host test-340
+	$(MAKE) -j3 --output-sync=target test-host test-340 test-344
 
 test-host: pytest lint
 
-test-340: | qgis
-	scripts/chroot_qgis340.sh make VENV=/opt/bsptriangulate-venv pytest PYTEST_ARGS="$(PYTEST_ARGS)"
+# Each in its chroot, with a venv of its own inside it.
+test-340 test-344: test-%: | qgis
+	scripts/chroot_qgis.sh $* make VENV=/opt/bsptriangulate-venv pytest PYTEST_ARGS="$(PYTEST_ARGS)"
 
 # pytest's exit code 5 (no test collected) fails here too, as any non-zero code does.
 pytest: venv
