@@ -34,7 +34,7 @@ class BspTriangulatePlugin:
         self.initProcessing()
         if self.iface is None:
             return
-        from qgis.PyQt.QtWidgets import QAction
+        from .processing_provider.qgis_compat import QAction
 
         self.action = QAction(
             QIcon(str(ICONS / "triangulate.svg")),

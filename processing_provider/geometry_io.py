@@ -5,11 +5,12 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 
 import numpy as np
-from qgis.core import QgsFeature, QgsFeedback, QgsGeometry, QgsWkbTypes
+from qgis.core import Qgis, QgsFeature, QgsFeedback, QgsGeometry, QgsWkbTypes
 
 from ..bsp_triangulate.formats.wkb import polygon_table, polygons_from_wkb
 from ..bsp_triangulate.geometry.rings import working_axes
 from ..bsp_triangulate.geometry.validity import proven_valid
+from .qgis_compat import GeometryType, WkbType
 
 INVALID_REPAIR = 0
 INVALID_FAIL = 1
@@ -95,13 +96,13 @@ def _as_xyz(ring) -> np.ndarray:
 def _polygon_parts(geometry: QgsGeometry) -> list[Polygon]:
     """Every polygon in ``geometry`` (collections filtered to their polygons) as lists of rings."""
     flat = QgsWkbTypes.flatType(geometry.wkbType())
-    if flat == QgsWkbTypes.GeometryCollection:
+    if flat == WkbType.GeometryCollection:
         parts: list[Polygon] = []
         for member in geometry.asGeometryCollection():
-            if member.type() == QgsWkbTypes.PolygonGeometry:
+            if member.type() == GeometryType.Polygon:
                 parts.extend(_polygon_parts(member))
         return parts
-    if geometry.type() != QgsWkbTypes.PolygonGeometry:
+    if geometry.type() != GeometryType.Polygon:
         return []
     polygons, _has_z = polygons_from_wkb(bytes(geometry.asWkb()))
     return [[_as_xyz(ring) for ring in polygon] for polygon in polygons if len(polygon)]
@@ -225,7 +226,7 @@ def _has_wall(parts: list[Polygon]) -> bool:
 
 
 def _validity_message(geometry: QgsGeometry) -> str:
-    errors = geometry.validateGeometry(QgsGeometry.ValidatorGeos)
+    errors = geometry.validateGeometry(Qgis.GeometryValidationEngine.Geos)
     return "; ".join(error.what() for error in errors[:3]) or "not valid"
 
 

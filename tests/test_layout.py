@@ -21,6 +21,8 @@ PLUGIN_FILES = [ROOT / "__init__.py", ROOT / "plugin.py", *sorted(PROVIDER.rglob
 REQUIRED_METADATA = (
     "name",
     "qgisMinimumVersion",
+    "qgisMaximumVersion",
+    "supportsQt6",
     "description",
     "about",
     "version",
@@ -101,9 +103,12 @@ def test_metadata_has_every_key_the_plugin_repository_requires() -> None:
     assert missing == []
 
 
-def test_metadata_declares_qgis_322_and_a_processing_provider() -> None:
+def test_metadata_declares_qgis_322_to_4_qt6_and_a_processing_provider() -> None:
     general = metadata()
     assert general["qgisMinimumVersion"] == "3.22"
+    # QGIS 4 (Qt 6) loads plugins that declare it; tests/test_qt6.py checks the code for it.
+    assert general["qgisMaximumVersion"] == "4.99"
+    assert general["supportsQt6"] == "True"
     assert general["hasProcessingProvider"] == "yes"
     assert general["experimental"] in {"True", "False"}
     assert (ROOT / general["icon"]).is_file()
