@@ -1,8 +1,10 @@
-"""`make package`'s zip: one ``bsptriangulate/`` folder with run-time files only, which, installed
-into a fresh QGIS profile as the plugin manager does, runs under qgis_process."""
+"""`make package`'s zip: one ``bsptriangulate/`` folder with run-time files only, which the plugin
+repository's uploader would take and which, installed into a fresh QGIS profile as the plugin
+manager does, runs under qgis_process."""
 
 from __future__ import annotations
 
+import importlib.util
 import subprocess
 import sys
 import zipfile
@@ -29,6 +31,14 @@ AREA = 10 * 10 - 2 * 2 + (6 * 2 + 2 * 4)
 # A triangulation that adds no vertex has n + 2h - 2 triangles: n vertices, h holes.
 TRIANGLES = (8 + 2 * 1 - 2) + (6 - 2)
 NOT_IN_ZIP = {"tests", "bench", "scripts", "docs", ".ci", ".venv", ".git", "__pycache__", "dist"}
+
+
+def package_script():
+    """scripts/package.py as a module (scripts/ is not a package)."""
+    spec = importlib.util.spec_from_file_location("package_script", ROOT / "scripts" / "package.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def ring(points: list[tuple[int, int]]) -> list[tuple[float, float]]:
@@ -87,6 +97,61 @@ def test_zip_holds_one_plugin_folder_with_every_runtime_module_and_nothing_else(
     required = {"__init__.py", "plugin.py", "metadata.txt", "LICENSE", "icons/provider.svg"}
     assert sources | required <= inside
     assert "processing_provider/triangulate_algorithm.py" in inside
+
+
+def test_zip_passes_the_plugin_repository_upload_checks(plugin_zip: Path) -> None:
+    assert package_script().upload_problems(plugin_zip) == []
+    assert plugin_zip.stat().st_size < 2_000_000
+
+
+def rewritten(plugin_zip: Path, target: Path, *, drop=(), add=None, metadata=None) -> Path:
+    """A copy of ``plugin_zip`` without the names in ``drop``, with ``add`` ({name: bytes}), and
+    metadata.txt's lines passed through ``metadata``."""
+    with zipfile.ZipFile(plugin_zip) as source, zipfile.ZipFile(target, "w") as copy:
+        for name in source.namelist():
+            data = source.read(name)
+            if name.endswith("/metadata.txt") and metadata:
+                data = "\n".join(metadata(data.decode().splitlines())).encode()
+            if name.removeprefix(f"{PLUGIN_PACKAGE}/") not in drop:
+                copy.writestr(name, data)
+        for name, data in (add or {}).items():
+            copy.writestr(name, data)
+    return target
+
+
+def with_key(key: str, value: str | None):
+    """A metadata.txt edit: ``key`` set to ``value`` (None: removed)."""
+
+    def edit(lines: list[str]) -> list[str]:
+        kept = [line for line in lines if not line.startswith(f"{key}=")]
+        return kept if value is None else [*kept, f"{key}={value}"]
+
+    return edit
+
+
+@pytest.mark.parametrize(
+    ("change", "problem"),
+    [
+        ({"add": {f"{PLUGIN_PACKAGE}/plugin.pyc": b"\0"}}, "compiled file"),
+        ({"add": {f"{PLUGIN_PACKAGE}/__pycache__/x.py": b""}}, "forbidden folder"),
+        ({"add": {f"{PLUGIN_PACKAGE}/.hidden": b""}}, "hidden file"),
+        ({"add": {"other/__init__.py": b""}}, "not one top folder"),
+        ({"drop": {"LICENSE"}}, "no LICENSE"),
+        ({"drop": {"icons/provider.svg"}}, "icon"),
+        ({"metadata": with_key("email", None)}, "no email"),
+        ({"metadata": with_key("author", "A/B")}, "author has a slash"),
+        ({"metadata": with_key("qgisMaximumVersion", "4")}, "qgisMaximumVersion='4' malformed"),
+        ({"metadata": with_key("tracker", "bugs")}, "tracker='bugs' malformed"),
+        ({"metadata": with_key("about", "100 %")}, "metadata.txt: '%' must be followed"),
+    ],
+    ids=lambda value: value if isinstance(value, str) else None,
+)
+def test_upload_checks_find_what_the_plugin_repository_refuses(
+    plugin_zip: Path, tmp_path: Path, change: dict, problem: str
+) -> None:
+    broken = rewritten(plugin_zip, tmp_path / "broken.zip", **change)
+    problems = package_script().upload_problems(broken)
+    assert any(problem in line for line in problems), problems
 
 
 @pytest.mark.qgis_process
