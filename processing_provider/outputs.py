@@ -247,16 +247,20 @@ def _column(values: np.ndarray) -> list:
 
 
 def triangle_feature_chunks(
-    mesh: BatchMesh, fields: QgsFields, size: int = FEATURE_CHUNK
+    mesh: BatchMesh,
+    fields: QgsFields,
+    size: int = FEATURE_CHUNK,
+    ellipsoid: tuple[float, float] | None = None,
 ) -> Iterator[list[QgsFeature]]:
     """One PolygonZ feature per triangle (geometry from numpy-built WKB), ``size`` at a time.
 
     Attributes and WKB are computed for the whole batch in numpy; the QgsFeature objects exist
-    only for one chunk, so memory stays bounded however large the batch is.
+    only for one chunk, so memory stays bounded however large the batch is. ``ellipsoid``:
+    the layer is geographic, its metrics are taken in metres (``metrics.triangle_metrics``).
     """
     if not len(mesh):
         return
-    values = metrics.triangle_metrics(mesh.vertices, mesh.triangles)
+    values = metrics.triangle_metrics(mesh.vertices, mesh.triangles, ellipsoid)
     # feature_id and the source attributes: one list per source feature, shared by its triangles
     heads = [[item.fid, *item.feature.attributes()] for item in mesh.items]
     tails = list(
@@ -692,6 +696,7 @@ _ELEVATION_RAMP = {
 }
 # The first dataset group MDAL gives a 2DM or PLY mesh: z of its vertices.
 BED_ELEVATION_GROUP = 0
+BED_ELEVATION_NAME = "Bed Elevation"
 
 
 def ensure_3d_renderers() -> bool:
@@ -715,7 +720,7 @@ def ensure_3d_renderers() -> bool:
 def mesh_style_document(z_min: float, z_max: float) -> QDomDocument:
     """The mesh layer's style as a QML document: the 2D map colours the surface by its
     elevation (z_min to z_max, terrain ramp, interpolated); the 3D renderer draws it in 3D
-    views with the same colours (styles/mesh_3d.qml)."""
+    views with the same ramp on z (styles/mesh_3d.qml, its ramp replaced)."""
     if not z_max > z_min:
         z_max = z_min + 1.0
     document = QDomDocument()
@@ -734,6 +739,20 @@ def mesh_style_document(z_min: float, z_max: float) -> QDomDocument:
     frame.setEnabled(False)  # the triangles output draws the edges
     settings.setNativeMeshSettings(frame)
     root.appendChild(settings.writeXml(document, QgsReadWriteContext()))
+    # the 3D surface in the same colours, by z
+    advanced = root.firstChildElement("renderer-3d").firstChildElement("symbol")
+    advanced = advanced.firstChildElement("advanced-settings")
+    advanced.setAttribute("min-color-ramp-shader", repr(z_min))
+    advanced.setAttribute("max-color-ramp-shader", repr(z_max))
+    advanced.replaceChild(
+        shader.writeXml(document, QgsReadWriteContext()),
+        advanced.firstChildElement("colorrampshader"),
+    )
+    # QGIS 3.28+ applies a style's group settings by group name (3.22 ignores the element)
+    name = document.createElement("name-to-global-index")
+    name.setAttribute("name", BED_ELEVATION_NAME)
+    name.setAttribute("global-index", BED_ELEVATION_GROUP)
+    root.appendChild(name)
     return document
 
 

@@ -12,7 +12,7 @@
           </Option>
         </data-defined-properties>
       </material>
-      <advanced-settings renderer-3d-enabled="1" smoothed-triangle="0" wireframe-enabled="0" wireframe-line-width="1" wireframe-line-color="128,128,128,255" level-of-detail="0" vertical-scale="1" vertical-group-index="-1" vertical-relative="0" texture-type="2" min-color-ramp-shader="0" max-color-ramp-shader="0" texture-single-color="0,128,0,255" arrows-enabled="0" arrows-spacing="25" arrows-fixed-size="0">
+      <advanced-settings renderer-3d-enabled="1" smoothed-triangle="0" wireframe-enabled="0" wireframe-line-width="1" wireframe-line-color="128,128,128,255" level-of-detail="0" vertical-scale="1" vertical-group-index="-1" vertical-relative="0" texture-type="1" min-color-ramp-shader="0" max-color-ramp-shader="0" texture-single-color="0,128,0,255" arrows-enabled="0" arrows-spacing="25" arrows-fixed-size="0">
         <colorrampshader colorRampType="INTERPOLATED" classificationMode="1" clip="0" minimumValue="0" maximumValue="0"/>
       </advanced-settings>
       <data-defined-properties>

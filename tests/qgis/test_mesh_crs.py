@@ -6,6 +6,7 @@ named face values."""
 from __future__ import annotations
 
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
@@ -116,13 +117,21 @@ def test_ply_opened_later_has_its_2d_style_and_3d_renderer_from_the_sidecar(tmp_
 
     path = tmp_path / "styled.ply"
     _run(_layer(QgsCoordinateReferenceSystem("EPSG:32733"), (351_000.0, 6_230_000.0)), path)
-    assert (tmp_path / "styled.qml").is_file()
+    style = ElementTree.parse(tmp_path / "styled.qml").getroot()
+    advanced = style.find("renderer-3d/symbol/advanced-settings")
+    assert style.find("renderer-3d").get("type") == "mesh"
+    assert advanced.get("renderer-3d-enabled") == "1" and advanced.get("vertical-scale") == "1"
+    assert advanced.get("texture-type") == "1"  # coloured by z, on the 2D map's ramp
+    ramp = (advanced.get("min-color-ramp-shader"), advanced.get("max-color-ramp-shader"))
+    assert tuple(map(float, ramp)) == (1.0, 9.0)
     assert ensure_3d_renderers()  # QGIS desktop has them from its start
     layer = _open_later(path)
     settings = layer.rendererSettings()
     assert settings.activeScalarDatasetGroup() == 0  # Bed Elevation: the vertices' z
     scalar = settings.scalarSettings(0)
     assert (scalar.classificationMinimum(), scalar.classificationMaximum()) == (1.0, 9.0)
+    shader = scalar.colorRampShader()
+    assert shader.colorRampItemList()[0].color.name() == "#26734d"  # the terrain ramp's low end
     assert not settings.nativeMeshSettings().isEnabled()
     renderer = layer.renderer3D()
     assert renderer is not None and renderer.type() == "mesh"
