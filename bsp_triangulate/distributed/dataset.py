@@ -9,6 +9,7 @@ tasks of a worker that dies and reports progress (``distributed.progress``, the 
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import os
@@ -194,12 +195,8 @@ def _clear(out_dir: Path) -> None:
 
 def _local_client(workers: int | None) -> Client:
     """A LocalCluster of worker processes (one thread each: the engine is numpy in Python)."""
-    try:
-        import bokeh  # noqa: F401  (the dashboard needs it)
-
-        dashboard = ":0"
-    except ImportError:
-        dashboard = None
+    # the dashboard (on a free port) needs bokeh
+    dashboard = ":0" if importlib.util.find_spec("bokeh") else None
     cluster = LocalCluster(
         n_workers=workers or os.cpu_count() or 1,
         threads_per_worker=1,
