@@ -260,7 +260,9 @@ def triangle_feature_chunks(
     """
     if not len(mesh):
         return
-    values = metrics.triangle_metrics(mesh.vertices, mesh.triangles, ellipsoid)
+    # the ellipsoid only when given: the committed metrics module may not take it yet
+    extra = {} if ellipsoid is None else {"ellipsoid": ellipsoid}
+    values = metrics.triangle_metrics(mesh.vertices, mesh.triangles, **extra)
     # feature_id and the source attributes: one list per source feature, shared by its triangles
     heads = [[item.fid, *item.feature.attributes()] for item in mesh.items]
     tails = list(
@@ -679,7 +681,8 @@ def crs_text(crs: QgsCoordinateReferenceSystem) -> str | None:
     """The CRS as WKT (WKT2 where PROJ has it) for the mesh file; None when it is not valid."""
     if not crs.isValid():
         return None
-    return crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED) or crs.toWkt() or None
+    preferred = QgsCoordinateReferenceSystem.WktVariant.WKT_PREFERRED
+    return crs.toWkt(preferred) or crs.toWkt() or None
 
 
 def mesh_style_name(path: str | os.PathLike) -> str:
@@ -761,10 +764,10 @@ def apply_mesh_style(layer: QgsMeshLayer) -> bool:
     renderer; True when the 3D renderer is set."""
     meta = layer.datasetGroupMetadata(QgsMeshDatasetIndex(BED_ELEVATION_GROUP))
     document = mesh_style_document(meta.minimum(), meta.maximum())
-    categories = QgsMapLayer.Symbology
+    categories = QgsMapLayer.StyleCategories(QgsMapLayer.StyleCategory.Symbology)
     with_3d = ensure_3d_renderers()
     if with_3d:
-        categories |= QgsMapLayer.Symbology3D
+        categories |= QgsMapLayer.StyleCategory.Symbology3D
     layer.importNamedStyle(document, categories)
     return with_3d and layer.renderer3D() is not None
 
@@ -865,15 +868,14 @@ def _typical_triangle_size(layer: QgsVectorLayer) -> float | None:
     index = layer.fields().indexOf("area_2d")
     if index < 0:
         return None
-    request = QgsFeatureRequest().setFlags(QgsFeatureRequest.NoGeometry)
+    request = QgsFeatureRequest().setFlags(QgsFeatureRequest.Flag.NoGeometry)
     request.setSubsetOfAttributes([index]).setLimit(LABEL_SAMPLE)
     areas = [f.attribute(index) for f in layer.getFeatures(request)]
     areas = np.array([a for a in areas if isinstance(a, (int, float))], dtype=np.float64)
     if not len(areas):
         return None
-    to_metres = QgsUnitTypes.fromUnitToUnitFactor(
-        layer.crs().mapUnits(), QgsUnitTypes.DistanceMeters
-    )
+    metres, _ok = QgsUnitTypes.decodeDistanceUnit("meters")  # no enum name: QGIS 3.22 to 4
+    to_metres = QgsUnitTypes.fromUnitToUnitFactor(layer.crs().mapUnits(), metres)
     return float(np.sqrt(2.0 * np.median(areas))) * to_metres
 
 
