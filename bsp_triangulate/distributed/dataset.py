@@ -137,6 +137,47 @@ def _source_frame(source, id_column, layer, rows_per_partition, client):
     return frame, sum(lengths)
 
 
+def _known_bounds(source, layer) -> list[float] | None:
+    """The layer's extent as its file states it (GeoParquet metadata, GeoPackage extent)."""
+    if not isinstance(source, (str, os.PathLike)) or Path(source).is_dir():
+        return None
+    try:
+        if _is_parquet(Path(source)):
+            import pyarrow.parquet as pq
+
+            geo = json.loads(pq.read_schema(source).metadata[b"geo"])
+            bbox = geo["columns"][geo["primary_column"]].get("bbox")
+        else:
+            import pyogrio
+
+            bbox = pyogrio.read_info(str(source), layer=layer)["total_bounds"]
+    except (KeyError, TypeError, ValueError):
+        return None
+    if bbox is None or len(bbox) != 4 or not np.isfinite(bbox).all():
+        return None
+    return [float(v) for v in bbox]
+
+
+def _hilbert_shuffle(frame, source, layer, npartitions, shuffle_method):
+    """dask-geopandas' Hilbert ``spatial_shuffle``, with the extent the file states where it
+    does (else it is computed, a pass over the data)."""
+    bounds = _known_bounds(source, layer)
+    if bounds is None:
+        return frame.spatial_shuffle(
+            by="hilbert",
+            npartitions=npartitions or frame.npartitions,
+            calculate_partitions=False,
+            shuffle_method=shuffle_method,
+        )
+    distance = frame.hilbert_distance(total_bounds=bounds, level=16)
+    return frame.set_index(
+        distance,
+        sorted=False,
+        npartitions=npartitions or frame.npartitions,
+        shuffle_method=shuffle_method,
+    )
+
+
 def _attributes(columns, geometry: str) -> tuple[tuple[str, str], ...]:
     """Source columns copied to the triangles, renamed where they clash (prefix src_)."""
     taken = {"feature_id", "geometry", *(name for name, _dtype in TRIANGLE_COLUMNS)}
@@ -271,12 +312,7 @@ def triangulate_dataset(
             if elevation == "dem":
                 dem_info, dem_from = _dem_settings(dem, dem_band, crs)
             if partitioning == "hilbert" and total > 0:
-                frame = frame.spatial_shuffle(
-                    by="hilbert",
-                    npartitions=npartitions or frame.npartitions,
-                    calculate_partitions=False,
-                    shuffle_method=shuffle_method,
-                )
+                frame = _hilbert_shuffle(frame, source, layer, npartitions, shuffle_method)
             settings = Settings(
                 out_dir=str(out_dir),
                 rule=rule,

@@ -169,14 +169,14 @@ def generated(tmp_path_factory) -> tuple[Path, np.ndarray]:
 @pytest.fixture(scope="module")
 def generated_reference(generated) -> dict:
     _path, polygons = generated
-    return reference(polygons, range(GENERATED), rule="elevation")
+    return reference(polygons, range(GENERATED), rule="first")
 
 
 def test_generated_polygons_give_the_single_process_triangles(
     client, generated, generated_reference, tmp_path
 ):
     path, _polygons = generated
-    summary = triangulate_dataset(path, tmp_path, rule="elevation", client=client, npartitions=6)
+    summary = triangulate_dataset(path, tmp_path, rule="first", client=client, npartitions=6)
     assert summary["read"] == GENERATED
     assert summary["triangulated"] == GENERATED
     assert summary["failed"] == summary["empty"] == 0
@@ -306,7 +306,7 @@ def test_a_killed_worker_loses_nothing(client, generated, generated_reference, t
             result["summary"] = triangulate_dataset(
                 path,
                 tmp_path,
-                rule="elevation",
+                rule="first",
                 client=client,
                 partitioning="file",
                 mesh_format="none",
