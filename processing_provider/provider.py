@@ -40,3 +40,11 @@ class BspTriangulateProvider(QgsProcessingProvider):
             QgsMessageLog.logMessage(
                 traceback.format_exc(), self.name(), Qgis.MessageLevel.Critical
             )
+        try:
+            from .buildings_algorithm import BuildingsAlgorithm
+
+            self.addAlgorithm(BuildingsAlgorithm())
+        except Exception:
+            QgsMessageLog.logMessage(
+                traceback.format_exc(), self.name(), Qgis.MessageLevel.Critical
+            )

@@ -157,3 +157,27 @@ def ring_edges_closed(rings: list[list[int]]) -> bool:
         and len(set(edges)) == len(edges)
         and all((b, a) in set(edges) for a, b in edges)
     )
+
+
+def cityjson_errors(document: dict, whole_up_to: int = 200, sample: int = 20) -> list[str]:
+    """Schema errors of a CityJSON document. Up to ``whole_up_to`` city objects the whole
+    document is validated as it is; a larger one (the schema tries every city object against
+    all 40-odd object types: 11 minutes for Swellendam's 4,708 buildings) is validated with
+    its first ``sample`` objects, and every object against the schema of its own type."""
+    validator = cityjson_validator()
+    objects = document["CityObjects"]
+    if len(objects) <= whole_up_to:
+        return [str(error) for error in validator.iter_errors(document)]
+    head = dict(document)
+    head["CityObjects"] = dict(list(objects.items())[:sample])
+    errors = [str(error) for error in validator.iter_errors(head)]
+    by_type = {}
+    base = validator.schema["$id"].rsplit("/", 1)[0]
+    for name, city_object in objects.items():
+        kind = city_object.get("type", "")
+        if kind not in by_type:
+            by_type[kind] = type(validator)(
+                {"$ref": f"{base}/cityobjects.schema.json#/{kind}"}, resolver=validator.resolver
+            )
+        errors += [f"{name}: {error}" for error in by_type[kind].iter_errors(city_object)]
+    return errors
