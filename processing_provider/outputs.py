@@ -431,7 +431,10 @@ class MeshAccumulator:
                 )
                 staged.companions = [file.name for file in written[1:]]
             if len(faces):
-                # the default style QGIS loads with the file (Layer > Add Mesh Layer too)
+                # the default style QGIS loads with a mesh opened by its path (PyQGIS,
+                # Processing); QGIS desktop's Add Mesh Layer opens it as PLY:"<path>", for
+                # which QgsMapLayer::baseURI finds no style file (it decodes only ogr, gdal,
+                # delimitedtext and spatialite sources): there it is Load Style by hand
                 style = folder / mesh_style_name(target)
                 z = vertices[:, 2]
                 document = mesh_style_document(float(z.min()), float(z.max()))

@@ -1,7 +1,8 @@
-"""A mesh written by bsptriangulate:triangulate and opened later, as a user would (Layer > Add
-Mesh Layer: a new QgsMeshLayer on the file, nothing set by hand), has the input's CRS, its face
-values and its style. PLY carries all of them; 2DM, as MDAL reads it, carries neither a CRS nor
-named face values."""
+"""A mesh written by bsptriangulate:triangulate and opened later, as a user would (a new
+QgsMeshLayer on the file, nothing set by hand), has the input's CRS and its face values: by its
+path, and by the URI QGIS desktop's Add Mesh Layer gives it (``PLY:"<path>"``). Opened by its
+path it has its style too (the <name>.qml beside it). PLY carries the CRS and the face values;
+2DM, as MDAL reads it, carries neither a CRS nor named face values."""
 
 from __future__ import annotations
 
@@ -65,13 +66,13 @@ def _run(layer: QgsVectorLayer, mesh: Path) -> dict:
     return processing.run(ALG, parameters, feedback=QgsProcessingFeedback(), context=context)
 
 
-def _open_later(path: Path) -> QgsMeshLayer:
-    """The file opened as Layer > Add Mesh Layer does: a new layer, default style loaded,
-    in no project."""
+def _open_later(path: Path, uri: str | None = None) -> QgsMeshLayer:
+    """The file opened later: a new layer (default style loaded), in no project; ``uri`` as
+    QGIS desktop's Add Mesh Layer gives it, else the path."""
     assert not any(
         layer.source() == str(path) for layer in QgsProject.instance().mapLayers().values()
     )
-    layer = QgsMeshLayer(str(path), path.stem, "mdal")
+    layer = QgsMeshLayer(uri or str(path), path.stem, "mdal")
     assert layer.isValid(), layer.error().summary()
     return layer
 
@@ -100,14 +101,15 @@ def test_ply_opened_later_has_the_input_crs_and_its_face_values(tmp_path, crs, o
     path = tmp_path / "later.ply"
     result = _run(_layer(crs, offset), path)
     assert result["TRIANGLE_COUNT"] == 21 and result["FAILED_COUNT"] == 0
-    layer = _open_later(path)
-    assert layer.crs() == crs, (layer.crs().toWkt(), crs.toWkt())
-    assert layer.meshFaceCount() == 21
-    groups = _groups(layer)
-    assert list(groups) == ["Bed Elevation", "feature_id", "depth"]
     triangles = list(result["OUTPUT_TRIANGLES"].getFeatures())
     expected = sorted((t["feature_id"], t["depth"]) for t in triangles)
-    assert sorted(zip(groups["feature_id"].tolist(), groups["depth"].tolist())) == expected
+    for uri in (None, f'PLY:"{path}"'):
+        layer = _open_later(path, uri)
+        assert layer.crs() == crs, (uri, layer.crs().toWkt(), crs.toWkt())
+        assert layer.meshFaceCount() == 21
+        groups = _groups(layer)
+        assert list(groups) == ["Bed Elevation", "feature_id", "depth"]
+        assert sorted(zip(groups["feature_id"].tolist(), groups["depth"].tolist())) == expected
     header = path.read_bytes().split(b"end_header", 1)[0].decode("utf-8")
     assert sum(line.startswith("comment crs: ") for line in header.splitlines()) == 1
 
