@@ -28,7 +28,9 @@ from generate import star_polygons
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bsp_triangulate import TriangulationError, batch, batch_bsp, triangulate  # noqa: E402
+from bsp_triangulate import TriangulationError, triangulate  # noqa: E402
+from bsp_triangulate.tree import batch  # noqa: E402
+from bsp_triangulate.tree import lockstep as batch_bsp  # noqa: E402
 from bsp_triangulate.tree.batch import triangulate_batch  # noqa: E402
 
 FARMS = ROOT.parent / "shared" / "data" / "swellendam" / "farms_33S.shp"

@@ -7,11 +7,12 @@ exactly; the rest, and every single polygon, to the one-polygon builder
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from .geometry.rings import normalise_rings
+from .geometry.rings import PLANES, normalise_rings
 from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
 from .rules import get_rule
 from .tree.one_polygon import _as_given, _triangulate
@@ -24,6 +25,7 @@ def triangulate(
     rule: str = "first",
     planar_tolerance: float = 0.0,
     invalid: str = "fail",
+    plane: str = "auto",
 ) -> Triangulation:
     """Triangulate one polygon given as ``[outer ring, island, ...]`` (points (x, y[, z])).
 
@@ -36,10 +38,19 @@ def triangulate(
     drop pinches and zero-width spikes; triangles may overlap); where crossing rings make that
     impossible, the polygon is repaired (shapely's make_valid) and its valid parts are
     triangulated, the crossing points becoming vertices.
+
+    ``plane``: "auto" (default) works in XY unless the outer ring is a steep face (a wall:
+    its plane is then used), which is right when x, y and z share one unit; "xy" always
+    works in XY, for footprints draped on terrain and for z in another unit than x and y
+    (degrees). Every result is checked: its triangles' absolute areas in the working plane
+    add up to the polygon's area (with ``invalid="fail"``), or the polygon fails.
     """
+    _check_plane(plane)
     # overflow in float filters only routes values to the exact path
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        return _triangulate(rings, rule=rule, planar_tolerance=planar_tolerance, invalid=invalid)
+        return _triangulate(
+            rings, rule=rule, planar_tolerance=planar_tolerance, invalid=invalid, plane=plane
+        )
 
 
 def triangulate_many(
@@ -50,6 +61,7 @@ def triangulate_many(
     on_error: str = "raise",
     invalid: str = "fail",
     proven: Sequence[bool] | None = None,
+    plane: str = "auto",
 ) -> list:
     """Triangulate many polygons; results in input order, equal to :func:`triangulate`'s.
 
@@ -61,24 +73,25 @@ def triangulate_many(
     """
     polygons = list(polygons)
     _check_many_options(rule, invalid, on_error, proven, len(polygons))
+    _check_plane(plane)
     results: list = [None] * len(polygons)
     if planar_tolerance <= 0 and len(polygons) > 1:
         # many small polygons in lock-step; it leaves (None) what it does not decide exactly
         from .tree.batch import triangulate_batch
 
         try:
-            results = list(triangulate_batch(polygons, rule, proven=proven))
+            results = list(triangulate_batch(polygons, rule, proven=proven, plane=plane))
         except (ArithmeticError, ValueError, TypeError):
             # malformed or non-finite input broke the lock-step path: batch only the polygons
             # that normalise, the engine names the ring of the others
-            results = _batch_well_formed(polygons, rule, triangulate_batch)
+            results = _batch_well_formed(polygons, rule, triangulate_batch, plane)
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
             if isinstance(done, TriangulationError) and on_error == "raise":
                 raise done
             continue
-        results[index] = _engine_result(rings, rule, planar_tolerance, invalid, on_error)
+        results[index] = _engine_result(rings, rule, planar_tolerance, invalid, on_error, plane)
     return results
 
 
@@ -95,12 +108,26 @@ def _check_many_options(
 
 
 def _engine_result(
-    rings: Sequence[object], rule: str, planar_tolerance: float, invalid: str, on_error: str
+    rings: Sequence[object],
+    rule: str,
+    planar_tolerance: float,
+    invalid: str,
+    on_error: str,
+    plane: str,
+    tick: Callable[[float], None] | None = None,
 ) -> Triangulation | TriangulationError:
     """:func:`triangulate` of one polygon of many: its error is returned (``on_error`` is
-    "return") or raised."""
+    "return") or raised. ``tick``: see ``one_polygon._triangulate``."""
     try:
-        return triangulate(rings, rule=rule, planar_tolerance=planar_tolerance, invalid=invalid)
+        with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+            return _triangulate(
+                rings,
+                rule=rule,
+                planar_tolerance=planar_tolerance,
+                invalid=invalid,
+                plane=plane,
+                tick=tick,
+            )
     except TriangulationError as exc:
         if on_error == "raise":
             raise
@@ -115,26 +142,35 @@ def triangulate_packed(
     on_error: str = "raise",
     invalid: str = "fail",
     proven: Sequence[bool] | None = None,
+    plane: str = "auto",
+    progress: Callable[[float], None] | None = None,
 ) -> PackedTriangulations:
     """:func:`triangulate_many` of packed polygons, with packed results: the same vertices,
     triangles and trees, in flat arrays (no object per polygon). A polygon that fails with
-    ``on_error="return"`` has no vertices or triangles and its error in ``errors``."""
+    ``on_error="return"`` has no vertices or triangles and its error in ``errors``.
+    ``progress``: called now and then with the share of the polygons done (0 to 1); an
+    exception it raises (a cancelled run) stops the call."""
     _check_many_options(rule, invalid, on_error, proven, len(polygons))
+    _check_plane(plane)
     pieces: list[Piece] = []
     if planar_tolerance <= 0 and len(polygons) > 1:
         from .tree.batch import triangulate_batch_packed
 
         try:
-            pieces = triangulate_batch_packed(polygons, rule, proven=proven)
+            pieces = triangulate_batch_packed(polygons, rule, proven=proven, plane=plane)
         except (ArithmeticError, ValueError, TypeError):
             pieces = []  # the engine takes every polygon and names what is wrong
     decided = np.zeros(len(polygons), dtype=bool)
     for piece in pieces:
         decided[piece.index] = True
     errors: dict[int, TriangulationError] = {}
+    report = _Reporter(progress, len(polygons), int(decided.sum()))
     for index in np.flatnonzero(~decided).tolist():
+        report.one_more()
         rings = polygons.rings(index)
-        result = _engine_result(rings, rule, planar_tolerance, invalid, on_error)
+        result = _engine_result(
+            rings, rule, planar_tolerance, invalid, on_error, plane, report.tick
+        )
         if isinstance(result, TriangulationError):
             errors[index] = result
         else:
@@ -142,16 +178,56 @@ def triangulate_packed(
     return assemble(len(polygons), pieces, errors)
 
 
-def _batch_well_formed(polygons: list, rule: str, batch) -> list:
+class _Reporter:
+    """Calls ``progress`` with the share of ``total`` polygons done, at most every
+    :data:`_REPORT_SECONDS`."""
+
+    def __init__(self, progress: Callable[[float], None] | None, total: int, done: int) -> None:
+        self.progress = progress
+        self.total = max(total, 1)
+        self.done = done
+        self.last = time.monotonic()
+        # what the one-polygon builder calls as it goes (None: nothing to tell)
+        self.tick = None if progress is None else self.within
+        if progress is not None:
+            progress(done / self.total)
+
+    def within(self, share: float) -> None:
+        """The polygon under way is ``share`` done."""
+        now = time.monotonic()
+        if self.progress is not None and now - self.last >= _REPORT_SECONDS:
+            self.last = now
+            self.progress((self.done - 1 + share) / self.total)
+
+    def one_more(self) -> None:
+        """A polygon is about to start: the ones before it are done."""
+        if self.progress is None:
+            return
+        now = time.monotonic()
+        if now - self.last >= _REPORT_SECONDS:
+            self.last = now
+            self.progress(self.done / self.total)
+        self.done += 1
+
+
+_REPORT_SECONDS = 0.2
+
+
+def _check_plane(plane: str) -> None:
+    if plane not in PLANES:
+        raise ValueError(f"plane must be one of {PLANES}, not {plane!r}")
+
+
+def _batch_well_formed(polygons: list, rule: str, batch, plane: str) -> list:
     """Batch results for the polygons whose rings normalise; None (engine) for the others."""
     good = []
     for index, rings in enumerate(polygons):
         try:
-            normalise_rings(rings)
+            normalise_rings(rings, plane)
         except TriangulationError:
             continue
         good.append(index)
     results: list = [None] * len(polygons)
-    for index, result in zip(good, batch([polygons[i] for i in good], rule)):
+    for index, result in zip(good, batch([polygons[i] for i in good], rule, plane=plane)):
         results[index] = result
     return results

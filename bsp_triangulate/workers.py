@@ -33,12 +33,17 @@ import numpy as np
 from .packed import PackedPolygons, PackedTriangulations
 from .triangulation import TriangulationError
 
-# the folder that holds this package: the worker imports it from there
-_PACKAGE_DIR = str(Path(__file__).resolve().parent.parent)
-_PACKAGE = Path(__file__).resolve().parent.name
+# this package's folder: the worker loads the package from there by its path, so that
+# nothing beside it (an ``inspect.py`` next to a checkout) can shadow the standard library
+_PACKAGE_PATH = str(Path(__file__).resolve().parent)
 _BOOT = (
-    "import json, sys; sys.path[:] = json.loads(sys.argv[1]); "
-    f"from {_PACKAGE}.workers import serve; serve()"
+    "import importlib.util, json, os, sys; sys.path[:] = json.loads(sys.argv[1]); "
+    "folder = sys.argv[2]; name = os.path.basename(folder); "
+    "spec = importlib.util.spec_from_file_location(name, os.path.join(folder, '__init__.py'), "
+    "submodule_search_locations=[folder]); "
+    "package = importlib.util.module_from_spec(spec); sys.modules[name] = package; "
+    "spec.loader.exec_module(package); "
+    "importlib.import_module(name + '.workers').serve()"
 )
 # seconds a worker may take to exit after its input closes before it is killed
 _EXIT_WAIT = 2.0
@@ -85,11 +90,12 @@ class _Worker:
     def __init__(self, python: str) -> None:
         # the worker's messages, read when it fails (a pipe nobody reads could fill up)
         self._errors = tempfile.TemporaryFile()  # noqa: SIM115 - closed in kill()
-        paths = [_PACKAGE_DIR, *sys.path]
+        # the parent's own path, less the empty entry (the worker's current folder)
+        paths = [path for path in sys.path if path]
         flags = getattr(subprocess, "CREATE_NO_WINDOW", 0)
         try:
             self.process = subprocess.Popen(
-                [python, "-c", _BOOT, json.dumps(paths)],
+                [python, "-c", _BOOT, json.dumps(paths), _PACKAGE_PATH],
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 stderr=self._errors,

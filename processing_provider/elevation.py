@@ -25,6 +25,8 @@ ELEVATION_NONE = 0
 ELEVATION_GEOMETRY = 1
 ELEVATION_EXPRESSION = 2
 ELEVATION_DEM = 3
+# the DEM when one is given, else the expression when one is given, else the geometry's Z
+ELEVATION_AUTOMATIC = 4
 
 INTERPOLATION_METHODS = ("bilinear", "nearest")
 
@@ -283,6 +285,8 @@ class DemElevation(ElevationSource):
         super().__init__()
         self.sampler = sampler
         self.nodata_policy = nodata_policy
+        # features with vertices outside the DEM or on nodata whose z was filled
+        self.filled = 0
 
     def apply(self, batch: list[FeatureRings]) -> None:
         usable = [item for item in batch if item.ok]
@@ -307,6 +311,7 @@ class DemElevation(ElevationSource):
         offsets = np.concatenate([[0], np.cumsum(lengths)])
         ring_of_value = np.repeat(np.arange(len(rings)), lengths)
         missing_counts = np.bincount(ring_of_value[missing_values], minlength=len(rings))
+        filled: set[int] = set()
         for index in np.flatnonzero(missing_counts).tolist():
             item, ring = owners[index], rings[index]
             if item.error is not None:
@@ -322,6 +327,8 @@ class DemElevation(ElevationSource):
                 )
             else:
                 ring[:, 2] = fill_along_ring(z, ring[:, :2])
+                filled.add(id(item))
+        self.filled += len(filled)
 
 
 def _z_targets(items: list[FeatureRings]) -> list[np.ndarray]:

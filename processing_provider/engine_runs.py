@@ -20,14 +20,19 @@ from .outputs import EngineChunk
 _POLL = 0.1
 
 
+class _CancelledError(Exception):
+    """The run was cancelled during an engine call in this process."""
+
+
 @dataclass
 class EngineOptions:
     """The engine's options of one run: apex rule, planar tolerance, what to do with rings
-    that are not valid (``fail`` or ``as_given``)."""
+    that are not valid (``fail`` or ``as_given``), the working plane (``auto`` or ``xy``)."""
 
     rule: str
     tolerance: float
     invalid: str
+    plane: str = "xy"
 
     def keywords(self) -> dict:
         return {
@@ -35,6 +40,7 @@ class EngineOptions:
             "planar_tolerance": self.tolerance,
             "on_error": "return",
             "invalid": self.invalid,
+            "plane": self.plane,
         }
 
 
@@ -165,7 +171,14 @@ class EngineRunner:
                 return None
             self.calls += 1
             if outcome is None:
-                results += self.run_here(call.items, call.packed)
+
+                def part_done(part: float, first: int = done, size: int = len(call.items)) -> None:
+                    report((first + part * size) / max(len(job.batch), 1))
+
+                try:
+                    results += self.run_here(call.items, call.packed, part_done)
+                except _CancelledError:
+                    return None
             else:
                 self.calls_in_workers += 1
                 results.append(self._chunk(call.items, call.packed[0], outcome))
@@ -209,13 +222,28 @@ class EngineRunner:
             self._pool = None
 
     def run_here(
-        self, items: list[FeatureRings], packed: Packed | None = None
+        self,
+        items: list[FeatureRings],
+        packed: Packed | None = None,
+        report: Callable[[float], None] | None = None,
     ) -> list[EngineChunk]:
         """All parts of ``items`` (``packed`` already, or packed here) in one engine call in
-        this process; a failure goes to its feature."""
+        this process; a failure goes to its feature. ``report`` takes the share done; a
+        cancelled run raises ``_CancelledError`` out of the call."""
+
+        def progress(part: float) -> None:
+            if self.feedback.isCanceled():
+                raise _CancelledError
+            if report is not None:
+                report(part)
+
         try:
             part_count, polygons, proven = packed or _pack(items)
-            outcome = triangulate_packed(polygons, proven=proven, **self.options.keywords())
+            outcome = triangulate_packed(
+                polygons, proven=proven, progress=progress, **self.options.keywords()
+            )
+        except _CancelledError:
+            raise
         except Exception as error:  # isolate the feature that breaks the call
             if len(items) == 1:
                 items[0].error = self.tr("cannot be triangulated: {}").format(error)

@@ -108,8 +108,9 @@ def _polygon_parts(geometry: QgsGeometry) -> list[Polygon]:
     return [[_as_xyz(ring) for ring in polygon] for polygon in polygons if len(polygon)]
 
 
-def read_feature(feature: QgsFeature, invalid_policy: int) -> FeatureRings:
-    """Convert one feature: segmentize curves, apply the invalid-polygon policy, read WKB."""
+def read_feature(feature: QgsFeature, invalid_policy: int, walls: bool = False) -> FeatureRings:
+    """Convert one feature: segmentize curves, apply the invalid-polygon policy, read WKB.
+    ``walls``: the engine may work steep faces in their own plane (see ``_checked``)."""
     item = FeatureRings(feature)
     geometry = feature.geometry()
     if geometry is None or geometry.isNull() or geometry.isEmpty():
@@ -122,18 +123,23 @@ def read_feature(feature: QgsFeature, invalid_policy: int) -> FeatureRings:
     except (ValueError, IndexError) as error:
         item.error = f"unreadable geometry: {error}"
         return item
-    return _checked(item, geometry, parts, invalid_policy)
+    return _checked(item, geometry, parts, invalid_policy, walls)
 
 
 def _checked(
-    item: FeatureRings, geometry: QgsGeometry, parts: list[Polygon], invalid_policy: int
+    item: FeatureRings,
+    geometry: QgsGeometry,
+    parts: list[Polygon],
+    invalid_policy: int,
+    walls: bool = False,
 ) -> FeatureRings:
     """``item`` with ``parts`` read from ``geometry``, or its repair, or the reason it fails."""
-    # GEOS judges validity in XY, where a wall (a near-vertical face) has no area: walls are
-    # left to the engine, which triangulates them in their own plane (and fails bad ones).
+    # GEOS judges validity in XY, where a wall (a near-vertical face) has no area: where the
+    # engine works walls in their own plane (``walls``), they are left to it (it fails bad
+    # ones); elsewhere every polygon is worked in XY and judged there.
     if (
         invalid_policy != INVALID_AS_GIVEN
-        and not (item.has_z and _has_wall(parts))
+        and not (walls and item.has_z and _has_wall(parts))
         and not geometry.isGeosValid()
     ):
         if invalid_policy == INVALID_FAIL:
@@ -155,7 +161,10 @@ def _checked(
 
 
 def read_features(
-    features: Iterable[QgsFeature], invalid_policy: int, feedback: QgsFeedback | None = None
+    features: Iterable[QgsFeature],
+    invalid_policy: int,
+    feedback: QgsFeedback | None = None,
+    walls: bool = False,
 ) -> Iterator[FeatureRings]:
     """``read_feature`` of every feature, in order; the WKB of many features parsed at once."""
     chunk: list[QgsFeature] = []
@@ -169,14 +178,14 @@ def read_features(
         wkbs.append(wkb)
         size += len(wkb)
         if len(chunk) >= READ_FEATURES or size >= READ_BYTES:
-            yield from _read_chunk(chunk, wkbs, invalid_policy)
+            yield from _read_chunk(chunk, wkbs, invalid_policy, walls)
             chunk, wkbs, size = [], [], 0
     if chunk:
-        yield from _read_chunk(chunk, wkbs, invalid_policy)
+        yield from _read_chunk(chunk, wkbs, invalid_policy, walls)
 
 
 def _read_chunk(
-    chunk: list[QgsFeature], wkbs: list[bytes], invalid_policy: int
+    chunk: list[QgsFeature], wkbs: list[bytes], invalid_policy: int, walls: bool = False
 ) -> list[FeatureRings]:
     """Features whose WKB the bulk reader takes (non-empty Polygon and MultiPolygon) are read
     from it; every other one goes through ``read_feature``."""
@@ -206,14 +215,14 @@ def _read_chunk(
         stops.tolist(),
     ):
         if parts is None or not usable:
-            items.append(read_feature(feature, invalid_policy))
+            items.append(read_feature(feature, invalid_policy, walls))
             continue
         if known:
             item = FeatureRings(feature, parts, has_z=has_z)
             item.proven = valid
         else:
             item = FeatureRings(feature, has_z=has_z)
-            item = _checked(item, feature.geometry(), parts, invalid_policy)
+            item = _checked(item, feature.geometry(), parts, invalid_policy, walls)
         if item.parts is parts:
             item.block = (points, start, stop)
         items.append(item)
@@ -236,11 +245,12 @@ def feature_batches(
     max_features: int = 2000,
     max_vertices: int = 200_000,
     feedback: QgsFeedback | None = None,
+    walls: bool = False,
 ) -> Iterator[list[FeatureRings]]:
     """Group converted features in batches bounded by feature and vertex counts (streaming)."""
     batch: list[FeatureRings] = []
     vertices = 0
-    for item in read_features(features, invalid_policy, feedback):
+    for item in read_features(features, invalid_policy, feedback, walls):
         batch.append(item)
         vertices += item.vertex_count()
         if len(batch) >= max_features or vertices >= max_vertices:

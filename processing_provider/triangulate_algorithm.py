@@ -10,7 +10,9 @@ from typing import Any
 
 from qgis.core import (
     QgsApplication,
+    QgsCoordinateReferenceSystem,
     QgsCoordinateTransform,
+    QgsEllipsoidUtils,
     QgsExpression,
     QgsFeatureRequest,
     QgsFields,
@@ -33,11 +35,14 @@ from qgis.core import (
     QgsProcessingParameterNumber,
     QgsProcessingParameterRasterLayer,
     QgsRasterLayer,
+    QgsRectangle,
+    QgsUnitTypes,
     QgsWkbTypes,
 )
 from qgis.PyQt.QtCore import QCoreApplication
 from qgis.PyQt.QtGui import QIcon
 
+from ..bsp_triangulate.metrics import WGS84
 from ..bsp_triangulate.terrain.densify import densify_ring
 from . import elevation
 from .engine_runs import BatchJob, EngineOptions, EngineRunner
@@ -55,11 +60,13 @@ from .outputs import (
     triangle_feature_chunks,
     triangle_fields,
 )
+from .run_report import FailureLog, Progress
 
 ICON = Path(__file__).resolve().parent.parent / "icons" / "triangulate.svg"
 APEX_RULES = ("first", "elevation")
 MAX_LISTED_IDS = 200
 MAX_WORKERS = 64
+HELP_URL = "https://github.com/bsptriangulate/bsptriangulate#readme"
 
 
 class TriangulateAlgorithm(QgsProcessingAlgorithm):
@@ -82,6 +89,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
     OUTPUT_MESH = "OUTPUT_MESH"
     OUTPUT_TRIANGLES = "OUTPUT_TRIANGLES"
     OUTPUT_TREE = "OUTPUT_TREE"
+    OUTPUT_REPORT = "OUTPUT_REPORT"
     FEATURE_COUNT = "FEATURE_COUNT"
     TRIANGLE_COUNT = "TRIANGLE_COUNT"
     FAILED_COUNT = "FAILED_COUNT"
@@ -89,11 +97,12 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
 
     BATCH_FEATURES = 10_000
     BATCH_VERTICES = 400_000
-    # Engine calls within a batch: progress and cancel between them. The engine's lock-step
-    # batch path needs thousands of polygons per call to be fast (40 per call: ~30x slower;
-    # 50,000 stars of 40 vertices in calls of 100,000 vertices: 16 % slower than of 250,000).
+    # Engine calls within a batch: progress and cancel between them. Each lock-step round has
+    # a fixed cost, so the batch path needs thousands of polygons per call to be fast.
     CHUNK_FEATURES = 10_000
     CHUNK_VERTICES = 250_000
+    # features given their z at once (progress and cancel between)
+    ELEVATION_FEATURES = 1_000
 
     def tr(self, text: str) -> str:
         return QCoreApplication.translate("TriangulateAlgorithm", text)
@@ -116,6 +125,12 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
     def icon(self) -> QIcon:
         return QIcon(str(ICON))
 
+    def svgIconPath(self) -> str:  # noqa: N802 - QGIS API name
+        return str(ICON)
+
+    def helpUrl(self) -> str:  # noqa: N802 - QGIS API name
+        return HELP_URL
+
     def tags(self) -> list[str]:
         return self.tr("triangulation,mesh,tin,3d,bsp,polygon,dem,terrain").split(",")
 
@@ -129,12 +144,20 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "Every output vertex is an input vertex (or a point added by densification).</p>"
             "<h3>Parameters</h3>"
             "<p><b>Input polygon layer</b>: polygons or multipolygons, with or without Z. Curved "
-            "geometries are segmentized.</p>"
-            "<p><b>Elevation source</b>: where vertex z comes from. <i>None</i>: z = 0. "
+            "geometries are segmentized. Point and line layers are refused.</p>"
+            "<p><b>Elevation source</b>: where vertex z comes from. <i>Automatic</i> "
+            "(default): the DEM when one is given, else the Z expression when one is given, "
+            "else the geometry's Z. <i>None</i>: z = 0. "
             "<i>Geometry Z</i>: the geometry's own z (0 if the layer has none). "
             "<i>Expression</i>: one value per feature from the Z expression. <i>DEM</i>: "
             "sampled from a raster band at every vertex (reprojected when the DEM's CRS "
-            "differs).</p>"
+            "differs; a DEM that does not overlap the layer is refused). A DEM given with "
+            "another source is refused, never ignored.</p>"
+            "<p>Polygons draped on terrain (z from a DEM, an expression or none) are always "
+            "triangulated in XY, whatever the units. Only the geometry's own Z, in a projected "
+            "CRS in metres, can make a near-vertical face (a wall) that is triangulated in its "
+            "own plane; on a geographic layer (degrees) every polygon is triangulated in XY, "
+            "and the log says so.</p>"
             "<p><b>Z expression</b>: expression (or field name) evaluated on each feature; its "
             "number is the z of all vertices of the feature.</p>"
             "<p><b>DEM</b>, <b>DEM band</b>: the elevation raster and its band (default 1).</p>"
@@ -143,16 +166,18 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "<p><b>Vertices on DEM nodata</b>: <i>fill</i> interpolates their z from the "
             "nearest valid vertices along the ring (default); <i>fail</i> rejects the feature. "
             "Vertices outside the DEM count as nodata.</p>"
-            "<p><b>Z offset</b>, <b>Z scale</b>: final z = z × scale + offset.</p>"
-            "<p><b>Maximum segment length</b>: boundary edges longer than this are split "
-            "before triangulation; the new points become vertices and get their z from the "
-            "elevation source. 0 = off.</p>"
+            "<p><b>Z offset</b>, <b>Z scale</b>: final z = z × scale + offset (defaults 0 and "
+            "1).</p>"
+            "<p><b>Maximum segment length</b>: boundary edges longer than this (layer units) "
+            "are split before triangulation; the new points become vertices and get their z "
+            "from the elevation source. 0 = off (default).</p>"
             "<p><b>Apex rule</b>: <i>first</i> takes the first correct apex in the paper's "
             "order; <i>elevation</i> takes, among all correct apexes, the one whose z is "
             "closest to the mean z of the base edge (paper §4.1; suits roads and streams "
-            "over terrain).</p>"
-            "<p><b>Planar tolerance</b>: near-planar polygons (roofs) are snapped onto one "
-            "plane when no vertex moves by more than this (paper §4.2). 0 = off.</p>"
+            "over terrain). Default: first.</p>"
+            "<p><b>Planar tolerance</b> (z units, e.g. metres): near-planar polygons (roofs) "
+            "are snapped onto one plane when no vertex moves by more than this vertically "
+            "(paper §4.2). 0 = off (default).</p>"
             "<p><b>Worker processes</b>: large layers are triangulated in this many Python "
             "processes at once; 1 keeps all the work in QGIS's process. By default (0): one "
             "per core (QGIS's <i>max cores</i> setting limits it) for a mesh-only run, none "
@@ -163,6 +188,9 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "<p><b>Invalid polygons</b>: <i>repair</i> them with make valid, then triangulate "
             "(default; repaired feature ids are reported); <i>fail</i> the feature; or "
             "<i>triangulate the rings as given</i>.</p>"
+            "<p><b>Failure report</b> (optional): a CSV file with the id and reason of every "
+            "feature that failed. The log lists the first ten failures of each kind and "
+            "counts the rest.</p>"
             "<h3>Outputs</h3>"
             "<p><b>Mesh</b>: one .2dm (default) or .ply file for the whole layer, vertices "
             "shared where identical, z per vertex, face values feature_id and depth; loaded "
@@ -175,7 +203,10 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "area_3d, min_angle, slope and aspect (degrees).</p>"
             "<p><b>BSP tree</b> (optional): a line from each triangle's centroid to each "
             "child's centroid.</p>"
-            "<p>A feature that cannot be triangulated is reported with its id and reason and "
+            "<p>Every triangulation is checked: its triangles' areas must add up to the "
+            "polygon's area (in the plane it was triangulated in), or the feature fails; no "
+            "wrong triangle is written. "
+            "A feature that cannot be triangulated is reported with its id and reason and "
             "counted in FAILED_COUNT; null and empty geometries in EMPTY_COUNT. "
             "FEATURE_COUNT = triangulated + FAILED_COUNT + EMPTY_COUNT.</p>"
             "<p>A cancelled run writes no mesh file and deletes the triangle and tree outputs "
@@ -197,8 +228,9 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                     self.tr("Geometry Z"),
                     self.tr("Expression"),
                     self.tr("DEM"),
+                    self.tr("Automatic: the DEM if given, else the expression, else geometry Z"),
                 ],
-                defaultValue=elevation.ELEVATION_GEOMETRY,
+                defaultValue=elevation.ELEVATION_AUTOMATIC,
             )
         )
         self.addParameter(
@@ -274,7 +306,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         advanced += [
             QgsProcessingParameterNumber(
                 self.PLANAR_TOLERANCE,
-                self.tr("Planar tolerance (0 = off)"),
+                self.tr("Planar tolerance (z units; 0 = off)"),
                 QgsProcessingParameterNumber.Double,
                 defaultValue=0.0,
                 minValue=0.0,
@@ -330,11 +362,20 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 createByDefault=False,
             )
         )
+        self.addParameter(
+            QgsProcessingParameterFileDestination(
+                self.OUTPUT_REPORT,
+                self.tr("Failure report (fid, reason)"),
+                self.tr("CSV file (*.csv)"),
+                optional=True,
+                createByDefault=False,
+            )
+        )
         for name, label in (
-            (self.FEATURE_COUNT, self.tr("Features read")),
-            (self.TRIANGLE_COUNT, self.tr("Triangles")),
-            (self.FAILED_COUNT, self.tr("Failed features")),
-            (self.EMPTY_COUNT, self.tr("Empty features")),
+            (self.FEATURE_COUNT, self.tr("Number of features read")),
+            (self.TRIANGLE_COUNT, self.tr("Number of triangles")),
+            (self.FAILED_COUNT, self.tr("Number of failed features")),
+            (self.EMPTY_COUNT, self.tr("Number of empty features")),
         ):
             self.addOutput(QgsProcessingOutputNumber(name, label))
 
@@ -344,7 +385,22 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         ok, message = super().checkParameterValues(parameters, context)
         if not ok:
             return ok, message
-        source = self.parameterAsEnum(parameters, self.ELEVATION_SOURCE, context)
+        layer_source = self.parameterAsSource(parameters, self.INPUT, context)
+        if layer_source is not None:
+            kind = QgsWkbTypes.geometryType(layer_source.wkbType())
+            if kind not in (QgsWkbTypes.PolygonGeometry, QgsWkbTypes.UnknownGeometry):
+                return False, self.tr(
+                    "The input layer has {} geometries: choose a polygon layer."
+                ).format(QgsWkbTypes.geometryDisplayString(kind).lower())
+        chosen = self.parameterAsEnum(parameters, self.ELEVATION_SOURCE, context)
+        source = self._elevation_kind(parameters, context)
+        if chosen not in (elevation.ELEVATION_DEM, elevation.ELEVATION_AUTOMATIC) and (
+            self._dem_given(parameters)
+        ):
+            return False, self.tr(
+                "A DEM is given but the elevation source is not DEM: choose DEM (or "
+                "Automatic) as the elevation source, or leave the DEM empty."
+            )
         if source == elevation.ELEVATION_EXPRESSION:
             text = self.parameterAsExpression(parameters, self.Z_EXPRESSION, context)
             if not text.strip():
@@ -361,12 +417,76 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 return False, self.tr("DEM band {} does not exist: the DEM has {} band(s).").format(
                     band, layer.bandCount()
                 )
+            if layer_source is not None and not self._dem_overlaps(layer_source, layer, context):
+                return False, self.tr(
+                    "The DEM ({}) does not overlap the input layer: no vertex would get an "
+                    "elevation. Check the DEM and the layers' CRSs."
+                ).format(layer.name())
         path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
         if path and Path(path).suffix.lower().lstrip(".") not in MESH_EXTENSIONS:
             return False, self.tr("The mesh file must end with .2dm or .ply: {}").format(path)
         if not path and not self._wants_triangles(parameters):
             return False, self.tr("Nothing to write: choose a mesh file or the triangles output.")
         return True, ""
+
+    def _dem_given(self, parameters: dict[str, Any]) -> bool:
+        value = parameters.get(self.DEM)
+        return value is not None and str(value) != ""
+
+    def _elevation_kind(self, parameters: dict[str, Any], context: QgsProcessingContext) -> int:
+        """The elevation source of the run: the chosen one, or the automatic one's pick."""
+        kind = self.parameterAsEnum(parameters, self.ELEVATION_SOURCE, context)
+        if kind != elevation.ELEVATION_AUTOMATIC:
+            return kind
+        if self._dem_given(parameters):
+            return elevation.ELEVATION_DEM
+        if self.parameterAsExpression(parameters, self.Z_EXPRESSION, context).strip():
+            return elevation.ELEVATION_EXPRESSION
+        return elevation.ELEVATION_GEOMETRY
+
+    @staticmethod
+    def _dem_overlaps(
+        source: QgsProcessingFeatureSource, dem: QgsRasterLayer, context: QgsProcessingContext
+    ) -> bool:
+        """The DEM's extent meets the layer's (compared in the DEM's CRS); True when the
+        extents cannot be compared."""
+        extent = source.sourceExtent()
+        if extent.isNull():
+            return True
+        crs, dem_crs = source.sourceCrs(), dem.crs()
+        try:
+            if crs.isValid() and dem_crs.isValid() and crs != dem_crs:
+                transform = QgsCoordinateTransform(crs, dem_crs, context.transformContext())
+                extent = transform.transformBoundingBox(extent)
+        except Exception:  # a transform that fails cannot tell
+            return True
+        grown = QgsRectangle(extent)
+        grown.grow(max(dem.rasterUnitsPerPixelX(), dem.rasterUnitsPerPixelY()))
+        return grown.intersects(dem.extent())
+
+    def _plane(
+        self, source: QgsProcessingFeatureSource, kind: int, feedback: QgsProcessingFeedback
+    ) -> str:
+        """The engine's working plane: XY for draped elevations (DEM, expression, none) and
+        for a layer whose x and y are not metres; steep faces only for the geometry's own Z
+        in a projected CRS in metres."""
+        if kind != elevation.ELEVATION_GEOMETRY:
+            return "xy"
+        crs = source.sourceCrs()
+        if (
+            crs.isValid()
+            and not crs.isGeographic()
+            and (crs.mapUnits() == QgsUnitTypes.DistanceMeters)
+        ):
+            return "auto"
+        if QgsWkbTypes.hasZ(source.wkbType()):
+            feedback.pushInfo(
+                self.tr(
+                    "The layer's x and y are not in metres ({}), its Z presumably is: every "
+                    "polygon is triangulated in XY, and no face is taken for a wall."
+                ).format(crs.authid() or self.tr("no CRS"))
+            )
+        return "xy"
 
     def _wants_triangles(self, parameters: dict[str, Any]) -> bool:
         """Whether the per-triangle output was asked for (skipped when unset or empty)."""
@@ -404,9 +524,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         # The raster provider is cloned here, on the thread that owns the layer.
         self._dem_provider = None
         self._dem_crs = None
-        if self.parameterAsEnum(parameters, self.ELEVATION_SOURCE, context) == (
-            elevation.ELEVATION_DEM
-        ):
+        if self._elevation_kind(parameters, context) == elevation.ELEVATION_DEM:
             layer: QgsRasterLayer | None = self.parameterAsRasterLayer(
                 parameters, self.DEM, context
             )
@@ -429,7 +547,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         context: QgsProcessingContext,
         source: QgsProcessingFeatureSource,
     ) -> elevation.ElevationSource:
-        kind = self.parameterAsEnum(parameters, self.ELEVATION_SOURCE, context)
+        kind = self._elevation_kind(parameters, context)
         if kind == elevation.ELEVATION_GEOMETRY:
             return elevation.GeometryElevation()
         if kind == elevation.ELEVATION_EXPRESSION:
@@ -474,6 +592,16 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         if source is None:
             raise QgsProcessingException(self.invalidSourceError(parameters, self.INPUT))
         crs = source.sourceCrs()
+        mesh_path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
+        if mesh_path:
+            try:
+                Path(mesh_path).parent.mkdir(parents=True, exist_ok=True)
+            except OSError as error:
+                raise QgsProcessingException(
+                    self.tr("Cannot create the mesh file's folder {}: {}").format(
+                        Path(mesh_path).parent, error.strerror or error
+                    )
+                ) from error
         fields = triangle_fields(source.fields())
         cleanup = SinkCleanup(context)
         for name in (self.OUTPUT_TRIANGLES, self.OUTPUT_TREE):
@@ -536,17 +664,21 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         z_scale = self.parameterAsDouble(parameters, self.Z_SCALE, context)
         z_offset = self.parameterAsDouble(parameters, self.Z_OFFSET, context)
         invalid_policy = self.parameterAsEnum(parameters, self.INVALID_POLYGONS, context)
+        plane = self._plane(source, self._elevation_kind(parameters, context), feedback)
         # rings kept as given: the engine triangulates them even where no correct triangle exists
         options = EngineOptions(
-            rule, tolerance, "as_given" if invalid_policy == INVALID_AS_GIVEN else "fail"
+            rule, tolerance, "as_given" if invalid_policy == INVALID_AS_GIVEN else "fail", plane
         )
         workers = self._worker_count(parameters, context, any(s is not None for s in sinks))
         runner = EngineRunner(
             options, workers, feedback, self.tr, self.CHUNK_FEATURES, self.CHUNK_VERTICES
         )
 
+        ellipsoid = _ellipsoid(crs)
         total = source.featureCount()
-        step = 100.0 / total if total > 0 else 0.0
+        progress = Progress(feedback, total)
+        report_path = self.parameterAsFileOutput(parameters, self.OUTPUT_REPORT, context)
+        failures = FailureLog(feedback, self.tr, report_path or None)
         request = QgsFeatureRequest()
         # attributes are read only for the triangles' rows and a Z expression
         if sinks[0] is None and not isinstance(source_of_z, elevation.ExpressionElevation):
@@ -561,46 +693,69 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
 
         def write(job: BatchJob) -> bool:
             """The job's results to the outputs; False when the run was cancelled."""
-            start, size = tally.read, len(job.batch)
+            size = len(job.batch)
+            reported = [0.0]
 
             def report(fraction: float) -> None:
-                feedback.setProgress(min((start + fraction * size) * step, 99.0))
+                progress.advance("engine", fraction * size - reported[0])
+                reported[0] = fraction * size
 
             chunks = runner.finish(job, report)
             if chunks is None:
                 return False
+            report(1.0)
             batch = job.batch
             tally.read += size
             tally.repaired.extend(item.fid for item in batch if item.repaired)
             for item in batch:
                 if item.error is not None:
                     tally.failed += 1
-                    feedback.reportError(
-                        self.tr("Feature {}: {}").format(item.fid, item.error), False
-                    )
+                    failures.add(item.fid, item.error)
             batch_mesh = BatchMesh.build(chunks)
             with_triangles = batch_mesh.feature_count()
             tally.triangulated += with_triangles
             tally.empty += sum(1 for item in batch if item.error is None) - with_triangles
             tally.triangles += len(batch_mesh)
-            writer.write(sinks[0], triangle_feature_chunks(batch_mesh, fields))
-            writer.write(sinks[1], tree_feature_chunks(batch_mesh, lines))
+            # the batch's features pass "write" in proportion to the triangles written
+            per_triangle = size / max(len(batch_mesh), 1)
+            sinks_used = [s for s in sinks if s is not None] or [None]
+            share = per_triangle / len(sinks_used)
+            for sink, chunks_of in (
+                (sinks[0], triangle_feature_chunks(batch_mesh, fields, ellipsoid=ellipsoid)),
+                (sinks[1], tree_feature_chunks(batch_mesh, lines)),
+            ):
+                if sink is not None:
+                    counted = progress.counted("write", chunks_of, lambda c: len(c) * share)
+                    writer.write(sink, counted)
+            if feedback.isCanceled():
+                return False
             if mesh is not None:
                 mesh.add(batch_mesh)
-            report(1.0)
+            progress.done["write"] = tally.read
+            progress.advance("write", 0)
             return True
 
         # with workers, a batch is written once the next one is read and submitted
         pending: list[BatchJob] = []
         try:
             for batch in feature_batches(
-                features, invalid_policy, self.BATCH_FEATURES, self.BATCH_VERTICES, feedback
+                progress.counted("read", features, lambda _feature: 1),
+                invalid_policy,
+                self.BATCH_FEATURES,
+                self.BATCH_VERTICES,
+                feedback,
+                walls=plane == "auto",
             ):
                 if feedback.isCanceled():
                     break
                 if max_length > 0:
                     _densify(batch, max_length)
-                source_of_z.apply(batch)
+                for first in range(0, len(batch), self.ELEVATION_FEATURES):
+                    part = batch[first : first + self.ELEVATION_FEATURES]
+                    source_of_z.apply(part)
+                    progress.advance("elevation", len(part))
+                    if feedback.isCanceled():
+                        break
                 for warning in set(source_of_z.warnings) - reported_warnings:
                     feedback.pushInfo(self.tr("Elevation: {}").format(warning))
                     reported_warnings.add(warning)
@@ -612,6 +767,8 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                     break
             while pending and not feedback.isCanceled() and write(pending.pop(0)):
                 pass
+            if feedback.isCanceled():
+                raise self._cancelled()
             writer.close(sinks)  # a GeoPackage builds its spatial index here
             if feedback.isCanceled():
                 raise self._cancelled()
@@ -631,11 +788,21 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         finally:
             runner.close(cancel=True)
             writer.finish()
+            failures.close()
 
         read, triangulated, triangles = tally.read, tally.triangulated, tally.triangles
         failed, empty, repaired = tally.failed, tally.empty, tally.repaired
         if repaired:
             self._report_repaired(repaired, feedback)
+        filled = getattr(source_of_z, "filled", 0)
+        if filled:
+            feedback.pushWarning(
+                self.tr(
+                    "{} feature(s) have vertices outside the DEM or on its nodata cells: their "
+                    "z was filled from the nearest valid vertices along the ring (set "
+                    "'Vertices on DEM nodata' to fail them instead)."
+                ).format(filled)
+            )
         results: dict[str, Any] = {
             self.FEATURE_COUNT: read,
             self.TRIANGLE_COUNT: triangles,
@@ -650,6 +817,8 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 )
             )
             results[self.OUTPUT_MESH] = mesh_path
+        if report_path:
+            results[self.OUTPUT_REPORT] = report_path
             # without a project (qgis_process) nothing would take the layer: do not open it
             if face_count and context.project() is not None:
                 loaded = load_mesh_on_completion(
@@ -689,6 +858,17 @@ class _Tally:
     failed: int = 0
     empty: int = 0
     repaired: list[int] = field(default_factory=list)
+
+
+def _ellipsoid(crs: QgsCoordinateReferenceSystem) -> tuple[float, float] | None:
+    """(semi-major axis, flattening) of a geographic CRS's ellipsoid (WGS 84 when unknown);
+    None for a projected CRS."""
+    if not crs.isValid() or not crs.isGeographic():
+        return None
+    parameters = QgsEllipsoidUtils.ellipsoidParameters(crs.ellipsoidAcronym())
+    if not parameters.valid or parameters.semiMajor <= 0:
+        return WGS84
+    return parameters.semiMajor, 1.0 - parameters.semiMinor / parameters.semiMajor
 
 
 def _densify(batch: list[FeatureRings], max_length: float) -> None:

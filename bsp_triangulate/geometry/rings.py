@@ -68,6 +68,9 @@ def _as_points(ring: object, ring_number: int) -> np.ndarray:
 
 # A ring is a wall when the Newell normal's horizontal part exceeds this multiple of its z.
 WALL_RATIO = 10.0
+# Working planes: "auto" is XY unless the outer ring is a steep face (x, y and z in the same
+# unit); "xy" is always XY (footprints draped on terrain, or z in another unit than x and y).
+PLANES = ("auto", "xy")
 
 
 def working_axes(outer: np.ndarray) -> tuple[int, int]:
@@ -111,14 +114,17 @@ def _clean(points: np.ndarray, axes: tuple[int, int]) -> np.ndarray:
     return points
 
 
-def normalise_rings(rings: Sequence[object]) -> tuple[list[np.ndarray], tuple[int, int]]:
-    """Parse, validate and clean the input rings; returns the rings and the working axes."""
+def normalise_rings(
+    rings: Sequence[object], plane: str = "auto"
+) -> tuple[list[np.ndarray], tuple[int, int]]:
+    """Parse, validate and clean the input rings; returns the rings and the working axes
+    (``plane``: one of :data:`PLANES`)."""
     if isinstance(rings, np.ndarray) and rings.ndim == 2:
         rings = [rings]
     raw = [_as_points(ring, number) for number, ring in enumerate(rings)]
     if not raw:
         return [], (0, 1)
-    axes = working_axes(raw[0])
+    axes = (0, 1) if plane == "xy" else working_axes(raw[0])
     return [_clean(points, axes) for points in raw], axes
 
 

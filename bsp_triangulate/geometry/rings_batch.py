@@ -232,15 +232,18 @@ def _area_signs(
     return np.where(sure, np.sign(total), 0).astype(np.int64), bool(finite.all())
 
 
-def flatten_rings(polygons: Sequence[Sequence[object]], max_vertices: int) -> FlatRings:
-    """Parse, clean and orient the rings of ``polygons`` (see the module docstring)."""
+def flatten_rings(
+    polygons: Sequence[Sequence[object]], max_vertices: int, xy: bool = False
+) -> FlatRings:
+    """Parse, clean and orient the rings of ``polygons`` (see the module docstring);
+    ``xy``: every polygon is worked in XY (no steep face is left to the engine)."""
     arrays, ring_counts, widths, raw_len = _parse_plain(polygons) or _parse(polygons)
     counts = np.array(ring_counts, dtype=np.int64)
     if len(arrays) and (widths == 2).all():
         # x and y straight from the rings; z is 0 (finite, and no plane to check)
         raw, x, y = _with_zero_z(_joined(arrays, 2))
         return _flatten(raw, x, y, True, raw_len, counts, max_vertices, True)
-    return flatten_points(stack_rings(arrays, widths), raw_len, counts, max_vertices, True)
+    return flatten_points(stack_rings(arrays, widths), raw_len, counts, max_vertices, True, xy)
 
 
 def flatten_points(
@@ -249,13 +252,15 @@ def flatten_points(
     ring_counts: np.ndarray,
     max_vertices: int,
     owned: bool = False,
+    xy: bool = False,
 ) -> FlatRings:
     """:func:`flatten_rings` of rings given as one (N, 3) array of their points one after
     another, ``raw_len`` points per ring (none empty), ``ring_counts`` rings per polygon
     (-1: the polygon is not handled, and has no rings here). ``owned``: ``raw`` is the
-    caller's own scratch array, which may become the result's ``vertices``."""
+    caller's own scratch array, which may become the result's ``vertices``; ``xy``: see
+    :func:`flatten_rings`."""
     x, y = np.ascontiguousarray(raw[:, 0]), np.ascontiguousarray(raw[:, 1])
-    return _flatten(raw, x, y, False, raw_len, ring_counts, max_vertices, owned)
+    return _flatten(raw, x, y, False, raw_len, ring_counts, max_vertices, owned, xy)
 
 
 def _flatten(
@@ -267,9 +272,10 @@ def _flatten(
     ring_counts: np.ndarray,
     max_vertices: int,
     owned: bool,
+    xy: bool = False,
 ) -> FlatRings:
     """:func:`flatten_points` with ``raw``'s x and y as contiguous arrays; ``zero_z``: every
-    z is 0."""
+    z is 0; ``xy``: no plane check (every polygon is worked in XY)."""
     count = len(ring_counts)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         handled = ring_counts > 0
@@ -279,7 +285,7 @@ def _flatten(
         raw_start = np.cumsum(raw_len) - raw_len
         if not zero_z:
             _finite_rings(raw, raw_start, ring_poly, handled)
-        if not zero_z and len(raw) and raw[:, 2].any():
+        if not zero_z and not xy and len(raw) and raw[:, 2].any():
             outer_rings = poly_ring0[poly_rings > 0]
             outer_len = raw_len[outer_rings]
             outer_points = raw[ragged_index(raw_start[outer_rings], outer_len)]
@@ -487,15 +493,13 @@ def _touching(
     return touching
 
 
-def clear_area(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
-    """Per polygon: its net area (outer ring less islands) is surely not negligible in the
-    engine's sense (``engine.negligible_area``: within 8 eps of the shoelace magnitudes);
-    False also where that is too close to call here."""
+def net_areas(flat: FlatRings, wx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per polygon: twice its net area in the working plane (outer ring less islands, taken
+    from its first vertex) and the sum of the shoelace products' magnitudes."""
     count = len(flat.handled)
-    clear = np.zeros(count, dtype=bool)
     nv = len(wx)
     if nv == 0:
-        return clear
+        return np.zeros(count), np.zeros(count)
     wy = flat.vy
     has = flat.poly_rings > 0
     first = flat.ring_start[flat.poly_ring0[has]]
@@ -517,6 +521,17 @@ def clear_area(flat: FlatRings, wx: np.ndarray) -> np.ndarray:
     np.abs(right, out=right)
     left += right
     magnitude = np.bincount(poly_of, weights=left, minlength=count)
+    return net, magnitude
+
+
+def clear_area(flat: FlatRings, wx: np.ndarray, areas: tuple | None = None) -> np.ndarray:
+    """Per polygon: its net area (outer ring less islands) is surely not negligible in the
+    engine's sense (``tree.one_polygon.negligible_area``: within 8 eps of the shoelace magnitudes);
+    False also where that is too close to call here. ``areas``: :func:`net_areas`, if
+    known."""
+    if len(wx) == 0:
+        return np.zeros(len(flat.handled), dtype=bool)
+    net, magnitude = net_areas(flat, wx) if areas is None else areas
     # both sums are rounded (here and in the engine): a margin for any summation order
     margin = (8.0 + 8.0 * (flat.poly_vcount + 8)) * np.finfo(np.float64).eps * magnitude
     return np.isfinite(net) & np.isfinite(magnitude) & (np.abs(net) > margin)

@@ -3,13 +3,13 @@
 Contract of :func:`triangulate_batch`:
 
 - ``triangulate_batch(polygons, rule)`` returns one entry per polygon, in input order: a
-  :class:`Triangulation` equal field by field to what ``engine.triangulate(rings, rule=rule)``
+  :class:`Triangulation` equal field by field to what ``api.triangulate(rings, rule=rule)``
   returns (``planar_tolerance`` 0), or None where the polygon is left to the engine.
 - None is returned for anything the batch path does not decide exactly like the engine:
   polygons with more than ``max_vertices`` vertices, rings that touch each other or
   themselves (shared points, a vertex on an edge), islands with fewer than 3 points or zero
   area, outer rings of zero or near-zero area, polygons whose net area may be negligible
-  (``engine.negligible_area``), steep faces (working plane other than XY),
+  (``one_polygon.negligible_area``), steep faces (working plane other than XY),
   nearly equal bridge distances, unusual input (empty rings, non-finite or malformed points),
   rules other than "first" and "elevation", and polygons the engine would reject (its error
   message comes from the engine).
@@ -18,10 +18,11 @@ Contract of :func:`triangulate_batch`:
   numpy calls, so calls of a few polygons gain little; thousands per call is the intent.
 - Polygons of ``max_vertices`` to ``MID_VERTICES`` vertices are batched too, in groups of their
   own sorted by size, when a call has at least ``MID_MIN_COUNT`` of them: their trees are deep
-  (a round per fan triangle), so they pay off only in numbers (measured: 200 concave polygons
-  of 300 vertices 5x faster than the engine, 100 of 600 2.3x; 6 irregular ones 3x slower).
+  (a round per fan triangle), so they pay off only in numbers; a few are faster one by one in
+  the one-polygon builder.
 
-Pipeline: ``batch_rings`` (normalisation), ``batch_bridges`` (islands), ``batch_bsp`` (tree).
+Pipeline: ``geometry.rings_batch`` (normalisation), ``geometry.bridges_batch`` (islands),
+``tree.lockstep`` (tree).
 """
 
 from __future__ import annotations
@@ -36,8 +37,10 @@ from ..geometry.rings_batch import (
     FlatRings,
     as_xyz,
     clear_area,
+    covers_in_order,
     flatten_points,
     flatten_rings,
+    net_areas,
     ragged_index,
     touching_polygons,
 )
@@ -45,6 +48,7 @@ from ..geometry.validity import proven_valid_rings
 from ..packed import PackedPolygons, PackedTriangulations, Piece
 from ..triangulation import Triangulation
 from .lockstep import Trees, build_trees
+from .one_polygon import AREA_TOLERANCE
 
 # Larger polygons go to the engine (its grid index beats the all-edges tests there)...
 MAX_VERTICES = 256
@@ -65,6 +69,7 @@ def triangulate_batch(
     rule: str = "first",
     max_vertices: int = MAX_VERTICES,
     proven: Sequence[bool] | None = None,
+    plane: str = "auto",
 ) -> list[Triangulation | None]:
     """Triangulations of ``polygons`` (each ``[outer ring, island, ...]``); None where the
     polygon is left to the engine (see the module docstring).
@@ -72,12 +77,14 @@ def triangulate_batch(
     ``proven``: per polygon, True where the caller has proven it valid with
     ``validity.proven_valid`` (no two of its vertices coincide, none lies on an edge other
     than its own two); the batch path then does not look for touching rings in it.
+    ``plane``: "xy" works every polygon in XY, "auto" leaves steep faces to the engine.
     """
+    xy = plane == "xy"
 
     def flatten(index: np.ndarray, limit: int) -> FlatRings:
         if len(index) and index[-1] - index[0] == len(index) - 1:
-            return flatten_rings(polygons[int(index[0]) : int(index[-1]) + 1], limit)
-        return flatten_rings([polygons[i] for i in index.tolist()], limit)
+            return flatten_rings(polygons[int(index[0]) : int(index[-1]) + 1], limit, xy)
+        return flatten_rings([polygons[i] for i in index.tolist()], limit, xy)
 
     def point_counts(index: np.ndarray) -> np.ndarray:
         return np.array([_point_count(polygons[i]) for i in index.tolist()], dtype=np.int64)
@@ -96,6 +103,7 @@ def triangulate_batch_packed(
     rule: str = "first",
     max_vertices: int = MAX_VERTICES,
     proven: Sequence[bool] | None = None,
+    plane: str = "auto",
 ) -> list[Piece]:
     """:func:`triangulate_batch` of packed polygons: the results of the polygons it decides,
     as pieces (the others are left to the engine)."""
@@ -117,7 +125,7 @@ def triangulate_batch_packed(
             raw = points[start : start + int(lengths.sum())]
         else:
             raw = points[ragged_index(ring_start[rings], lengths)]
-        return flatten_points(raw, lengths, counts, limit)
+        return flatten_points(raw, lengths, counts, limit, xy=plane == "xy")
 
     sizes = np.bincount(owner, weights=polygons.ring_len, minlength=len(polygons))
 
@@ -308,7 +316,8 @@ def _triangulate(
     undecided &= ~proven
     handled &= ~touching_polygons(flat, wx, undecided)
     # the engine gives slivers of negligible net area no triangles: left to it
-    handled &= clear_area(flat, wx) | flat.empty
+    areas = net_areas(flat, wx)
+    handled &= clear_area(flat, wx, areas) | flat.empty
     empties = np.flatnonzero(handled & flat.empty)
     polys = np.flatnonzero(handled & ~flat.empty)
     if len(polys) == 0:
@@ -336,7 +345,61 @@ def _triangulate(
         exhaustive,
         proven[polys_ok] if shortcut else None,
     )
+    # a tree whose triangles do not cover its polygon exactly is left to the engine, which
+    # reports it (none is expected: every triangle passed exact tests)
+    trees.ok &= _areas_add_up(flat, wx, areas, polys_ok, trees)
     return _Group(flat, empties, polys_ok, trees)
+
+
+def _areas_add_up(
+    flat: FlatRings, wx: np.ndarray, areas: tuple, polys: np.ndarray, trees: Trees
+) -> np.ndarray:
+    """Per tree of ``polys``: its triangles' absolute areas add up to its polygon's net
+    area (``one_polygon.check_area``'s test, with the same tolerance); ``areas``: the
+    polygons' ``net_areas``."""
+    good = np.zeros(len(polys), dtype=bool)
+    done = np.flatnonzero(trees.ok)
+    if len(done) == 0:
+        return good
+    count = trees.count[done]
+    if len(done) == len(polys) and covers_in_order(trees.start, trees.count, len(trees.triangles)):
+        corners = trees.triangles.copy()
+    else:
+        corners = trees.triangles[ragged_index(trees.start[done], count)]
+    first = np.cumsum(count) - count
+    corners += np.repeat(flat.poly_vstart[polys[done]], count)[:, None]
+    x, y = wx[corners], flat.vy[corners]
+    x -= x[:, :1]
+    y -= y[:, :1]
+    left = x[:, 1] * y[:, 2]
+    right = y[:, 1] * x[:, 2]
+    total = np.add.reduceat(np.abs(left - right), first)
+    np.abs(left, out=left)
+    np.abs(right, out=right)
+    left += right
+    magnitude = np.add.reduceat(left, first)
+    net, ring_magnitude = areas
+    area = np.abs(net[polys[done]])
+    eps = np.finfo(np.float64).eps
+    bound = AREA_TOLERANCE * area + 16 * eps * (magnitude + ring_magnitude[polys[done]])
+    good[done] = np.abs(total - area) <= bound
+    return good
+    rows = ragged_index(trees.start[done], trees.count[done])
+    owner = np.repeat(np.arange(len(done)), trees.count[done])
+    corners = trees.triangles[rows] + flat.poly_vstart[polys[done]][owner][:, None]
+    x, y = wx[corners], flat.vy[corners]
+    x -= x[:, :1]
+    y -= y[:, :1]
+    left = x[:, 1] * y[:, 2]
+    right = y[:, 1] * x[:, 2]
+    total = np.bincount(owner, weights=np.abs(left - right), minlength=len(done))
+    magnitude = np.bincount(owner, weights=np.abs(left) + np.abs(right), minlength=len(done))
+    net, ring_magnitude = net_areas(flat, wx)
+    area = np.abs(net[polys[done]])
+    eps = np.finfo(np.float64).eps
+    bound = AREA_TOLERANCE * area + 16 * eps * (magnitude + ring_magnitude[polys[done]])
+    good[done] = np.abs(total - area) <= bound
+    return good
 
 
 def _piece(

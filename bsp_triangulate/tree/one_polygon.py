@@ -23,7 +23,7 @@ from ..geometry.predicates import (
 )
 from ..geometry.rings import PreparedRings, normalise_rings, prepare, ring_label
 from ..geometry.spatial_index import ChainBoxes, SegmentGrid
-from ..rules import ApexRule, get_rule
+from ..rules import ApexRule, ElevationRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
 
 INVALID_MODES = ("fail", "as_given")
@@ -306,8 +306,10 @@ class _Tree:
         z: np.ndarray,
         rule: ApexRule,
         as_given: bool = False,
+        tick: Callable[[float], None] | None = None,
     ) -> None:
         self.prepared = prepared
+        self.tick = tick
         self.as_given = as_given
         self._prefix: np.ndarray | None = None
         self.used_fallback = False  # some base of invalid input had no correct triangle
@@ -340,6 +342,8 @@ class _Tree:
         if not rule.exhaustive:
             apex = self._first_apex(lo, hi)
             return -1 if apex < 0 else rule.choose(np.array([apex]), v1, v2, self.sz)
+        if isinstance(rule, ElevationRule):
+            return self._closest_apex(lo, hi, v1, v2)
         sx, sy = self.sx, self.sy
         small = self.grid is None or hi - lo <= SMALL_SEQUENCE
         found: list[np.ndarray] = []
@@ -367,6 +371,49 @@ class _Tree:
         if not found:
             return -1
         return rule.choose(np.concatenate(found), v1, v2, self.sz)
+
+    def _closest_apex(self, lo: int, hi: int, v1: int, v2: int) -> int:
+        """:meth:`_apex` under rule "elevation": the facing candidates are tested closest
+        elevation first, until no untested one can be as close as the closest correct one;
+        the rule then chooses among the correct ones found, as among all of them."""
+        sx, sy, z = self.sx, self.sy, self.sz
+        candidates = np.arange(hi - 1, lo, -1)
+        candidates = candidates[facing_candidates(sx, sy, lo, hi, candidates, self.exact)]
+        if len(candidates) == 0:
+            return -1
+        z1, z2 = float(z[v1]), float(z[v2])
+        zc = z[candidates]
+        approx = np.abs(2.0 * zc - z1 - z2)
+        # the rule's own error bound: candidates within it of the best are decided exactly
+        error = 8.0 * 2.0**-53 * (2.0 * np.abs(zc) + abs(z1) + abs(z2)) + 1e-300
+        widest = float(error.max())
+        order = np.argsort(approx, kind="stable")
+        small = self.grid is None or hi - lo <= SMALL_SEQUENCE
+        blockers: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+        found: list[np.ndarray] = []
+        best = np.inf
+        start, size = 0, _FIRST_CHUNK
+        while start < len(order):
+            if found and float(approx[order[start]]) - widest > best:
+                break  # every untested candidate is surely farther than a correct one
+            chosen = order[start : start + size]
+            start, size = start + size, min(size * 2, _MAX_CHUNK)
+            chunk = candidates[chosen]
+            if small:
+                mask = correct_candidates(
+                    sx, sy, lo, hi, chunk, facing=True, exact_inputs=self.exact
+                )
+                good = chosen[mask]
+            else:
+                correct = self._grid_correct(lo, hi, chunk, True, blockers)
+                good = chosen[np.isin(chunk, correct)]
+            if len(good):
+                found.append(good)
+                best = min(best, float((approx[good] + error[good]).min()))
+        if not found:
+            return -1
+        # in candidate order, as the rule expects
+        return self.rule.choose(candidates[np.sort(np.concatenate(found))], v1, v2, z)
 
     def _first_apex(self, lo: int, hi: int) -> int:
         """The first candidate of sub-polygon [lo, hi] forming a correct triangle, or -1.
@@ -548,8 +595,11 @@ class _Tree:
         work = [(1, m, True, -1, 0, 0)]
         count = 0
         mirrored = self.prepared.mirrored
+        tick = self.tick
         while work:
             lo, hi, v1_at_hi, par, dep, sd = work.pop()
+            if tick is not None and count & 63 == 0:
+                tick(count / len(triangles))
             if count >= len(triangles):
                 raise TriangulationError(self._label(lo) + ": the BSP tree does not close")
             v1, v2 = (hi, lo) if v1_at_hi else (lo, hi)
@@ -633,11 +683,16 @@ def _triangulate(
     rule: str,
     planar_tolerance: float,
     invalid: str,
+    plane: str = "auto",
     repair: bool = True,
+    tick: Callable[[float], None] | None = None,
 ) -> Triangulation:
+    """:func:`~bsp_triangulate.api.triangulate` of one polygon; ``repair``: a polygon whose
+    rings cross may be repaired (False inside the repair itself); ``tick``: called every 64
+    triangles with the share of the tree built (it may raise to stop)."""
     apex_rule = get_rule(rule)
     as_given = _as_given(invalid)
-    clean, axes = normalise_rings(rings)
+    clean, axes = normalise_rings(rings, plane)
     if planar_tolerance > 0 and clean:
         clean = _snap(clean, planar_tolerance)
     prepared = prepare(clean, axes)
@@ -649,7 +704,7 @@ def _triangulate(
                 "(invalid polygon: self-intersection)"
             )
         if repair:
-            repaired = _repaired(clean, rule=rule)
+            repaired = _repaired(clean, rule=rule, plane=plane)
             if repaired is not None:
                 return repaired
     if prepared.is_degenerate or negligible_area(prepared):
@@ -661,16 +716,61 @@ def _triangulate(
     sequence = remove_spikes(prepared.x, prepared.y, sequence)
     if len(sequence) < 3:
         return Triangulation(vertices=prepared.vertices)
-    tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given)
+    tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given, tick)
     result = tree.build()
     if tree.used_fallback and repair:
         lost = _area_loss(prepared, result, axes)
         if lost > _AREA_KEPT:
             # crossing rings: a triangulation of the rings as given cannot keep the area
-            repaired = _repaired(clean, rule=rule)
+            repaired = _repaired(clean, rule=rule, plane=plane)
             if repaired is not None and _area_loss(prepared, repaired, axes) < lost:
                 return repaired
+    if not as_given:
+        check_area(prepared, result, axes)
     return result
+
+
+def check_area(prepared: PreparedRings, result: Triangulation, axes: tuple[int, int]) -> None:
+    """Raise :class:`TriangulationError` unless the triangles' absolute areas (in the working
+    plane) add up to the polygon's area.
+
+    The tree's triangles always add up to the area with their signs; their absolute areas
+    do so only when none is reversed, and then they cover the polygon exactly once. A
+    result that fails this cannot be right, and is never returned. The tolerance is
+    relative (:data:`AREA_TOLERANCE`) plus a bound on the rounding of the sums.
+    """
+    t = result.triangles
+    if len(t) == 0:
+        return
+    # from the first vertex, scaled by a power of two (exact): no overflow or underflow
+    first = prepared.rings[0][0]
+    x = prepared.x - prepared.x[first]
+    y = prepared.y - prepared.y[first]
+    span = max(float(np.abs(x).max()), float(np.abs(y).max()))
+    scale = np.ldexp(1.0, -int(np.frexp(span)[1])) if 0 < span < np.inf else 1.0
+    x, y = x * scale, y * scale
+    rings = [abs(_ring_area2(x[r], y[r])) for r in prepared.rings]
+    polygon = rings[0] - sum(rings[1:])
+    ring_terms = 0.0
+    for r in prepared.rings:
+        rx, ry = x[r] - x[r[0]], y[r] - y[r[0]]
+        ring_terms += float(np.abs(rx * np.roll(ry, -1)).sum() + np.abs(np.roll(rx, -1) * ry).sum())
+    v = (result.vertices[:, axes] - result.vertices[prepared.rings[0][0], axes]) * scale
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    left = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
+    right = (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    total = float(np.abs(left - right).sum())
+    terms = float(np.abs(left).sum() + np.abs(right).sum()) + ring_terms
+    rounding = 16 * np.finfo(np.float64).eps * terms
+    off = abs(total - polygon)
+    if polygon > 0 and off <= AREA_TOLERANCE * polygon + rounding:
+        return
+    share = f"{total / polygon:.6g} times" if polygon > 0 else "a non-zero area for"
+    raise TriangulationError(
+        f"the triangles' areas add up to {share} the polygon's area "
+        f"(relative tolerance {AREA_TOLERANCE:g}): the triangulation cannot be right and "
+        "is not output"
+    )
 
 
 def _crosses_with_zero_area(clean: list[np.ndarray], axes: tuple[int, int]) -> bool:
@@ -693,6 +793,9 @@ def _crosses_with_zero_area(clean: list[np.ndarray], axes: tuple[int, int]) -> b
 
 # Relative area difference below which a triangulation counts as keeping the polygon's area.
 _AREA_KEPT = 1e-12
+# Relative difference between the triangles' absolute areas and the polygon's beyond which a
+# result is wrong (rounding of sums of many products stays orders of magnitude below it).
+AREA_TOLERANCE = 1e-9
 
 
 def _area_loss(prepared: PreparedRings, result: Triangulation, axes: tuple[int, int]) -> float:
@@ -715,7 +818,7 @@ def _ring_area2(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-def _repaired(clean: list[np.ndarray], *, rule: str) -> Triangulation | None:
+def _repaired(clean: list[np.ndarray], *, rule: str, plane: str) -> Triangulation | None:
     """Triangulation of the rings made valid (shapely's make_valid, "structure" method).
 
     The parts are triangulated one by one and merged (one root per part); points where the
@@ -740,7 +843,14 @@ def _repaired(clean: list[np.ndarray], *, rule: str) -> Triangulation | None:
         rings = [_with_z(r, known) for r in rings]
         # a repaired part can still fail where it touches itself: as given, without repair
         pieces.append(
-            _triangulate(rings, rule=rule, planar_tolerance=0.0, invalid="as_given", repair=False)
+            _triangulate(
+                rings,
+                rule=rule,
+                planar_tolerance=0.0,
+                invalid="as_given",
+                plane=plane,
+                repair=False,
+            )
         )
     return merge_triangulations(pieces)
 

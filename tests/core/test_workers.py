@@ -172,3 +172,34 @@ def test_workers_write_a_2dm_mesh_in_parts_byte_for_byte(tmp_path, monkeypatch) 
     for mine, theirs in zip(shared, alone):
         assert mine.read_bytes() == theirs.read_bytes()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in [*shared, *alone])
+
+
+def test_a_module_beside_the_package_cannot_shadow_the_standard_library(tmp_path) -> None:
+    """A file such as ``inspect.py`` next to the package's folder (beside a checkout or a
+    plugin folder) is not imported by the workers in place of the standard library's."""
+    import shutil
+    from pathlib import Path
+
+    package = Path(triangulate_packed.__code__.co_filename).resolve().parent
+    shutil.copytree(
+        package, tmp_path / "bsp_triangulate", ignore=shutil.ignore_patterns("__pycache__")
+    )
+    (tmp_path / "inspect.py").write_text("raise ImportError('the standard inspect is shadowed')\n")
+    script = (
+        "import sys; sys.path.append(sys.argv[1]); "
+        "from bsp_triangulate import PackedPolygons; "
+        "from bsp_triangulate.workers import WorkerPool; "
+        "pool = WorkerPool(1); "
+        "square = [[(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]]; "
+        "result = pool.submit(PackedPolygons.of([square, square])).result(timeout=60); "
+        "pool.close(); print(int(result.triangle_count.sum()))"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script, str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path.parent,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "4"

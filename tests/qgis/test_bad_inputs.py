@@ -15,6 +15,7 @@ from osgeo import gdal, osr
 from qgis.core import (
     QgsCoordinateReferenceSystem,
     QgsCoordinateTransform,
+    QgsDistanceArea,
     QgsGeometry,
     QgsLineString,
     QgsPointXY,
@@ -269,12 +270,18 @@ def test_curve_polygon_is_segmentized_and_its_area_approximated_from_inside(mode
         assert math.hypot(x - 10, y) == pytest.approx(10.0, abs=1e-6)
 
 
-def test_layer_in_geographic_crs_is_triangulated_in_degrees():
+def test_layer_in_geographic_crs_is_triangulated_in_degrees_with_metrics_in_metres():
     wkt = "POLYGON((20.1 -34.0, 20.3 -34.0, 20.3 -33.9, 20.2 -33.95, 20.1 -33.9, 20.1 -34.0))"
     layer = polygon_layer([wkt], crs="EPSG:4326")
     result, rows, errors = outcome(layer, REPAIR)
     assert len(rows) == 3 and errors == []
-    assert area(rows) == pytest.approx(QgsGeometry.fromWkt(wkt).area(), rel=1e-9)
+    degrees = sum(row.geometry().area() for row in rows)
+    assert degrees == pytest.approx(QgsGeometry.fromWkt(wkt).area(), rel=1e-9)
+    ellipsoidal = QgsDistanceArea()
+    ellipsoidal.setSourceCrs(layer.crs(), QgsProject.instance().transformContext())
+    ellipsoidal.setEllipsoid("EPSG:7030")
+    square_metres = ellipsoidal.measureArea(QgsGeometry.fromWkt(wkt))
+    assert area(rows) == pytest.approx(square_metres, rel=2e-3)
     assert result["OUTPUT_TRIANGLES"].crs().authid() == "EPSG:4326"
 
 
@@ -328,9 +335,12 @@ def test_polygon_partly_outside_the_dem_fills_or_fails_the_outside_vertices(tmp_
 def test_polygon_wholly_outside_the_dem_fails_with_its_id(tmp_path: Path, nodata_policy: int):
     dem = write_plane_dem(tmp_path / "plane.tif")
     far = [(x + 100_000, y) for x, y in DEM_POLYGON]
-    layer, result, rows, errors = dem_run(dem, far, nodata_policy)
-    assert result["FAILED_COUNT"] == 1 and rows == []
-    assert errors[0].startswith(f"Feature {only_fid(layer)}:")
+    layer = polygon_layer([utm_wkt(DEM_POLYGON), utm_wkt(far)])
+    parameters = {"ELEVATION_SOURCE": 3, "DEM": str(dem), "DEM_NODATA": nodata_policy}
+    result, rows, errors = outcome(layer, REPAIR, **parameters)
+    assert result["FAILED_COUNT"] == 1 and len(rows) == 3
+    far_fid = max(feature.id() for feature in layer.getFeatures())
+    assert errors[0].startswith(f"Feature {far_fid}:")
 
 
 def test_dem_in_geographic_crs_is_sampled_at_the_reprojected_vertices(tmp_path: Path):

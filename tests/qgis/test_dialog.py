@@ -60,7 +60,7 @@ def test_dialog_defaults_give_the_documented_default_parameters(dialog, polygons
     parameters = dialog.createProcessingParameters()
     assert parameters["INPUT"] in (polygons.id(), polygons.source(), polygons)
     expected = {
-        "ELEVATION_SOURCE": 1,
+        "ELEVATION_SOURCE": 4,
         "DEM_INTERPOLATION": 0,
         "DEM_NODATA": 0,
         "APEX_RULE": 0,

@@ -101,7 +101,7 @@ def test_workers_write_what_one_process_writes(
 ):
     """The same outputs; the workers also write the 2DM's lines in parts (every mesh is
     large enough for that here)."""
-    from bsptriangulate.bsp_triangulate import mesh
+    from bsptriangulate.bsp_triangulate.formats import mesh
 
     monkeypatch.setattr(mesh, "PARALLEL_LINES", 0)
     monkeypatch.setattr(mesh, "_KERNEL_COPY", True)  # joined by copying where not
