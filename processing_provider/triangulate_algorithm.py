@@ -192,9 +192,12 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "feature that failed. The log lists the first ten failures of each kind and "
             "counts the rest.</p>"
             "<h3>Outputs</h3>"
-            "<p><b>Mesh</b>: one .2dm (default) or .ply file for the whole layer, vertices "
+            "<p><b>Mesh</b>: one .ply (default) or .2dm file for the whole layer, vertices "
             "shared where identical, z per vertex, face values feature_id and depth; loaded "
-            "as a mesh layer in the input's CRS.</p>"
+            "as a mesh layer in the input's CRS. PLY carries the input's CRS and the face "
+            "values, so QGIS opens it complete later; 2DM has no CRS (MDAL reads none) and its "
+            "face values are in &lt;name&gt;_els.dat, to be added by hand. Both get "
+            "&lt;name&gt;.qml beside them: their 2D style and 3D renderer.</p>"
             "<p><b>Triangles</b> (skip it for a faster mesh-only run; at least one of the mesh "
             "and the triangles is needed): one PolygonZ feature per triangle with the source "
             "feature id "
@@ -339,7 +342,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterFileDestination(
                 self.OUTPUT_MESH,
                 self.tr("Mesh"),
-                self.tr("2DM mesh (*.2dm);;PLY mesh (*.ply)"),
+                self.tr("PLY mesh (*.ply);;2DM mesh (*.2dm)"),
                 optional=True,
                 createByDefault=True,
             )
@@ -490,10 +493,15 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
 
     def _wants_triangles(self, parameters: dict[str, Any]) -> bool:
         """Whether the per-triangle output was asked for (skipped when unset or empty)."""
-        value = parameters.get(self.OUTPUT_TRIANGLES)
+        return self._destination(parameters, self.OUTPUT_TRIANGLES) != ""
+
+    @staticmethod
+    def _destination(parameters: dict[str, Any], name: str) -> str:
+        """A sink's destination as given ("" when unset or skipped)."""
+        value = parameters.get(name)
         if isinstance(value, QgsProcessingOutputLayerDefinition):
             value = value.sink.staticValue()
-        return value is not None and str(value) != ""
+        return "" if value is None else str(value)
 
     def _dem_band(self, parameters: dict[str, Any], context: QgsProcessingContext) -> int:
         if parameters.get(self.DEM_BAND) is None:
@@ -605,7 +613,9 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         fields = triangle_fields(source.fields())
         cleanup = SinkCleanup(context)
         for name in (self.OUTPUT_TRIANGLES, self.OUTPUT_TREE):
-            cleanup.note(self.parameterAsOutputLayer(parameters, name, context))
+            # the destination as given: parameterAsOutputLayer would register a second layer
+            # to load on completion (a "memory:Triangles" that is never made)
+            cleanup.note(self._destination(parameters, name))
         sink, triangles_id = self.parameterAsSink(
             parameters, self.OUTPUT_TRIANGLES, context, fields, QgsWkbTypes.PolygonZ, crs
         )
@@ -817,8 +827,6 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 )
             )
             results[self.OUTPUT_MESH] = mesh_path
-        if report_path:
-            results[self.OUTPUT_REPORT] = report_path
             # without a project (qgis_process) nothing would take the layer: do not open it
             if face_count and context.project() is not None:
                 loaded = load_mesh_on_completion(
@@ -828,6 +836,8 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                     feedback.pushWarning(
                         self.tr("The mesh file could not be opened as a mesh layer.")
                     )
+        if report_path:
+            results[self.OUTPUT_REPORT] = report_path
         feedback.pushInfo(
             self.tr("{} feature(s): {} triangulated, {} failed, {} empty; {} triangles").format(
                 read, triangulated, failed, empty, triangles
