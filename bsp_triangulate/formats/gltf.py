@@ -89,11 +89,12 @@ def flat_normals(corners: np.ndarray) -> np.ndarray:
     return out
 
 
-class _Buffer:
-    """The binary buffer being laid out: 4-byte aligned views, one per attribute."""
+class GltfBuffer:
+    """The binary buffer, laid out as 4-byte aligned views (one per attribute) of float32
+    arrays, which are written as they are (no copy into one ``bytes``)."""
 
     def __init__(self) -> None:
-        self.blocks: list[bytes] = []
+        self.blocks: list[np.ndarray] = []
         self.length = 0
         self.views: list[dict] = []
         self.accessors: list[dict] = []
@@ -101,16 +102,11 @@ class _Buffer:
     def attribute(self, array: np.ndarray, kind: str, bounds: bool = False) -> int:
         """An accessor of float32 ``array`` ((n,) SCALAR or (n, 3) VEC3); its index."""
         data = np.ascontiguousarray(array, dtype="<f4")
-        raw = data.tobytes()
-        view = {"buffer": 0, "byteOffset": self.length, "byteLength": len(raw)}
+        view = {"buffer": 0, "byteOffset": self.length, "byteLength": data.nbytes}
         view["target"] = _ARRAY_BUFFER
         self.views.append(view)
-        self.blocks.append(raw)
-        self.length += len(raw)
-        pad = -self.length % 4
-        if pad:
-            self.blocks.append(b"\0" * pad)
-            self.length += pad
+        self.blocks.append(data)
+        self.length += data.nbytes  # a multiple of 4: float32 only
         accessor = {
             "bufferView": len(self.views) - 1,
             "componentType": _FLOAT,
@@ -124,8 +120,12 @@ class _Buffer:
         self.accessors.append(accessor)
         return len(self.accessors) - 1
 
+    def write(self, handle) -> None:
+        for block in self.blocks:
+            handle.write(memoryview(block).cast("B"))
+
     def data(self) -> bytes:
-        return b"".join(self.blocks)
+        return b"".join(block.tobytes() for block in self.blocks)
 
 
 def _is_feature_id(values: np.ndarray) -> bool:
@@ -152,7 +152,7 @@ def gltf_document(
     crs_wkt: str | None = None,
     origin: np.ndarray | None = None,
     name: str = "mesh",
-) -> tuple[dict, bytes]:
+) -> tuple[dict, GltfBuffer]:
     """The glTF JSON (without ``buffers[0].uri``) and its binary buffer."""
     vertices, faces = _check_mesh(vertices, faces)
     properties = {
@@ -162,10 +162,13 @@ def gltf_document(
     origin = default_origin(vertices) if origin is None else np.asarray(origin, np.float64)
     if origin.shape != (3,) or not np.isfinite(origin).all():
         raise ValueError("origin must be three finite numbers")
-    corners = vertices[faces.reshape(-1)].reshape(-1, 3, 3) - origin
-    positions = to_y_up(corners.reshape(-1, 3))
-    normals = np.repeat(to_y_up(flat_normals(corners)), 3, axis=0)
-    buffer = _Buffer()
+    # float32 positions of the vertices, then of the faces' corners (the same values as
+    # rounding each corner, at a third of the memory)
+    local = vertices - origin
+    positions = to_y_up(local).astype("<f4")[faces.reshape(-1)]
+    normals = np.repeat(to_y_up(_face_normals(local, faces)).astype("<f4"), 3, axis=0)
+    del local
+    buffer = GltfBuffer()
     attributes = {
         "POSITION": buffer.attribute(positions, "VEC3", bounds=True),
         "NORMAL": buffer.attribute(normals, "VEC3"),
@@ -173,7 +176,7 @@ def gltf_document(
     feature_ids: list[dict] = []
     others: dict[str, str] = {}
     for key, values in properties.items():
-        per_vertex = np.repeat(values.astype(np.float64), 3)
+        per_vertex = np.repeat(values.astype("<f4"), 3)
         if _is_feature_id(values):
             attribute = f"_FEATURE_ID_{len(feature_ids)}"
             attributes[attribute] = buffer.attribute(per_vertex, "SCALAR")
@@ -209,16 +212,25 @@ def gltf_document(
         document["extensionsUsed"] = [FEATURE_EXTENSION]
     if others:
         primitive["extras"] = {"face_values": others}
-    data = buffer.data()
     if len(faces):
         document["accessors"] = buffer.accessors
         document["bufferViews"] = buffer.views
-        document["buffers"] = [{"byteLength": len(data)}]
+        document["buffers"] = [{"byteLength": buffer.length}]
     else:
         # a mesh needs a primitive with a POSITION accessor: an empty mesh has no mesh at all
         del document["meshes"]
         del document["nodes"][0]["mesh"]
-    return document, data
+    return document, buffer
+
+
+def _face_normals(local: np.ndarray, faces: np.ndarray, block: int = 1 << 20) -> np.ndarray:
+    """:func:`flat_normals` of the faces, a block of faces at a time (bounded float64
+    temporaries)."""
+    out = np.empty((len(faces), 3), dtype=np.float64)
+    for start in range(0, len(faces), block):
+        rows = faces[start : start + block]
+        out[start : start + block] = flat_normals(local[rows])
+    return out
 
 
 def _json_bytes(document: dict) -> bytes:
@@ -235,16 +247,16 @@ def write_glb(
 ) -> list[Path]:
     """Write a binary glTF (``.glb``): one file, JSON chunk then BIN chunk. Returns [path]."""
     path = Path(path)
-    document, data = gltf_document(vertices, faces, face_properties, crs_wkt, origin, path.stem)
+    document, buffer = gltf_document(vertices, faces, face_properties, crs_wkt, origin, path.stem)
     text = _json_bytes(document)
     text += b" " * (-len(text) % 4)
-    chunks = [struct.pack("<II", len(text), _JSON_CHUNK), text]
-    if data:
-        chunks += [struct.pack("<II", len(data), _BIN_CHUNK), data]
-    total = 12 + sum(len(chunk) for chunk in chunks)
+    total = 12 + 8 + len(text) + (8 + buffer.length if buffer.length else 0)
     with open(path, "wb") as handle:
         handle.write(struct.pack("<III", _GLB_MAGIC, 2, total))
-        handle.writelines(chunks)
+        handle.write(struct.pack("<II", len(text), _JSON_CHUNK) + text)
+        if buffer.length:
+            handle.write(struct.pack("<II", buffer.length, _BIN_CHUNK))
+            buffer.write(handle)
     return [path]
 
 
@@ -261,14 +273,16 @@ def write_gltf(
     with ``embed=True``, inside the JSON as a base64 data URI (a third larger). Returns the
     written paths, the ``.gltf`` first."""
     path = Path(path)
-    document, data = gltf_document(vertices, faces, face_properties, crs_wkt, origin, path.stem)
+    document, buffer = gltf_document(vertices, faces, face_properties, crs_wkt, origin, path.stem)
     written = [path]
-    if data:
+    if buffer.length:
         if embed:
-            uri = "data:application/octet-stream;base64," + base64.b64encode(data).decode()
+            data = base64.b64encode(buffer.data()).decode()
+            uri = "data:application/octet-stream;base64," + data
         else:
             sidecar = path.with_suffix(".bin")
-            sidecar.write_bytes(data)
+            with open(sidecar, "wb") as handle:
+                buffer.write(handle)
             written.append(sidecar)
             uri = sidecar.name
         document["buffers"][0]["uri"] = uri

@@ -160,7 +160,8 @@ def test_glb_normals_are_flat_unit_and_up_for_a_counter_clockwise_surface(
     tmp_path: Path, mesh
 ) -> None:
     vertices, faces, properties = mesh
-    document, binary = gltf_document(vertices, faces, properties)
+    document, buffer = gltf_document(vertices, faces, properties)
+    binary = buffer.data()
     primitive = document["meshes"][0]["primitives"][0]
     normals = accessor(document, binary, primitive["attributes"]["NORMAL"]).astype(np.float64)
     np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-6)
