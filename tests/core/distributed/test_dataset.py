@@ -137,7 +137,10 @@ def read_triangles(out_dir: Path) -> dict:
     cuts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1], True])
     columns = [frame[name].to_numpy() for name in ("parent", "depth", "side")]
     return {
-        ids[a].item(): (corners[a:b], *(column[a:b] for column in columns))
+        getattr(ids[a], "item", lambda a=a: ids[a])(): (
+            corners[a:b],
+            *(column[a:b] for column in columns),
+        )
         for a, b in zip(cuts[:-1], cuts[1:])
     }
 
@@ -294,6 +297,27 @@ def test_the_command_line_runs_on_a_given_scheduler(client, tmp_path, capsys):
     assert "300 read: 300 triangulated, 0 failed, 0 empty" in capsys.readouterr().out
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["triangulated"] == 300
+
+
+def test_geodataframes_keep_their_index_or_id_column(client, tmp_path):
+    import dask_geopandas
+
+    polygons = star_polygons(300)
+    frame = geopandas.GeoDataFrame(
+        {"code": [f"c{i}" for i in range(300)]},
+        geometry=list(polygons),
+        index=np.arange(1000, 1300),
+        crs=EPSG,
+    )
+    expected = reference(polygons, range(1000, 1300))
+    summary = triangulate_dataset(frame, tmp_path / "a", client=client, partition_rows=100)
+    assert summary["partitions"] == 3 and summary["triangulated"] == 300
+    assert_same(read_triangles(tmp_path / "a"), expected)
+    lazy = dask_geopandas.from_geopandas(frame, npartitions=2)
+    summary = triangulate_dataset(lazy, tmp_path / "b", client=client, id_column="code")
+    assert summary["triangulated"] == 300
+    written = read_triangles(tmp_path / "b")
+    assert_same(written, {f"c{fid - 1000}": value for fid, value in expected.items()})
 
 
 def test_a_killed_worker_loses_nothing(client, generated, generated_reference, tmp_path):
