@@ -888,7 +888,11 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
 
     def _joined(self, model: _Model) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         def join(blocks, shape, dtype):
-            return np.concatenate(blocks) if blocks else np.zeros(shape, dtype)
+            """The blocks one after another; the list is emptied (parts and whole are not
+            held at once longer than the copy)."""
+            joined = np.concatenate(blocks) if blocks else np.zeros(shape, dtype)
+            blocks.clear()
+            return joined
 
         vertices = join(model.vertices, (0, 3), np.float64)
         index_type = np.int32 if model.vertex_count < 2**31 else np.int64

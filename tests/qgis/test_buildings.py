@@ -367,3 +367,70 @@ def test_qgis_process_lists_and_runs_buildings(qgis_process: QgisProcess, tmp_pa
     read = trimesh_read(mesh)
     read.merge_vertices()
     assert read.is_watertight and read.volume == pytest.approx(240.0, rel=1e-6)
+
+
+@pytest.fixture()
+def dialog(qgis_parent, monkeypatch):
+    from processing.gui import ParametersPanel
+    from processing.gui.AlgorithmDialog import AlgorithmDialog
+    from qgis.core import QgsApplication
+
+    layer = layer_of([ELL])
+    QgsProject.instance().addMapLayer(layer)
+    # pytest-qgis's stand-in iface has no browserModel(); the panel skips iface when None.
+    monkeypatch.setattr(ParametersPanel, "iface", None)
+    algorithm = QgsApplication.processingRegistry().createAlgorithmById(ALG)
+    widget = AlgorithmDialog(algorithm, parent=qgis_parent)
+    yield widget
+    widget.close()
+    widget.deleteLater()
+    QgsProject.instance().removeMapLayer(layer.id())
+
+
+def test_dialog_has_a_widget_per_parameter_and_the_documented_defaults(dialog) -> None:
+    panel = dialog.mainWidget()
+    names = {p.name() for p in dialog.algorithm().parameterDefinitions()}
+    assert set(panel.wrappers) == names
+    parameters = dialog.createProcessingParameters()
+    assert parameters["HEIGHT_SOURCE"] == 0 and parameters["HEIGHT"] == "10"
+    assert parameters["GROUND"] == 2 and parameters["GROUND_VALUE"] == 0.0
+    assert parameters["ROOF_PLANAR_TOLERANCE"] == 0.0 and parameters["APEX_RULE"] == 0
+
+
+def test_buildings_run_as_a_step_of_a_model(tmp_path: Path) -> None:
+    import processing
+    from qgis.core import (
+        QgsProcessingModelAlgorithm,
+        QgsProcessingModelChildAlgorithm,
+        QgsProcessingModelChildParameterSource,
+        QgsProcessingModelOutput,
+        QgsProcessingModelParameter,
+        QgsProcessingParameterFeatureSource,
+    )
+
+    model = QgsProcessingModelAlgorithm("footprints to glb", "tests")
+    model.addModelParameter(
+        QgsProcessingParameterFeatureSource("footprints", "Footprints"),
+        QgsProcessingModelParameter("footprints"),
+    )
+    child = QgsProcessingModelChildAlgorithm(ALG)
+    child.setChildId("buildings")
+    child.addParameterSources(
+        "INPUT", [QgsProcessingModelChildParameterSource.fromModelParameter("footprints")]
+    )
+    child.addParameterSources(
+        "HEIGHT", [QgsProcessingModelChildParameterSource.fromStaticValue("8")]
+    )
+    output = QgsProcessingModelOutput("model", "3D model")
+    output.setChildOutputName("OUTPUT_MESH")
+    child.setModelOutputs({"model": output})
+    model.addChildAlgorithm(child)
+    path = tmp_path / "m.glb"
+    result = processing.run(
+        model, {"footprints": layer_of([ELL, SQUARE_WITH_COURT]), "buildings:model": str(path)}
+    )
+    assert Path(result["buildings:model"]) == path
+    mesh = trimesh_read(path)
+    mesh.merge_vertices()
+    assert mesh.is_watertight
+    assert mesh.volume == pytest.approx((AREAS[1] + AREAS[2]) * 8, rel=1e-6)
