@@ -321,7 +321,9 @@ def test_cancel_leaves_no_output(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
-def test_swellendam_buildings_with_dem_ground_lose_no_feature(tmp_path: Path) -> None:
+def test_swellendam_buildings_with_dem_ground_lose_no_feature(
+    tmp_path: Path, gltf_validator
+) -> None:
     source = SHARED_DATA / "swellendam" / "training_data.gpkg"
     dem = SHARED_DATA / "swellendam" / "srtm_41_19.tif"
     if not source.is_file():
@@ -346,6 +348,7 @@ def test_swellendam_buildings_with_dem_ground_lose_no_feature(tmp_path: Path) ->
     assert any("EPSG:32733" in info and "reprojected" in info for info in feedback.infos)
     mesh = trimesh_read(tmp_path / "swellendam.glb")
     assert len(mesh.faces) == result["TRIANGLE_COUNT"]
+    assert_valid_gltf(gltf_validator, tmp_path / "swellendam.glb")
     document = json.loads(city.read_text())
     assert cityjson_errors(document) == []
     shells = cityjson_solids(document)
