@@ -226,7 +226,7 @@ def _check(rule, elevation, invalid, mesh_format, partitioning, z_column, dem) -
 
 def _clear(out_dir: Path) -> None:
     """Make the output folders; a previous run's partition files there are removed."""
-    for folder, pattern in (("triangles", "*.parquet"), ("meshes", "*.ply")):
+    for folder, pattern in (("triangles", "part.*.parquet"), ("meshes", "part.*")):
         (out_dir / folder).mkdir(parents=True, exist_ok=True)
         for stale in (out_dir / folder).glob(pattern):
             stale.unlink()
@@ -291,8 +291,8 @@ def triangulate_dataset(
 
     Outputs: ``triangles/part.NNNNN.parquet`` (GeoParquet, one PolygonZ per triangle with the
     source id and attributes, part, BSP order, parent, depth, side, areas, angles),
-    ``meshes/part.NNNNN.ply`` (``mesh_format="ply"``; vertices merged, face values
-    feature_id and depth), ``index.json`` (partition -> files, extent, counts) and
+    ``meshes/part.NNNNN.ply`` (``mesh_format="ply"``, vertices merged) or ``.glb`` ("glb"),
+    face values feature_id and depth, ``index.json`` (partition -> files, extent, counts) and
     ``summary.json``: read = triangulated + failed + empty, the failures' ids and reasons.
     """
     elevation = _check(rule, elevation, invalid, mesh_format, partitioning, z_column, dem)

@@ -45,7 +45,7 @@ TRIANGLE_COLUMNS = (
 )
 ELEVATIONS = ("geometry", "column", "dem", "none")
 INVALID = ("repair", "fail", "as_given")
-MESH_FORMATS = ("ply", "none")
+MESH_FORMATS = ("ply", "glb", "none")
 _WKB_HEADER = 9  # a MultiPolygon's byte order, type and count before its parts
 
 
@@ -437,10 +437,11 @@ def run_partition(frame, number: int, settings: Settings) -> dict:
     bounds = shapely.total_bounds(geometries) if count else np.full(4, np.nan)
     extent = [float(v) for v in bounds] if np.isfinite(bounds).all() else None
     name = part_name(number)
+    fmt = settings.mesh_format
     entry = {
         "partition": number,
         "triangles_file": f"triangles/{name}.parquet",
-        "mesh_file": f"meshes/{name}.ply" if settings.mesh_format == "ply" else None,
+        "mesh_file": None if fmt == "none" else f"meshes/{name}.{fmt}",
         "extent": extent,
         "read": count,
         "triangulated": int(with_triangles.sum()),
@@ -465,15 +466,21 @@ def run_partition(frame, number: int, settings: Settings) -> dict:
         pq.write_table(table, path)
 
     _write_atomic(out_dir / entry["triangles_file"], write_parquet)
-    if settings.mesh_format == "ply":
-        merged, faces, _part = merge_meshes([(vertices, mesh["triangles"])])
+    if fmt != "none":
         datasets = {"depth": mesh["depth"]}
         if ids.dtype.kind in "iu":
             datasets = {"feature_id": ids[mesh["owner"]], **datasets}
         crs_wkt = crs.to_wkt() if crs is not None else None
+        if fmt == "ply":  # identical vertices shared, as the plugin's meshes
+            merged, faces, _part = merge_meshes([(vertices, mesh["triangles"])])
+            writer = write_ply
+        else:  # glTF gives each face its own vertices anyway
+            from ..formats.gltf import write_glb
+
+            merged, faces, writer = vertices, mesh["triangles"], write_glb
         _write_atomic(
             out_dir / entry["mesh_file"],
-            lambda path: write_ply(path, merged, faces, datasets, crs_wkt=crs_wkt),
+            lambda path: writer(path, merged, faces, datasets, crs_wkt=crs_wkt),
         )
         entry["mesh_vertices"] = len(merged)
     done = time.perf_counter()

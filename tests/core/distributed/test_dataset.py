@@ -320,6 +320,18 @@ def test_geodataframes_keep_their_index_or_id_column(client, tmp_path):
     assert_same(written, {f"c{fid - 1000}": value for fid, value in expected.items()})
 
 
+def test_glb_meshes(client, tmp_path):
+    frame = geopandas.GeoDataFrame(geometry=list(star_polygons(200)), crs=EPSG)
+    summary = triangulate_dataset(frame, tmp_path, client=client, mesh_format="glb")
+    index = json.loads((tmp_path / "index.json").read_text())["partitions"]
+    data = (tmp_path / index[0]["mesh_file"]).read_bytes()
+    assert index[0]["mesh_file"].endswith(".glb") and data[:4] == b"glTF"
+    length = int.from_bytes(data[12:16], "little")
+    document = json.loads(data[20 : 20 + length])
+    positions = document["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+    assert document["accessors"][positions]["count"] == 3 * summary["triangles"]
+
+
 def test_a_killed_worker_loses_nothing(client, generated, generated_reference, tmp_path):
     # last in this module: its cluster's nanny starts a new worker for the killed one
     path, _polygons = generated
