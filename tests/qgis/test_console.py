@@ -208,6 +208,7 @@ def test_cancelling_keeps_an_earlier_mesh_and_the_other_layers_of_an_existing_ge
     assert sorted(path.name for path in tmp_path.iterdir()) == [
         "earlier.2dm",
         "earlier.gpkg",
+        "earlier.qml",
         "earlier_els.dat",
         "results.gpkg",
     ]
@@ -275,5 +276,6 @@ def test_a_complete_run_replaces_an_earlier_mesh_file_and_leaves_no_staging_fold
     assert sorted(path.name for path in tmp_path.iterdir()) == [
         "parcels.2dm",
         "parcels.gpkg",
+        "parcels.qml",
         "parcels_els.dat",
     ]

@@ -135,7 +135,11 @@ def test_leaving_out_the_triangles_output_gives_a_mesh_only_run(
     assert (results["FEATURE_COUNT"], results["TRIANGLE_COUNT"]) == (1, 4 + 3 + 2 - 2)
     _vertices, faces = read_mesh(mesh_path)
     assert len(faces) == 7
-    assert sorted(path.name for path in tmp_path.iterdir()) == ["square.geojson", "square.ply"]
+    assert sorted(path.name for path in tmp_path.iterdir()) == [
+        "square.geojson",
+        "square.ply",
+        "square.qml",
+    ]
 
 
 def test_worker_processes_started_by_qgis_process_write_the_mesh_of_one_process(
