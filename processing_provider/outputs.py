@@ -50,6 +50,7 @@ from qgis.PyQt.QtXml import QDomDocument
 
 from ..bsp_triangulate import metrics
 from ..bsp_triangulate.formats.mesh import merge_meshes, write_2dm, write_ply
+from ..bsp_triangulate.formats.models import MODEL_EXTENSIONS, model_format, write_model
 from ..bsp_triangulate.formats.wkb import triangles_to_multipolygon_wkb
 from ..bsp_triangulate.geometry.rings_batch import ragged_index
 from ..bsp_triangulate.packed import PackedTriangulations
@@ -60,7 +61,8 @@ STYLE_DIR = Path(__file__).resolve().parent / "styles"
 STYLE_PATH = STYLE_DIR / "triangles.qml"
 # The mesh layer's 3D renderer (a surface coloured as the 2D map, true vertical scale).
 MESH_3D_STYLE_PATH = STYLE_DIR / "mesh_3d.qml"
-MESH_EXTENSIONS = ("2dm", "ply")
+# meshes QGIS opens as mesh layers, and 3D models for other software (not loaded in QGIS)
+MESH_EXTENSIONS = ("ply", "2dm", *MODEL_EXTENSIONS)
 SOURCE_PREFIX = "src_"
 # Features built and written at a time: bounded memory, few sink calls.
 FEATURE_CHUNK = 20_000
@@ -423,6 +425,12 @@ class MeshAccumulator:
         )
         staged = StagedMesh(target, folder, len(vertices), len(faces))
         try:
+            if model_format(path) is not None:
+                # glTF or OBJ: a model for 3D software, with its origin and CRS sidecars
+                model = folder / target.name
+                written = write_model(model, vertices, faces, datasets, crs_text(crs))
+                staged.sidecars = [file.name for file in written[1:]]
+                return staged
             if mesh_format(path) == "ply":
                 write_ply(folder / target.name, vertices, faces, datasets, crs_wkt=crs_text(crs))
             else:
@@ -676,8 +684,15 @@ def _same_rows(bits: np.ndarray, representative: np.ndarray, block: int = 1 << 2
 
 
 def mesh_format(path: str) -> str:
-    """'ply' or '2dm' from the file name (2DM for anything else)."""
-    return "ply" if Path(path).suffix.lower() == ".ply" else "2dm"
+    """'ply', '2dm', or a 3D model's 'glb', 'gltf' or 'obj' from the file name (2DM for
+    anything else)."""
+    suffix = Path(path).suffix.lower().lstrip(".")
+    return suffix if suffix in ("ply", *MODEL_EXTENSIONS) else "2dm"
+
+
+def is_model(path: str) -> bool:
+    """The file is a glTF or OBJ 3D model (not a mesh QGIS opens)."""
+    return model_format(path) is not None
 
 
 def crs_text(crs: QgsCoordinateReferenceSystem) -> str | None:

@@ -54,6 +54,7 @@ from .outputs import (
     SinkCleanup,
     SinkWriter,
     TriangleStylePostProcessor,
+    is_model,
     load_mesh_on_completion,
     tree_feature_chunks,
     tree_fields,
@@ -197,7 +198,13 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "as a mesh layer in the input's CRS. PLY carries the input's CRS and the face "
             "values, so QGIS opens it complete later; 2DM has no CRS (MDAL reads none) and its "
             "face values are in &lt;name&gt;_els.dat, to be added by hand. Both get "
-            "&lt;name&gt;.qml beside them: their 2D style and 3D renderer.</p>"
+            "&lt;name&gt;.qml beside them: their 2D style and 3D renderer. .glb, .gltf and "
+            ".obj write a 3D model for other software (Blender, web viewers, Cesium) instead: "
+            "vertices relative to a local origin kept at full precision, the CRS in glTF's "
+            "asset.extras or beside the OBJ in a .prj, glTF in its Y-up frame (x, z, −y); "
+            "feature_id and "
+            "depth as glTF EXT_mesh_features feature IDs, as OBJ groups by feature_id. A model "
+            "is not loaded into the project.</p>"
             "<p><b>Triangles</b> (skip it for a faster mesh-only run; at least one of the mesh "
             "and the triangles is needed): one PolygonZ feature per triangle with the source "
             "feature id "
@@ -342,7 +349,10 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterFileDestination(
                 self.OUTPUT_MESH,
                 self.tr("Mesh"),
-                self.tr("PLY mesh (*.ply);;2DM mesh (*.2dm)"),
+                self.tr(
+                    "PLY mesh (*.ply);;2DM mesh (*.2dm);;Binary glTF (*.glb);;glTF (*.gltf);;"
+                    "Wavefront OBJ (*.obj)"
+                ),
                 optional=True,
                 createByDefault=True,
             )
@@ -427,7 +437,9 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 ).format(layer.name())
         path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
         if path and Path(path).suffix.lower().lstrip(".") not in MESH_EXTENSIONS:
-            return False, self.tr("The mesh file must end with .2dm or .ply: {}").format(path)
+            return False, self.tr(
+                "The mesh file must end with .ply, .2dm, .glb, .gltf or .obj: {}"
+            ).format(path)
         if not path and not self._wants_triangles(parameters):
             return False, self.tr("Nothing to write: choose a mesh file or the triangles output.")
         return True, ""
@@ -827,8 +839,9 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 )
             )
             results[self.OUTPUT_MESH] = mesh_path
-            # without a project (qgis_process) nothing would take the layer: do not open it
-            if face_count and context.project() is not None:
+            # without a project (qgis_process) nothing would take the layer: do not open it;
+            # glTF and OBJ are models for other software, which QGIS does not open as meshes
+            if face_count and context.project() is not None and not is_model(mesh_path):
                 loaded = load_mesh_on_completion(
                     mesh_path, crs, context, self.OUTPUT_MESH, dataset_files
                 )

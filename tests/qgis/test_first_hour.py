@@ -18,6 +18,7 @@ from qgis.core import (
     QgsVectorLayer,
 )
 
+from tests import model_checks
 from tests.conftest import SHARED_DATA
 from tests.qgis.test_algorithm import (
     DEM_POLYGON,
@@ -36,6 +37,7 @@ BUILDINGS = f"{SWELLENDAM / 'training_data.gpkg'}|layername=buildings"
 SRTM = str(SWELLENDAM / "srtm_41_19.tif")
 
 pytestmark = pytest.mark.usefixtures("provider")
+gltf_validator = model_checks.gltf_validator  # the session fixture, used by name
 
 
 class ProgressFeedback(RecordingFeedback):
@@ -192,3 +194,20 @@ def test_progress_of_a_plain_feedback_is_accepted() -> None:
     # the console's processing.run passes a plain QgsProcessingFeedback
     result = run({"INPUT": polygon_layer([utm_wkt(DEM_POLYGON)])}, QgsProcessingFeedback())
     assert result["TRIANGLE_COUNT"] == 3
+
+
+@pytest.mark.parametrize("extension", ["glb", "gltf", "obj"])
+def test_triangulate_writes_3d_models_that_validate_and_read_back(
+    tmp_path: Path, extension: str, gltf_validator
+) -> None:
+    dem = write_plane_dem(tmp_path / "plane.tif")
+    path = tmp_path / f"model.{extension}"
+    layer = polygon_layer([utm_wkt(DEM_POLYGON), utm_wkt([(x + 10, y) for x, y in DEM_POLYGON])])
+    result = run({"INPUT": layer, "DEM": str(dem), "OUTPUT_MESH": str(path)})
+    assert result["OUTPUT_MESH"] == str(path) and result["TRIANGLE_COUNT"] == 6
+    if extension == "obj":
+        assert "UTM zone 33S" in path.with_suffix(".prj").read_text(encoding="utf-8")
+    else:
+        model_checks.assert_valid_gltf(gltf_validator, path)
+    mesh = model_checks.trimesh_read(path)
+    assert len(mesh.faces) == 6
