@@ -1,6 +1,6 @@
 """Run every benchmark and print one Markdown report (also written to build/bench/results.md).
 
-Usage: python bench/run_all.py [--quick] [--only core,end_to_end,fidelity]
+Usage: python bench/run_all.py [--quick] [--only core,end_to_end,fidelity,buildings,dask]
 """
 
 from __future__ import annotations
@@ -10,7 +10,9 @@ import time
 import traceback
 from collections.abc import Callable
 
+import bench_buildings
 import bench_core
+import bench_dask
 import bench_end_to_end
 import bench_fidelity
 from common import BUILD, Row, machine_info, markdown_table, rows_table
@@ -19,6 +21,13 @@ BENCHMARKS: dict[str, tuple[str, Callable[[bool, float, int | None], list[Row]]]
     "core": ("Core triangulation speed (in one process)", bench_core.run),
     "end_to_end": ("End to end through qgis_process", bench_end_to_end.run),
     "fidelity": ("Terrain fidelity (surface - DEM at DEM cell centres)", bench_fidelity.run),
+    "buildings": (
+        "Buildings to a GLB against the mesh-only triangulate run",
+        lambda quick, budget, count: bench_buildings.run(
+            10_000 if quick else bench_buildings.DEFAULT_COUNT, budget=budget
+        ),
+    ),
+    "dask": ("The engine on a Dask LocalCluster of 1 and 2 workers", bench_dask.run),
 }
 
 
