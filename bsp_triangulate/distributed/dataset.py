@@ -205,6 +205,15 @@ def _dem_settings(dem, band: int, crs) -> tuple[dem_window.DemInfo, str | None]:
     return info, crs.to_wkt()
 
 
+def _plane(elevation: str, crs) -> str:
+    """The engine's working plane, as the plugin chooses it: steep faces in their own plane
+    ("auto") only for the geometry's own z in a projected CRS in metres; else XY."""
+    if elevation != "geometry" or crs is None or not crs.is_projected:
+        return "xy"
+    units = {axis.unit_name for axis in crs.axis_info}
+    return "auto" if units and units <= {"metre", "meter"} else "xy"
+
+
 def _check(rule, elevation, invalid, mesh_format, partitioning, z_column, dem) -> str:
     get_rule(rule)
     if elevation is None:
@@ -285,7 +294,8 @@ def triangulate_dataset(
       partition, sampled as the plugin does; missing cells filled along the ring) or "none";
       by default "dem" with a DEM, "column" with a z column, else "geometry".
     - ``rule``, ``planar_tolerance``: the engine's; ``invalid``: "repair" (GEOS make_valid),
-      "fail" or "as_given", as in the plugin.
+      "fail" or "as_given", as in the plugin; the working plane as the plugin picks it (XY,
+      but steep faces in their own plane for the geometry's own z in metres).
     - ``client``: a ``distributed.Client`` (any cluster); None starts a LocalCluster of
       ``workers`` processes (default: one per core) for this call.
 
@@ -324,6 +334,7 @@ def triangulate_dataset(
                 dem_method=dem_method,
                 dem_from_crs=dem_from,
                 mesh_format=mesh_format,
+                plane=_plane(elevation, crs),
                 attributes=_attributes(frame.columns, frame.geometry.name),
             )
             prepared = time.perf_counter()

@@ -64,6 +64,9 @@ class Settings:
     # the layer's CRS where it differs from the DEM's (points are transformed to sample)
     dem_from_crs: str | None = None
     mesh_format: str = "ply"
+    # the engine's working plane: "xy" for draped z (DEM, column, none), "auto" (steep faces
+    # in their own plane) for the geometry's own z in metres, as the plugin chooses
+    plane: str = "xy"
     # source column -> output column (clashing names prefixed with src_)
     attributes: tuple[tuple[str, str], ...] = field(default_factory=tuple)
 
@@ -114,9 +117,10 @@ class _Reader:
     """Reads a partition's geometries into candidate parts; ``errors`` and ``repaired`` by
     row."""
 
-    def __init__(self, geometries: np.ndarray, invalid: str) -> None:
+    def __init__(self, geometries: np.ndarray, invalid: str, walls: bool = False) -> None:
         self.geometries = geometries
         self.invalid = invalid
+        self.walls = walls
         count = len(geometries)
         self.errors: dict[int, str] = {}
         self.repaired = np.zeros(count, dtype=bool)
@@ -168,7 +172,7 @@ class _Reader:
         instead (a repair, or the given ``parts``), [] for none (the row failed or is empty)."""
         if self.invalid == "as_given":
             return parts
-        if self.has_z[row] and parts is None:
+        if self.walls and self.has_z[row] and parts is None:
             # GEOS judges in XY, where a wall has no area: walls are left to the engine
             wkb = shapely.to_wkb(geometry, output_dimension=3, flavor="iso", byte_order=1)
             polygons, _has_z = polygons_from_wkb(wkb)
@@ -315,6 +319,7 @@ def _triangulate(parts: _Parts, settings: Settings, errors: dict[int, str]):
         on_error="return",
         invalid=engine_invalid,
         proven=parts.part_proven,
+        plane=settings.plane,
     )
     parts_of = np.bincount(parts.part_owner, minlength=int(parts.part_owner.max(initial=-1)) + 1)
     for part in sorted(outcome.errors):
@@ -423,7 +428,7 @@ def run_partition(frame, number: int, settings: Settings) -> dict:
     geometries = np.asarray(frame.geometry.array, dtype=object)
     ids = frame[SOURCE_ID].to_numpy()
     count = len(frame)
-    reader = _Reader(geometries, settings.invalid)
+    reader = _Reader(geometries, settings.invalid, walls=settings.plane == "auto")
     parts = reader.read()
     errors = reader.errors
     _elevation(parts, frame, settings, reader.has_z, errors)

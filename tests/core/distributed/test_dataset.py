@@ -100,7 +100,7 @@ def rings_xyz(polygon) -> list[np.ndarray]:
     return out
 
 
-def reference(geometries, ids, rule="first", z_of=None, repair=True) -> dict:
+def reference(geometries, ids, rule="first", z_of=None, repair=True, plane="auto") -> dict:
     """Per source id: the triangle corners (M, 3, 3), parent, depth, side of one
     triangulate_packed call in this process over every polygon."""
     if repair:
@@ -114,7 +114,8 @@ def reference(geometries, ids, rule="first", z_of=None, repair=True) -> dict:
                 rings = [z_of(ring) for ring in rings]
             owners.append(fid)
             polygons.append(rings)
-    result = triangulate_packed(PackedPolygons.of(polygons), rule=rule, on_error="return")
+    packed = PackedPolygons.of(polygons)
+    result = triangulate_packed(packed, rule=rule, on_error="return", plane=plane)
     assert not result.errors
     out: dict = {}
     for fid, triangulation in zip(owners, result.to_list()):
@@ -235,7 +236,9 @@ def test_farms_from_a_geopackage_with_a_dem_give_the_single_process_triangles(cl
     assert summary["failed"] == 0
     assert summary["repaired"] > 0  # the layer has self-intersecting farms
     # GeoPackage fids count from 1, in the shapefile's order
-    expected = reference(farms.geometry.values, range(1, len(farms) + 1), z_of=farms_z(DEM))
+    # draped on the DEM: triangulated in XY, as the plugin does
+    ids = range(1, len(farms) + 1)
+    expected = reference(farms.geometry.values, ids, z_of=farms_z(DEM), plane="xy")
     assert_same(read_triangles(tmp_path / "out"), expected)
     attributes = pd.read_parquet(tmp_path / "out" / "triangles", columns=["FARM_NO"])
     assert len(attributes) == summary["triangles"]
