@@ -11,6 +11,8 @@ from typing import Protocol
 
 import numpy as np
 
+from .geometry.predicates import incircle_many
+
 
 class ApexRule(Protocol):
     """Strategy choosing the apex among the correct candidates of a base edge."""
@@ -59,7 +61,60 @@ class ElevationRule:
         return int(correct[close[exact.index(min(exact))]])
 
 
-RULES: dict[str, ApexRule] = {rule.name: rule for rule in (FirstRule(), ElevationRule())}
+class DelaunayRule:
+    """The correct candidate that sees the base under the largest angle (docs/algorithm.md,
+    "Rule delaunay"): no other correct candidate lies strictly inside its circumcircle with
+    the base, so the tree is the constrained Delaunay triangulation of the polygon's vertices.
+    Cocircular candidates: the first in candidate order.
+
+    The rule decides in the working plane, so it has :meth:`choose_in_plane`; the builders
+    call that instead of :meth:`choose` (``in_plane`` is True). Under it the bridges are
+    constrained Delaunay edges too (``geometry/bridges.py``, ``delaunay=True``). Only the
+    one-polygon builder implements it: the lock-step batch builder leaves its polygons to
+    that builder (a known gap).
+    """
+
+    name = "delaunay"
+    exhaustive = True
+    in_plane = True
+
+    def choose(self, correct: np.ndarray, v1: int, v2: int, z: np.ndarray) -> int:
+        raise TypeError("rule 'delaunay' decides in the plane: call choose_in_plane")
+
+    def choose_in_plane(
+        self, correct: np.ndarray, a: int, b: int, x: np.ndarray, y: np.ndarray
+    ) -> int:
+        """Pick one of ``correct`` (positions in candidate order, all strictly left of the
+        base a -> b): the one with no other strictly inside its circle with a and b, the
+        first in candidate order among cocircular ones. ``x``, ``y``: coordinates by
+        position."""
+        if len(correct) == 1:
+            return int(correct[0])
+        ax, ay, bx, by = float(x[a]), float(y[a]), float(x[b]), float(y[b])
+        cx, cy = x[correct], y[correct]
+        # float guess: the circle's centre offset along the base's left normal (smaller is a
+        # larger angle), then made exact with the in-circle predicate
+        mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
+        nx, ny = ay - by, bx - ax
+        ux, uy = cx - mx, cy - my
+        half2 = 0.25 * ((bx - ax) ** 2 + (by - ay) ** 2)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            offset = (ux * ux + uy * uy - half2) / (ux * nx + uy * ny)
+        offset = np.nan_to_num(offset, nan=np.inf, posinf=np.inf, neginf=-np.inf)
+        best = int(np.argmin(offset))
+        while True:
+            inside = incircle_many(ax, ay, bx, by, cx[best], cy[best], cx, cy)
+            better = np.flatnonzero(inside > 0)
+            if len(better) == 0:
+                break
+            best = int(better[np.argmin(offset[better])])
+        # every candidate on the best circle is as good: the first in candidate order
+        return int(correct[int(np.flatnonzero(inside == 0)[0])])
+
+
+RULES: dict[str, ApexRule] = {
+    rule.name: rule for rule in (FirstRule(), ElevationRule(), DelaunayRule())
+}
 
 
 def get_rule(name: str) -> ApexRule:

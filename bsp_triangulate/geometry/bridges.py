@@ -6,6 +6,7 @@ See docs/algorithm.md section 2 for the exact rules implemented here.
 from __future__ import annotations
 
 import heapq
+from fractions import Fraction
 
 import numpy as np
 
@@ -340,6 +341,44 @@ class _Bridger:
         _, _, k, vid = min(options)
         return k, vid
 
+    def diametral_disk_empty(self, h: int, v: int) -> bool:
+        """No vertex (of any ring) lies strictly inside the circle with diameter h-v.
+
+        Then h-v is an edge of the constrained Delaunay triangulation of the rings (that
+        circle through h and v holds no vertex at all, visible or not). Exact:
+        w is strictly inside iff (w - h) . (w - v) < 0.
+        """
+        x, y = self.x, self.y
+        hx, hy, vx, vy = float(x[h]), float(y[h]), float(x[v]), float(y[v])
+        mx, my = 0.5 * (hx + vx), 0.5 * (hy + vy)
+        r = 0.5 * float(np.hypot(vx - hx, vy - hy)) * (1 + 1e-9)
+        found = self.point_ids[np.unique(self.points.query_box(mx - r, my - r, mx + r, my + r))]
+        wx, wy = x[found], y[found]
+        dot = (wx - hx) * (wx - vx) + (wy - hy) * (wy - vy)
+        scale = np.abs(wx - hx) * np.abs(wx - vx) + np.abs(wy - hy) * np.abs(wy - vy)
+        unsure = np.abs(dot) <= 8.0 * 2.0**-53 * scale + 1e-300
+        if (dot[~unsure] < 0).any():
+            return False
+        for w in found[unsure].tolist():
+            fx, fy = Fraction(float(x[w])), Fraction(float(y[w]))
+            if (fx - Fraction(hx)) * (fx - Fraction(vx)) + (fy - Fraction(hy)) * (
+                fy - Fraction(vy)
+            ) < 0:
+                return False
+        return True
+
+    def find_delaunay_bridge(self, island: np.ndarray, h_index: int) -> tuple[int, int, int] | None:
+        """(node, vertex id, island index) of a bridge that is a constrained Delaunay edge, or
+        None: from the island's vertices in ring order starting at ``h_index`` (its leftmost),
+        the first whose nearest valid target (:meth:`find_bridge`) has an empty diametral
+        circle (:meth:`diametral_disk_empty`)."""
+        for step in range(len(island)):
+            index = (h_index + step) % len(island)
+            target = self.find_bridge(island, index)
+            if target is not None and self.diametral_disk_empty(int(island[index]), target[1]):
+                return target[0], target[1], index
+        return None
+
     def splice(self, k: int, island: np.ndarray, h_index: int) -> None:
         """Join the island at occurrence (node) k (docs/algorithm.md section 2)."""
         x, y = self.x, self.y
@@ -373,6 +412,7 @@ def bridge_islands(
     rings: list[np.ndarray],
     ring_numbers: list[int],
     relaxed: bool = False,
+    delaunay: bool = False,
 ) -> np.ndarray:
     """The single vertex sequence of the outer ring with every island joined by a bridge.
 
@@ -380,6 +420,11 @@ def bridge_islands(
     any other island is bridged, so that touching rings never enclose an extra face. An island
     with no valid bridge (outside the outer ring, crossing a ring) raises, unless ``relaxed``:
     then it is joined to the nearest occurrence of the sequence, crossing or not.
+
+    ``delaunay`` (rule "delaunay"): every bridge must be a constrained Delaunay edge of the
+    rings (:meth:`_Bridger.find_delaunay_bridge`); an island that has none to the sequence
+    yet waits until the other islands are joined, and only then takes the usual bridge
+    (docs/algorithm.md, "Rule delaunay"). Without it the bridges are those of section 2.
     """
     if len(rings) == 1:
         return rings[0]
@@ -407,18 +452,37 @@ def bridge_islands(
 
     mark_touching(rings[0])
     pending = iter(leftmost)
+    waiting: list[tuple[float, float, int, int]] = []  # delaunay: islands with no bridge yet
+    progress = False
     while True:
         if touching:
             _, slot = heapq.heappop(touching)
             if joined[slot]:
                 continue
             h_index = _touch_index(x, y, rings[slot], bridger)
+            target = bridger.find_bridge(rings[slot], h_index)
         else:
             item = next((i for i in pending if not joined[i[2]]), None)
+            if item is None and waiting:
+                # another round over the waiting islands; the last round takes any bridge
+                final = not progress
+                pending, waiting, progress = iter(waiting), [], False
+                item = next((i for i in pending if not joined[i[2]]), None)
+            else:
+                final = not delaunay
             if item is None:
                 break
             slot, h_index = item[2], item[3]
-        target = bridger.find_bridge(rings[slot], h_index)
+            target = None
+            if not final:
+                found = bridger.find_delaunay_bridge(rings[slot], h_index)
+                if found is None:
+                    waiting.append(item)
+                    continue
+                target, h_index = found[:2], found[2]
+                progress = True
+            else:
+                target = bridger.find_bridge(rings[slot], h_index)
         if target is None and relaxed:
             target = bridger.nearest_occurrence(int(rings[slot][h_index]))
         if target is None:

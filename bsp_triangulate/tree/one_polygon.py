@@ -14,6 +14,7 @@ import numpy as np
 from ..geometry.bridges import bridge_islands, remove_spikes, split_touching
 from ..geometry.predicates import (
     grid_exact,
+    incircle_many,
     orient,
     orient_float,
     orient_many,
@@ -288,6 +289,24 @@ def _edge_blocks(
     return pair_fails(corners, px, py, qx, qy, sign)
 
 
+def _circle_reach(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> float:
+    """Distance from the midpoint of a-b beyond which the circle through a, b, c has no point
+    on c's side of the line a-b (with a safety margin: only a search extent)."""
+    mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
+    half = 0.5 * math.hypot(bx - ax, by - ay)
+    nx, ny = ay - by, bx - ax  # a normal of the base, of length 2 * half
+    ux, uy = cx - mx, cy - my
+    toward = ux * nx + uy * ny
+    if toward == 0:
+        return math.inf
+    offset = abs((ux * ux + uy * uy - half * half) / toward)  # centre offset / |n|
+    reach = half
+    if ux * ux + uy * uy > half * half:  # the centre is on c's side
+        centre = offset * half
+        reach = centre + math.hypot(centre, half)
+    return reach * (1.0 + 1e-6) + 1e-300
+
+
 def _remember(blockers: list[int], edge: int) -> None:
     """Put ``edge`` first in the short list of recent blockers."""
     if edge in blockers:
@@ -323,6 +342,7 @@ class _Tree:
         self.exact = grid_exact(self.sx, self.sy)
         self.sign = orient_float if self.exact else orient
         self._grid: SegmentGrid | None = None
+        self._points: SegmentGrid | None = None  # positions, for rule "delaunay"
         self.boxes = ChainBoxes(self.sx, self.sy) if self.m > SMALL_SEQUENCE else None
 
     @property
@@ -344,6 +364,8 @@ class _Tree:
             return -1 if apex < 0 else rule.choose(np.array([apex]), v1, v2, self.sz)
         if isinstance(rule, ElevationRule):
             return self._closest_apex(lo, hi, v1, v2)
+        if getattr(rule, "in_plane", False):
+            return self._delaunay_apex(lo, hi)
         sx, sy = self.sx, self.sy
         small = self.grid is None or hi - lo <= SMALL_SEQUENCE
         found: list[np.ndarray] = []
@@ -414,6 +436,79 @@ class _Tree:
             return -1
         # in candidate order, as the rule expects
         return self.rule.choose(candidates[np.sort(np.concatenate(found))], v1, v2, z)
+
+    def _delaunay_apex(self, lo: int, hi: int) -> int:
+        """:meth:`_apex` under rule "delaunay" (its ``choose_in_plane``).
+
+        Small sub-polygons test every candidate. Larger ones search outwards from the base's
+        midpoint through a grid over the positions: a box that doubles until it holds the
+        best correct candidate's circle on the candidates' side of the base (no candidate
+        outside that circle can see the base under a larger angle, and cocircular ones lie
+        on it), so the choice is the one the test of every candidate would give.
+        """
+        sx, sy, rule = self.sx, self.sy, self.rule
+        if self.grid is None or hi - lo <= SMALL_SEQUENCE:
+            chunk = np.arange(hi - 1, lo, -1)
+            chunk = chunk[facing_candidates(sx, sy, lo, hi, chunk, self.exact)]
+            if len(chunk) == 0:
+                return -1
+            mask = correct_candidates(sx, sy, lo, hi, chunk, facing=True, exact_inputs=self.exact)
+            correct = chunk[mask]
+            return rule.choose_in_plane(correct, hi, lo, sx, sy) if len(correct) else -1
+        if self._points is None:
+            px, py = sx[: self.m], sy[: self.m]
+            self._points = SegmentGrid(px, py, px, py)
+        points = self._points
+        ax, ay, bx, by = float(sx[hi]), float(sy[hi]), float(sx[lo]), float(sy[lo])
+        mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
+        half = 0.5 * math.hypot(bx - ax, by - ay)
+        radius = max(half, points.size_x, points.size_y)
+        full = 2.0 * max(points.size_x * points.nx, points.size_y * points.ny) + radius
+        nx, ny = ay - by, bx - ax  # the base's normal towards the candidates
+        half2 = half * half
+        seen = np.zeros(0, dtype=np.int64)
+        untested = np.zeros(0, dtype=np.int64)
+        pool: list[np.ndarray] = []
+        best = -1
+        blockers: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+        while True:
+            found = np.unique(points.query_box(mx - radius, my - radius, mx + radius, my + radius))
+            found = found[(found > lo) & (found < hi)]
+            fresh = np.setdiff1d(found, seen, assume_unique=True)
+            seen = found
+            fresh = fresh[facing_candidates(sx, sy, lo, hi, fresh, self.exact)]
+            untested = np.concatenate([untested, fresh])
+            size = 1
+            while len(untested):
+                if best >= 0:
+                    # strictly outside the best circle: never better (the circles' parts on
+                    # this side of the base shrink as the best improves)
+                    inside = incircle_many(
+                        ax, ay, bx, by, sx[best], sy[best], sx[untested], sy[untested]
+                    )
+                    untested = untested[inside >= 0]
+                    if len(untested) == 0:
+                        break
+                # most promising first: smallest centre offset (largest angle), in float
+                ux, uy = sx[untested] - mx, sy[untested] - my
+                key = (ux * ux + uy * uy - half2) / (ux * nx + uy * ny)
+                order = np.argsort(key, kind="stable")
+                chunk = np.sort(untested[order[:size]])[::-1]  # candidate order
+                untested = untested[order[size:]]
+                size = min(2 * size, _MAX_CHUNK)
+                correct = self._grid_correct(lo, hi, chunk, True, blockers)
+                if len(correct):
+                    pool.append(correct)
+                    everything = np.sort(np.concatenate(pool))[::-1]
+                    best = rule.choose_in_plane(everything, hi, lo, sx, sy)
+            if best >= 0:
+                if _circle_reach(ax, ay, bx, by, float(sx[best]), float(sy[best])) <= radius:
+                    return best
+                if radius >= full:
+                    return best
+            elif radius >= full:
+                return -1
+            radius *= 2.0
 
     def _first_apex(self, lo: int, hi: int) -> int:
         """The first candidate of sub-polygon [lo, hi] forming a correct triangle, or -1.
@@ -711,7 +806,12 @@ def _triangulate(
         return Triangulation(vertices=prepared.vertices)
     ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
     sequence = bridge_islands(
-        prepared.x, prepared.y, ring_ids, prepared.ring_numbers, relaxed=as_given
+        prepared.x,
+        prepared.y,
+        ring_ids,
+        prepared.ring_numbers,
+        relaxed=as_given,
+        delaunay=getattr(apex_rule, "in_plane", False),
     )
     sequence = remove_spikes(prepared.x, prepared.y, sequence)
     if len(sequence) < 3:

@@ -1,0 +1,197 @@
+"""Rule "delaunay": the BSP tree whose triangles form the constrained Delaunay triangulation.
+
+The check is brute force and independent of the engine's predicates: for every triangle, no
+vertex of the polygon that is visible from the triangle's interior lies strictly inside its
+circumcircle (exact rational in-circle test; visible: the segment from the vertex to the
+triangle's centroid meets the rings at that vertex only). The rings are the only constraints,
+so the bridges must be Delaunay edges too. Plus the usual checks (checks.check_triangulation:
+vertices, orientation, tree attributes, exact tiling, n + 2h - 2 triangles).
+"""
+
+from __future__ import annotations
+
+import json
+import random
+from fractions import Fraction
+
+import numpy as np
+import pytest
+import shapely
+from osgeo import ogr
+
+from bsp_triangulate import triangulate
+from bsp_triangulate.geometry.predicates import incircle, incircle_many
+
+from ..conftest import SHARED_DATA
+from .checks import check_triangulation, used_rings
+from .random_polygons import random_polygon
+
+EARCUT = SHARED_DATA / "earcut" / "fixtures"
+FARMS = SHARED_DATA / "swellendam" / "farms_33S.shp"
+GEOS = json.loads((SHARED_DATA / "geos" / "test_cases.json").read_text())
+
+
+def _incircle_fraction(a, b, c, d) -> int:
+    """Exact in-circle sign (a, b, c counter-clockwise: +1 strictly inside)."""
+    ax, ay, bx, by, cx, cy, dx, dy = (Fraction(float(v)) for v in (*a, *b, *c, *d))
+    adx, ady, bdx, bdy, cdx, cdy = ax - dx, ay - dy, bx - dx, by - dy, cx - dx, cy - dy
+    det = (
+        (adx * adx + ady * ady) * (bdx * cdy - cdx * bdy)
+        + (bdx * bdx + bdy * bdy) * (cdx * ady - adx * cdy)
+        + (cdx * cdx + cdy * cdy) * (adx * bdy - bdx * ady)
+    )
+    return (det > 0) - (det < 0)
+
+
+def delaunay_violations(rings: list, result) -> list[str]:
+    """Triangles with a vertex visible from their interior strictly inside their circle."""
+    kept = used_rings(rings)
+    points = np.unique(np.concatenate([np.asarray(r, dtype=float)[:, :2] for r in kept]), axis=0)
+    boundary = shapely.MultiLineString(
+        [[tuple(p[:2]) for p in r] + [tuple(r[0][:2])] for r in kept]
+    )
+    shapely.prepare(boundary)
+    v = np.asarray(result.vertices, dtype=float)[:, :2]
+    problems = []
+    for number, (i, j, k) in enumerate(np.asarray(result.triangles).tolist()):
+        a, b, c = v[i], v[j], v[k]
+        # float circumcircle, generous margin; the exact test decides
+        d = 2.0 * (a[0] * (b[1] - c[1]) + b[0] * (c[1] - a[1]) + c[0] * (a[1] - b[1]))
+        if d == 0:
+            problems.append(f"triangle {number} has zero area")
+            continue
+        sa, sb, sc = a @ a, b @ b, c @ c
+        ux = (sa * (b[1] - c[1]) + sb * (c[1] - a[1]) + sc * (a[1] - b[1])) / d
+        uy = (sa * (c[0] - b[0]) + sb * (a[0] - c[0]) + sc * (b[0] - a[0])) / d
+        r2 = (a[0] - ux) ** 2 + (a[1] - uy) ** 2
+        d2 = (points[:, 0] - ux) ** 2 + (points[:, 1] - uy) ** 2
+        near = points[d2 < r2 * (1 + 1e-6) + 1e-300]
+        centroid = (a + b + c) / 3.0
+        for w in near:
+            if (w == a).all() or (w == b).all() or (w == c).all():
+                continue
+            if _incircle_fraction(a, b, c, w) <= 0:
+                continue
+            seen = shapely.LineString([tuple(w), tuple(centroid)]).intersection(boundary)
+            if seen.is_empty or seen.equals(shapely.Point(w)):
+                problems.append(f"triangle {number} {(i, j, k)}: vertex {tuple(w)} inside")
+                break
+    return problems
+
+
+def check_delaunay(rings: list) -> None:
+    result = triangulate(rings, rule="delaunay")
+    check_triangulation(rings, result, valid=True)
+    problems = delaunay_violations(rings, result)
+    assert not problems, problems[:5]
+
+
+# --- the predicate ------------------------------------------------------------------------------
+
+
+def test_incircle_matches_exact_arithmetic_near_cocircular_points() -> None:
+    rnd = random.Random(5)
+    for _ in range(400):
+        centre = (rnd.uniform(-1e6, 1e6), rnd.uniform(-1e6, 1e6))
+        radius = rnd.uniform(1e-3, 1e3)
+        pts = []
+        for _ in range(4):
+            t = rnd.uniform(0, 6.283)
+            pts.append((centre[0] + radius * np.cos(t), centre[1] + radius * np.sin(t)))
+        a, b, c, d = pts
+        expected = _incircle_fraction(a, b, c, d)
+        assert incircle(*a, *b, *c, *d) == expected
+        many = incircle_many(a[0], a[1], b[0], b[1], c[0], c[1], np.array([d[0]]), np.array([d[1]]))
+        assert many[0] == expected
+    # exactly cocircular (integers), inside and outside
+    assert incircle(0, 0, 4, 0, 4, 4, 0, 4) == 0
+    assert incircle(0, 0, 4, 0, 4, 4, 1, 1) == 1
+    assert incircle(0, 0, 4, 0, 4, 4, 5, 5) == -1
+    assert incircle(0, 0, 4, 4, 4, 0, 1, 1) == -1  # clockwise a, b, c: the sign flips
+
+
+# --- the rule on data ---------------------------------------------------------------------------
+
+
+def _earcut_valid() -> list[str]:
+    names = []
+    for path in sorted(EARCUT.glob("*.json")):
+        rings = json.loads(path.read_text())
+        kept = used_rings(rings)
+        if not kept or sum(len(r) for r in kept) > 2500:
+            continue
+        try:
+            if shapely.Polygon(kept[0], kept[1:]).is_valid:
+                names.append(path.stem)
+        except (ValueError, shapely.errors.GEOSException):
+            continue
+    return names
+
+
+@pytest.mark.parametrize("name", _earcut_valid())
+def test_earcut_fixture_is_constrained_delaunay(name: str) -> None:
+    rings = json.loads((EARCUT / f"{name}.json").read_text())
+    check_delaunay(used_rings(rings))
+
+
+def _geos_polygons() -> list:
+    polygons = []
+    for case in GEOS:
+        wkt = case["input_wkt"]
+        if not wkt.upper().startswith(("POLYGON", "MULTIPOLYGON")):
+            continue
+        geometry = shapely.from_wkt(wkt)
+        for part in getattr(geometry, "geoms", [geometry]):
+            if part.is_empty or not part.is_valid:
+                continue
+            rings = [list(part.exterior.coords)] + [list(r.coords) for r in part.interiors]
+            polygons.append([[p[:2] for p in r] for r in rings])
+    return polygons
+
+
+def test_geos_cases_are_constrained_delaunay() -> None:
+    polygons = _geos_polygons()
+    assert len(polygons) > 10
+    for rings in polygons:
+        check_delaunay(rings)
+
+
+def _farms(limit: int, most: int) -> list:
+    source = ogr.Open(str(FARMS))
+    polygons = []
+    for feature in source.GetLayer(0):
+        geometry = shapely.from_wkb(bytes(feature.GetGeometryRef().ExportToWkb()))
+        for part in getattr(geometry, "geoms", [geometry]):
+            rings = [np.asarray(part.exterior.coords)[:, :2]]
+            rings += [np.asarray(r.coords)[:, :2] for r in part.interiors]
+            if part.is_valid and sum(len(r) for r in rings) <= most:
+                polygons.append(rings)
+        if len(polygons) >= limit:
+            break
+    return polygons
+
+
+def test_swellendam_farms_are_constrained_delaunay() -> None:
+    farms = _farms(40, 400)
+    assert len(farms) == 40
+    for rings in farms:
+        check_delaunay(rings)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_random_polygon_with_islands_is_constrained_delaunay(seed: int) -> None:
+    rnd = random.Random(seed)
+    rings = random_polygon(rnd, islands=rnd.randint(1, 4), integer=seed % 2 == 0)
+    check_delaunay(rings)
+
+
+def test_cocircular_vertices_give_a_fixed_valid_triangulation() -> None:
+    # a regular octagon's vertices (integers, exactly cocircular: 5^2 = 3^2 + 4^2)
+    octagon = [(5, 0), (4, 3), (0, 5), (-3, 4), (-5, 0), (-4, -3), (0, -5), (3, -4)]
+    grid = [(x, y) for x in range(4) for y in (0,)] + [(3, 1), (3, 2), (0, 2), (0, 1)]
+    for rings in ([octagon], [grid], [octagon, [(1, 0), (0, 1), (-1, 0), (0, -1)][::-1]]):
+        first = triangulate(rings, rule="delaunay")
+        check_triangulation(rings, first, valid=True)
+        assert not delaunay_violations(rings, first)
+        again = triangulate(rings, rule="delaunay")
+        np.testing.assert_array_equal(first.triangles, again.triangles)
