@@ -24,7 +24,6 @@ from qgis.core import (
     QgsField,
     QgsFields,
     QgsGeometry,
-    QgsProcessing,
     QgsProcessingAlgorithm,
     QgsProcessingContext,
     QgsProcessingException,
@@ -34,7 +33,6 @@ from qgis.core import (
     QgsProcessingOutputNumber,
     QgsProcessingParameterBand,
     QgsProcessingParameterCrs,
-    QgsProcessingParameterDefinition,
     QgsProcessingParameterEnum,
     QgsProcessingParameterExpression,
     QgsProcessingParameterFeatureSink,
@@ -43,9 +41,8 @@ from qgis.core import (
     QgsProcessingParameterNumber,
     QgsProcessingParameterRasterLayer,
     QgsRasterLayer,
-    QgsWkbTypes,
 )
-from qgis.PyQt.QtCore import QCoreApplication, QVariant
+from qgis.PyQt.QtCore import QCoreApplication
 from qgis.PyQt.QtGui import QIcon
 
 from ..bsp_triangulate.formats.cityjson import CityBuilding, write_cityjson
@@ -58,6 +55,14 @@ from ..bsp_triangulate.terrain.raster_sampling import fill_along_ring
 from . import elevation
 from .geometry_io import INVALID_AS_GIVEN, FeatureRings, feature_batches
 from .outputs import SinkCleanup, add_features
+from .qgis_compat import (
+    FIELD_TYPES,
+    ProcessingFeatureSourceFlag,
+    ProcessingNumberParameterType,
+    ProcessingParameterFlag,
+    ProcessingSourceType,
+    WkbType,
+)
 
 ICON = Path(__file__).resolve().parent.parent / "icons" / "buildings.svg"
 APEX_RULES = ("first", "elevation")
@@ -81,7 +86,7 @@ def building_fields(source_fields: QgsFields) -> QgsFields:
     """building_id, the source's attributes (clashing names and fid prefixed), part, surface."""
     taken = {"building_id", "fid", "part", "surface"}
     fields = QgsFields()
-    fields.append(_new_field("building_id", QVariant.LongLong))
+    fields.append(_new_field("building_id", FIELD_TYPES["LongLong"]))
     for source_field in source_fields:
         copy = QgsField(source_field)
         name = copy.name()
@@ -90,8 +95,8 @@ def building_fields(source_fields: QgsFields) -> QgsFields:
         copy.setName(name)
         taken.add(name.lower())
         fields.append(copy)
-    fields.append(_new_field("part", QVariant.Int))
-    fields.append(_new_field("surface", QVariant.String))
+    fields.append(_new_field("part", FIELD_TYPES["Int"]))
+    fields.append(_new_field("surface", FIELD_TYPES["String"]))
     return fields
 
 
@@ -234,7 +239,7 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
     def initAlgorithm(self, config: dict[str, Any] | None = None) -> None:  # noqa: N802
         self.addParameter(
             QgsProcessingParameterFeatureSource(
-                self.INPUT, self.tr("Footprints"), [QgsProcessing.TypeVectorPolygon]
+                self.INPUT, self.tr("Footprints"), [ProcessingSourceType.VectorPolygon]
             )
         )
         self.addParameter(
@@ -274,7 +279,7 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterNumber(
                 self.GROUND_VALUE,
                 self.tr("Ground value"),
-                QgsProcessingParameterNumber.Double,
+                ProcessingNumberParameterType.Double,
                 defaultValue=0.0,
             )
         )
@@ -302,7 +307,7 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterNumber(
                 self.ROOF_PLANAR_TOLERANCE,
                 self.tr("Roof planar tolerance (0 = off)"),
-                QgsProcessingParameterNumber.Double,
+                ProcessingNumberParameterType.Double,
                 defaultValue=0.0,
                 minValue=0.0,
             ),
@@ -329,7 +334,7 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
             ),
         ]
         for parameter in advanced:
-            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+            parameter.setFlags(parameter.flags() | ProcessingParameterFlag.Advanced)
             self.addParameter(parameter)
         self.addParameter(
             QgsProcessingParameterFileDestination(
@@ -346,7 +351,7 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterFeatureSink(
                 self.OUTPUT_TRIANGLES,
                 self.tr("Triangles"),
-                QgsProcessing.TypeVectorPolygon,
+                ProcessingSourceType.VectorPolygon,
                 optional=True,
                 createByDefault=False,
             )
@@ -495,7 +500,7 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
         cleanup = SinkCleanup(context)
         cleanup.note(self.parameterAsOutputLayer(parameters, self.OUTPUT_TRIANGLES, context))
         sink, triangles_id = self.parameterAsSink(
-            parameters, self.OUTPUT_TRIANGLES, context, fields, QgsWkbTypes.PolygonZ, crs
+            parameters, self.OUTPUT_TRIANGLES, context, fields, WkbType.PolygonZ, crs
         )
         if sink is None and self._wants(parameters, self.OUTPUT_TRIANGLES):
             raise QgsProcessingException(self.invalidSinkError(parameters, self.OUTPUT_TRIANGLES))
@@ -561,7 +566,7 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
         if crs != source.sourceCrs():
             request.setDestinationCrs(crs, context.transformContext())
         features = source.getFeatures(
-            request, QgsProcessingFeatureSource.FlagSkipGeometryValidityChecks
+            request, ProcessingFeatureSourceFlag.SkipGeometryValidityChecks
         )
         total = source.featureCount()
         step = 100.0 / total if total > 0 else 0.0

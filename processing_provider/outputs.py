@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 from qgis.core import (
-    Qgis,
     QgsApplication,
     QgsClassificationCustom,
     QgsColorRampShader,
@@ -45,7 +44,7 @@ from qgis.core import (
     QgsVectorLayer,
     QgsVectorLayerSimpleLabeling,
 )
-from qgis.PyQt.QtCore import QCoreApplication, QMetaType, QThread, QVariant
+from qgis.PyQt.QtCore import QCoreApplication, QThread
 from qgis.PyQt.QtXml import QDomDocument
 
 from ..bsp_triangulate import metrics
@@ -56,6 +55,7 @@ from ..bsp_triangulate.geometry.rings_batch import ragged_index
 from ..bsp_triangulate.packed import PackedTriangulations
 from ..bsp_triangulate.workers import WorkerPool
 from .geometry_io import FeatureRings
+from .qgis_compat import FIELD_TYPES
 
 STYLE_DIR = Path(__file__).resolve().parent / "styles"
 STYLE_PATH = STYLE_DIR / "triangles.qml"
@@ -208,10 +208,8 @@ class BatchMesh:
 
 
 def _field(name: str, kind: str) -> QgsField:
-    """A field of type ``kind`` (Int, LongLong, Double): QMetaType from QGIS 3.38, else QVariant."""
-    if Qgis.QGIS_VERSION_INT >= 33800:
-        return QgsField(name, getattr(QMetaType, kind))
-    return QgsField(name, getattr(QVariant, kind))
+    """A field of type ``kind`` (Int, LongLong, Double, String)."""
+    return QgsField(name, FIELD_TYPES[kind])
 
 
 def triangle_fields(source_fields: QgsFields) -> QgsFields:
@@ -373,7 +371,7 @@ def add_features(sink: QgsFeatureSink | None, features: list[QgsFeature]) -> Non
     """Write in one call; a refused write is an error the algorithm cannot go on from."""
     if sink is None or not features:
         return
-    if not sink.addFeatures(features, QgsFeatureSink.FastInsert):
+    if not sink.addFeatures(features, QgsFeatureSink.Flag.FastInsert):
         message = sink.lastError() if hasattr(sink, "lastError") else ""
         raise OSError(f"cannot write features: {message}")
 

@@ -16,7 +16,6 @@ from qgis.core import (
     QgsExpression,
     QgsFeatureRequest,
     QgsFields,
-    QgsProcessing,
     QgsProcessingAlgorithm,
     QgsProcessingContext,
     QgsProcessingException,
@@ -25,7 +24,6 @@ from qgis.core import (
     QgsProcessingOutputLayerDefinition,
     QgsProcessingOutputNumber,
     QgsProcessingParameterBand,
-    QgsProcessingParameterDefinition,
     QgsProcessingParameterDistance,
     QgsProcessingParameterEnum,
     QgsProcessingParameterExpression,
@@ -36,7 +34,6 @@ from qgis.core import (
     QgsProcessingParameterRasterLayer,
     QgsRasterLayer,
     QgsRectangle,
-    QgsUnitTypes,
     QgsWkbTypes,
 )
 from qgis.PyQt.QtCore import QCoreApplication
@@ -60,6 +57,15 @@ from .outputs import (
     tree_fields,
     triangle_feature_chunks,
     triangle_fields,
+)
+from .qgis_compat import (
+    DistanceUnit,
+    GeometryType,
+    ProcessingFeatureSourceFlag,
+    ProcessingNumberParameterType,
+    ProcessingParameterFlag,
+    ProcessingSourceType,
+    WkbType,
 )
 from .run_report import FailureLog, Progress
 
@@ -226,7 +232,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
     def initAlgorithm(self, config: dict[str, Any] | None = None) -> None:  # noqa: N802
         self.addParameter(
             QgsProcessingParameterFeatureSource(
-                self.INPUT, self.tr("Input polygon layer"), [QgsProcessing.TypeVectorPolygon]
+                self.INPUT, self.tr("Input polygon layer"), [ProcessingSourceType.VectorPolygon]
             )
         )
         self.addParameter(
@@ -286,13 +292,13 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterNumber(
                 self.Z_OFFSET,
                 self.tr("Z offset"),
-                QgsProcessingParameterNumber.Double,
+                ProcessingNumberParameterType.Double,
                 defaultValue=0.0,
             ),
             QgsProcessingParameterNumber(
                 self.Z_SCALE,
                 self.tr("Z scale"),
-                QgsProcessingParameterNumber.Double,
+                ProcessingNumberParameterType.Double,
                 defaultValue=1.0,
             ),
         ]
@@ -317,21 +323,21 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterNumber(
                 self.PLANAR_TOLERANCE,
                 self.tr("Planar tolerance (z units; 0 = off)"),
-                QgsProcessingParameterNumber.Double,
+                ProcessingNumberParameterType.Double,
                 defaultValue=0.0,
                 minValue=0.0,
             ),
             QgsProcessingParameterNumber(
                 self.WORKERS,
                 self.tr("Worker processes (0 = automatic, 1 = none)"),
-                QgsProcessingParameterNumber.Integer,
+                ProcessingNumberParameterType.Integer,
                 defaultValue=0,
                 minValue=0,
                 maxValue=MAX_WORKERS,
             ),
         ]
         for parameter in advanced:
-            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+            parameter.setFlags(parameter.flags() | ProcessingParameterFlag.Advanced)
             self.addParameter(parameter)
         self.addParameter(
             QgsProcessingParameterEnum(
@@ -361,7 +367,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterFeatureSink(
                 self.OUTPUT_TRIANGLES,
                 self.tr("Triangles"),
-                QgsProcessing.TypeVectorPolygon,
+                ProcessingSourceType.VectorPolygon,
                 optional=True,
                 createByDefault=True,
             )
@@ -370,7 +376,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterFeatureSink(
                 self.OUTPUT_TREE,
                 self.tr("BSP tree"),
-                QgsProcessing.TypeVectorLine,
+                ProcessingSourceType.VectorLine,
                 optional=True,
                 createByDefault=False,
             )
@@ -401,7 +407,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         layer_source = self.parameterAsSource(parameters, self.INPUT, context)
         if layer_source is not None:
             kind = QgsWkbTypes.geometryType(layer_source.wkbType())
-            if kind not in (QgsWkbTypes.PolygonGeometry, QgsWkbTypes.UnknownGeometry):
+            if kind not in (GeometryType.Polygon, GeometryType.Unknown):
                 return False, self.tr(
                     "The input layer has {} geometries: choose a polygon layer."
                 ).format(QgsWkbTypes.geometryDisplayString(kind).lower())
@@ -488,11 +494,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         if kind != elevation.ELEVATION_GEOMETRY:
             return "xy"
         crs = source.sourceCrs()
-        if (
-            crs.isValid()
-            and not crs.isGeographic()
-            and (crs.mapUnits() == QgsUnitTypes.DistanceMeters)
-        ):
+        if crs.isValid() and not crs.isGeographic() and (crs.mapUnits() == DistanceUnit.Meters):
             return "auto"
         if QgsWkbTypes.hasZ(source.wkbType()):
             feedback.pushInfo(
@@ -629,14 +631,14 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             # to load on completion (a "memory:Triangles" that is never made)
             cleanup.note(self._destination(parameters, name))
         sink, triangles_id = self.parameterAsSink(
-            parameters, self.OUTPUT_TRIANGLES, context, fields, QgsWkbTypes.PolygonZ, crs
+            parameters, self.OUTPUT_TRIANGLES, context, fields, WkbType.PolygonZ, crs
         )
         if sink is None and self._wants_triangles(parameters):
             raise QgsProcessingException(self.invalidSinkError(parameters, self.OUTPUT_TRIANGLES))
         if sink is not None:
             cleanup.track(triangles_id)
         tree_sink, tree_id = self.parameterAsSink(
-            parameters, self.OUTPUT_TREE, context, tree_fields(), QgsWkbTypes.LineStringZ, crs
+            parameters, self.OUTPUT_TREE, context, tree_fields(), WkbType.LineStringZ, crs
         )
         has_tree = tree_sink is not None
         if has_tree:
@@ -706,7 +708,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         if sinks[0] is None and not isinstance(source_of_z, elevation.ExpressionElevation):
             request.setSubsetOfAttributes([])
         features = source.getFeatures(
-            request, QgsProcessingFeatureSource.FlagSkipGeometryValidityChecks
+            request, ProcessingFeatureSourceFlag.SkipGeometryValidityChecks
         )
         mesh = MeshAccumulator() if mesh_path else None
         tally = _Tally()

@@ -398,7 +398,7 @@ def test_expression_failing_at_evaluation_fails_each_feature_with_its_id():
     assert sorted(int(e.split()[1].rstrip(":")) for e in errors) == fids
 
 
-@pytest.mark.parametrize("name", ["out.obj", "out", "out.2dm.txt"])
+@pytest.mark.parametrize("name", ["out.stl", "out", "out.2dm.txt"])
 def test_unknown_mesh_file_extension_is_refused(tmp_path: Path, name: str):
     layer = polygon_layer([f"POLYGON(({SQUARE}))"])
     with pytest.raises(QgsProcessingException, match=r"\.2dm or \.ply|2dm|ply"):
