@@ -448,13 +448,7 @@ class _Tree:
         """
         sx, sy, rule = self.sx, self.sy, self.rule
         if self.grid is None or hi - lo <= SMALL_SEQUENCE:
-            chunk = np.arange(hi - 1, lo, -1)
-            chunk = chunk[facing_candidates(sx, sy, lo, hi, chunk, self.exact)]
-            if len(chunk) == 0:
-                return -1
-            mask = correct_candidates(sx, sy, lo, hi, chunk, facing=True, exact_inputs=self.exact)
-            correct = chunk[mask]
-            return rule.choose_in_plane(correct, hi, lo, sx, sy) if len(correct) else -1
+            return self._delaunay_small(lo, hi, np.arange(hi - 1, lo, -1))
         if self._points is None:
             px, py = sx[: self.m], sy[: self.m]
             self._points = SegmentGrid(px, py, px, py)
@@ -509,6 +503,40 @@ class _Tree:
             elif radius >= full:
                 return -1
             radius *= 2.0
+
+    def _delaunay_small(self, lo: int, hi: int, candidates: np.ndarray) -> int:
+        """:meth:`_delaunay_apex` of a small sub-polygon: the candidates are tested one by
+        one (the scalar exact tests) largest angle first (in float; those not clearly on the
+        candidates' side last); each correct one found discards those strictly outside its
+        circle (exact), so usually one or two are tested. The rule then chooses among the
+        correct ones found, as among all of them."""
+        sx, sy, xs, ys = self.sx, self.sy, self.xs, self.ys
+        ax, ay, bx, by = float(sx[hi]), float(sy[hi]), float(sx[lo]), float(sy[lo])
+        mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
+        half2 = 0.25 * ((bx - ax) ** 2 + (by - ay) ** 2)
+        ux, uy = sx[candidates] - mx, sy[candidates] - my
+        toward = ux * (ay - by) + uy * (bx - ax)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            key = np.where(toward > 0, (ux * ux + uy * uy - half2) / toward, np.inf)
+        key[np.isnan(key)] = np.inf
+        untested = candidates[np.argsort(key, kind="stable")]
+        blockers: list[int] = []
+        correct: list[int] = []
+        best = -1
+        while len(untested):
+            c = int(untested[0])
+            untested = untested[1:]
+            if not facing_one(xs, ys, lo, hi, c) or self._blocked(lo, hi, c, blockers):
+                continue
+            correct.append(c)
+            found = np.sort(np.array(correct, dtype=np.int64))[::-1]  # candidate order
+            best = self.rule.choose_in_plane(found, hi, lo, sx, sy)
+            if len(untested):
+                inside = incircle_many(
+                    ax, ay, bx, by, sx[best], sy[best], sx[untested], sy[untested]
+                )
+                untested = untested[inside >= 0]
+        return best
 
     def _first_apex(self, lo: int, hi: int) -> int:
         """The first candidate of sub-polygon [lo, hi] forming a correct triangle, or -1.
