@@ -156,7 +156,9 @@ def test_geos_cases_are_constrained_delaunay() -> None:
         check_delaunay(rings)
 
 
-def _farms(limit: int, most: int) -> list:
+def _farms(limit: int, most: int, large: bool = False) -> list:
+    """Valid farm parts of at most ``most`` points (the first ``limit``), or with
+    ``large`` every part of more points or with islands."""
     source = ogr.Open(str(FARMS))
     polygons = []
     for feature in source.GetLayer(0):
@@ -164,7 +166,8 @@ def _farms(limit: int, most: int) -> list:
         for part in getattr(geometry, "geoms", [geometry]):
             rings = [np.asarray(part.exterior.coords)[:, :2]]
             rings += [np.asarray(r.coords)[:, :2] for r in part.interiors]
-            if part.is_valid and sum(len(r) for r in rings) <= most:
+            small = sum(len(r) for r in rings) <= most
+            if part.is_valid and (small != large or (large and len(rings) > 1)):
                 polygons.append(rings)
         if len(polygons) >= limit:
             break
@@ -174,6 +177,14 @@ def _farms(limit: int, most: int) -> list:
 def test_swellendam_farms_are_constrained_delaunay() -> None:
     farms = _farms(40, 400)
     assert len(farms) == 40
+    for rings in farms:
+        check_delaunay(rings)
+
+
+def test_large_swellendam_farms_and_farms_with_islands_are_constrained_delaunay() -> None:
+    farms = _farms(10_000, 400, large=True)
+    assert len(farms) >= 4
+    assert any(len(rings) > 1 for rings in farms)
     for rings in farms:
         check_delaunay(rings)
 
