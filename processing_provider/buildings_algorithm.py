@@ -65,7 +65,7 @@ from .qgis_compat import (
 )
 
 ICON = Path(__file__).resolve().parent.parent / "icons" / "buildings.svg"
-APEX_RULES = ("first", "elevation")
+APEX_RULES = ("first", "elevation", "delaunay")
 MESH_FORMATS = ("glb", "gltf", "obj", "ply")
 HEIGHT_EXPRESSION = 0
 HEIGHT_ROOF_Z = 1
@@ -314,7 +314,11 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterEnum(
                 self.APEX_RULE,
                 self.tr("Apex rule"),
-                [self.tr("First correct apex (planar)"), self.tr("Closest elevation")],
+                [
+                    self.tr("First correct apex (planar)"),
+                    self.tr("Closest elevation"),
+                    self.tr("Constrained Delaunay (largest angle)"),
+                ],
                 defaultValue=0,
             ),
             QgsProcessingParameterEnum(

@@ -70,7 +70,7 @@ from .qgis_compat import (
 from .run_report import FailureLog, Progress
 
 ICON = Path(__file__).resolve().parent.parent / "icons" / "triangulate.svg"
-APEX_RULES = ("first", "elevation")
+APEX_RULES = ("first", "elevation", "delaunay")
 MAX_LISTED_IDS = 200
 MAX_WORKERS = 64
 HELP_URL = "https://github.com/bsptriangulate/bsptriangulate#readme"
@@ -181,7 +181,10 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "<p><b>Apex rule</b>: <i>first</i> takes the first correct apex in the paper's "
             "order; <i>elevation</i> takes, among all correct apexes, the one whose z is "
             "closest to the mean z of the base edge (paper §4.1; suits roads and streams "
-            "over terrain). Default: first.</p>"
+            "over terrain); <i>delaunay</i> takes the correct apex that sees the base under "
+            "the largest angle, so the tree is the constrained Delaunay triangulation of the "
+            "polygon's vertices (fewest slivers: the surface follows the terrain between "
+            "boundary points best, as GEOS's constrained Delaunay does). Default: first.</p>"
             "<p><b>Planar tolerance</b> (z units, e.g. metres): near-planar polygons (roofs) "
             "are snapped onto one plane when no vertex moves by more than this vertically "
             "(paper §4.2). 0 = off (default).</p>"
@@ -315,7 +318,11 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             QgsProcessingParameterEnum(
                 self.APEX_RULE,
                 self.tr("Apex rule"),
-                [self.tr("First correct apex (planar)"), self.tr("Closest elevation")],
+                [
+                    self.tr("First correct apex (planar)"),
+                    self.tr("Closest elevation"),
+                    self.tr("Constrained Delaunay (largest angle)"),
+                ],
                 defaultValue=0,
             )
         )

@@ -211,3 +211,15 @@ def test_triangulate_writes_3d_models_that_validate_and_read_back(
         model_checks.assert_valid_gltf(gltf_validator, path)
     mesh = model_checks.trimesh_read(path)
     assert len(mesh.faces) == 6
+
+
+def test_apex_rule_delaunay_gives_the_constrained_delaunay_triangles() -> None:
+    # a long thin pentagon: rule first fans from one corner, delaunay does not
+    wkt = utm_wkt([(0, 0), (400, 0), (800, 10), (400, 20), (0, 20)])
+    rows = {
+        rule: triangle_rows(run({"INPUT": polygon_layer([wkt]), "APEX_RULE": rule}))
+        for rule in (0, 2)
+    }
+    assert len(rows[0]) == len(rows[2]) == 3
+    smallest = {rule: min(row["min_angle"] for row in found) for rule, found in rows.items()}
+    assert smallest[2] >= smallest[0]
