@@ -55,7 +55,7 @@ from ..bsp_triangulate.geometry.rings_batch import ragged_index
 from ..bsp_triangulate.packed import PackedTriangulations
 from ..bsp_triangulate.workers import WorkerPool
 from .geometry_io import FeatureRings
-from .qgis_compat import FIELD_TYPES
+from .qgis_compat import FIELD_TYPES, CrsWktVariant, FeatureRequestFlag
 
 STYLE_DIR = Path(__file__).resolve().parent / "styles"
 STYLE_PATH = STYLE_DIR / "triangles.qml"
@@ -697,7 +697,7 @@ def crs_text(crs: QgsCoordinateReferenceSystem) -> str | None:
     """The CRS as WKT (WKT2 where PROJ has it) for the mesh file; None when it is not valid."""
     if not crs.isValid():
         return None
-    preferred = QgsCoordinateReferenceSystem.WktVariant.WKT_PREFERRED
+    preferred = CrsWktVariant.Preferred
     return crs.toWkt(preferred) or crs.toWkt() or None
 
 
@@ -884,7 +884,7 @@ def _typical_triangle_size(layer: QgsVectorLayer) -> float | None:
     index = layer.fields().indexOf("area_2d")
     if index < 0:
         return None
-    request = QgsFeatureRequest().setFlags(QgsFeatureRequest.Flag.NoGeometry)
+    request = QgsFeatureRequest().setFlags(FeatureRequestFlag.NoGeometry)
     request.setSubsetOfAttributes([index]).setLimit(LABEL_SAMPLE)
     areas = [f.attribute(index) for f in layer.getFeatures(request)]
     areas = np.array([a for a in areas if isinstance(a, (int, float))], dtype=np.float64)

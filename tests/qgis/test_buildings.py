@@ -432,7 +432,8 @@ def test_buildings_run_as_a_step_of_a_model(tmp_path: Path) -> None:
     result = processing.run(
         model, {"footprints": layer_of([ELL, SQUARE_WITH_COURT]), "buildings:model": str(path)}
     )
-    assert Path(result["buildings:model"]) == path
+    # the key of a model's output differs between QGIS versions: find it by its value
+    assert path.exists() and str(path) in {str(value) for value in result.values()}, result
     mesh = trimesh_read(path)
     mesh.merge_vertices()
     assert mesh.is_watertight
