@@ -3,10 +3,16 @@
 1. writes a terrain GeoTIFF and a polygon GeoPackage (river with islands, lake, roofs);
 2. runs ``bsptriangulate:triangulate`` through qgis_process with elevation from the DEM and the
    "elevation" apex rule, writing a 2DM mesh and the per-triangle GeoPackage;
-3. renders the triangles (the algorithm's default style) over the shaded terrain to a PNG;
-4. prints the counts, the output paths and the time.
+3. runs it again on the river and the lake alone, writing their draped surface as a GLB;
+4. runs ``bsptriangulate:buildings`` on the roofs (roof Z of the geometry, ground from the DEM
+   per vertex), writing the closed solids as a GLB and their triangles as a GeoPackage;
+5. renders the triangles (the algorithm's default style) over the shaded terrain to a PNG,
+   with a legend;
+6. renders the terrain, the draped mesh and the solids in QGIS's 3D renderer to a second PNG
+   (scripts/render_3d.py), when an X display or Xvfb is available;
+7. prints the counts, the output paths and the time.
 
-Usage: python scripts/demo.py [--output-dir build/demo] [--update-docs]
+Usage: python scripts/demo.py [--output-dir build/demo] [--update-docs] [--no-3d]
 """
 
 from __future__ import annotations
@@ -30,9 +36,13 @@ if TYPE_CHECKING:
 ROOT = Path(__file__).resolve().parent.parent
 STYLE = ROOT / "processing_provider" / "styles" / "triangles.qml"
 DOCS_PNG = ROOT / "docs" / "demo.png"
+DOCS_3D_PNG = ROOT / "docs" / "demo-3d.png"
 ALGORITHM = "bsptriangulate:triangulate"
+BUILDINGS = "bsptriangulate:buildings"
 COUNTS = ("FEATURE_COUNT", "TRIANGLE_COUNT", "FAILED_COUNT", "EMPTY_COUNT")
+BUILDING_COUNTS = ("FEATURE_COUNT", "BUILT_COUNT", "TRIANGLE_COUNT", "FAILED_COUNT", "EMPTY_COUNT")
 DOCS_PNG_LIMIT = 300_000  # bytes
+DOCS_3D_PNG_LIMIT = 400_000  # bytes
 
 
 def qgis_process_binary() -> str:
@@ -70,15 +80,33 @@ def qgis_process(arguments: list[str], environment: dict[str, str]) -> str:
     return process.stdout
 
 
+def run_algorithm(algorithm: str, parameters: dict, environment: dict[str, str]) -> dict:
+    """Run a Processing algorithm through qgis_process; return its results."""
+    output = qgis_process(
+        ["--json", "run", algorithm, *(f"--{key}={value}" for key, value in parameters.items())],
+        environment,
+    )
+    return json.loads(output[output.index("{") :])["results"]
+
+
+def remove_stale(*paths: Path) -> None:
+    for stale in paths:
+        if stale.exists():
+            stale.unlink()
+
+
+def subset(polygons: Path, condition: str) -> str:
+    """An OGR layer source of the sample features that match the condition."""
+    return f"{polygons}|layername=features|subset={condition}"
+
+
 def triangulate(
     polygons: Path, terrain: Path, output_dir: Path, environment: dict[str, str]
 ) -> tuple[dict, Path, Path]:
     """Run the algorithm with DEM elevation and the elevation rule; return its results."""
     mesh = output_dir / "mesh.2dm"
     triangles = output_dir / "triangles.gpkg"
-    for stale in (mesh, triangles):
-        if stale.exists():
-            stale.unlink()
+    remove_stale(mesh, triangles)
     parameters = {
         "INPUT": polygons,
         "ELEVATION_SOURCE": 3,
@@ -89,12 +117,44 @@ def triangulate(
         "OUTPUT_TRIANGLES": triangles,
     }
     qgis_process(["plugins", "enable", "bsptriangulate"], environment)
-    output = qgis_process(
-        ["--json", "run", ALGORITHM, *(f"--{key}={value}" for key, value in parameters.items())],
-        environment,
-    )
-    results = json.loads(output[output.index("{") :])["results"]
-    return results, mesh, triangles
+    return run_algorithm(ALGORITHM, parameters, environment), mesh, triangles
+
+
+def water_model(
+    polygons: Path, terrain: Path, output_dir: Path, environment: dict[str, str]
+) -> tuple[dict, Path]:
+    """The river and the lake draped on the DEM, as a binary glTF model."""
+    model = output_dir / "water.glb"
+    remove_stale(model)
+    parameters = {
+        "INPUT": subset(polygons, "\"kind\" <> 'roof'"),
+        "ELEVATION_SOURCE": 3,
+        "DEM": terrain,
+        "DEM_BAND": 1,
+        "APEX_RULE": 1,
+        "OUTPUT_MESH": model,
+    }
+    return run_algorithm(ALGORITHM, parameters, environment), model
+
+
+def building_solids(
+    polygons: Path, terrain: Path, output_dir: Path, environment: dict[str, str]
+) -> tuple[dict, Path, Path]:
+    """The roofs built into closed solids down to the DEM: a GLB and the solids' triangles."""
+    model = output_dir / "buildings.glb"
+    triangles = output_dir / "buildings.gpkg"
+    remove_stale(model, triangles)
+    parameters = {
+        "INPUT": subset(polygons, "\"kind\" = 'roof'"),
+        "HEIGHT_SOURCE": 1,  # the roof's own Z
+        "GROUND": 1,  # the DEM under every vertex: walls follow the slope
+        "DEM": terrain,
+        "DEM_BAND": 1,
+        "ROOF_PLANAR_TOLERANCE": 0.1,
+        "OUTPUT_MESH": model,
+        "OUTPUT_TRIANGLES": triangles,
+    }
+    return run_algorithm(BUILDINGS, parameters, environment), model, triangles
 
 
 def square_around(extent: QgsRectangle, margin: float) -> QgsRectangle:
@@ -116,61 +176,132 @@ def feature_extent(polygons: Path, kind: str) -> QgsRectangle:
 
 
 def render_views(terrain: Path, polygons: Path, triangles: Path, output: Path) -> Path:
-    """The whole area, the lake and the village, side by side, with the default style."""
+    """The whole area, the lake and the village, side by side, with the default style, and a
+    legend below them. The whole area has no labels: its triangles are too small for them."""
     import render
 
     render.start_qgis()
     style = STYLE if STYLE.exists() else None
     if style is None:
         print(f"warning: {STYLE.relative_to(ROOT)} not found, default symbols used")
-    layers = [render.vector_layer(str(triangles), style), *reversed(render.terrain_layers(terrain))]
+    terrain_layers = list(reversed(render.terrain_layers(terrain)))
+    labelled = render.vector_layer(str(triangles), style)
+    unlabelled = render.vector_layer(str(triangles), style)
+    unlabelled.setLabelsEnabled(False)
+    whole = [unlabelled, *terrain_layers]
     views = [
-        ("Whole area, 4 x 3 km", render.parse_extent(None, layers), (720, 540)),
-        ("Lake with an island", square_around(feature_extent(polygons, "lake"), 30), (540, 540)),
-        ("Village roofs", square_around(feature_extent(polygons, "roof"), 15), (540, 540)),
+        ("Whole area, 4 x 3 km", whole, render.parse_extent(None, whole), (720, 540)),
+        (
+            "Lake with an island",
+            [labelled, *terrain_layers],
+            square_around(feature_extent(polygons, "lake"), 30),
+            (540, 540),
+        ),
+        (
+            "Village roofs",
+            [labelled, *terrain_layers],
+            square_around(feature_extent(polygons, "roof"), 15),
+            (540, 540),
+        ),
     ]
     work = Path(tempfile.mkdtemp(prefix="bsptri-demo-render-"))
     panels = [
         render.render(layers, work / f"view{number}.png", extent, size, title)
-        for number, (title, extent, size) in enumerate(views)
+        for number, (title, layers, extent, size) in enumerate(views)
     ]
-    return render.side_by_side(panels, output, palette=True)
+    width = sum(size[0] for *_rest, size in views) + 6 * (len(views) - 1)
+    legend = render.legend_strip(
+        width,
+        "Colour: depth in the BSP tree",
+        render.graduated_classes(labelled),
+        "Numbers: the triangle's order (pre-order index in the BSP tree)",
+    )
+    return render.side_by_side(panels, output, palette=True, legend=legend)
+
+
+def render_3d(output_dir: Path, picture: Path) -> Path | None:
+    """The 3D picture through scripts/render_3d.py: on the X display, else under xvfb-run;
+    None (with a message) when neither is available or the renderer fails."""
+    command = [
+        sys.executable,
+        str(ROOT / "scripts" / "render_3d.py"),
+        str(output_dir),
+        str(picture),
+    ]
+    if not os.environ.get("DISPLAY"):
+        xvfb = shutil.which("xvfb-run")
+        if xvfb is None:
+            print("3D picture skipped: no X display and no xvfb-run (apt-get install xvfb)")
+            return None
+        command = [xvfb, "-a", "-s", "-screen 0 1280x1024x24", *command]
+    environment = dict(os.environ)
+    environment["QT_QPA_PLATFORM"] = "xcb"  # the 3D renderer needs OpenGL: not offscreen
+    process = subprocess.run(command, env=environment, capture_output=True, text=True)
+    if process.returncode != 0 or not picture.exists():
+        print(f"3D picture skipped: the renderer failed ({process.returncode}):")
+        print(process.stdout[-2000:], process.stderr[-2000:])
+        return None
+    return picture
+
+
+def copy_to_docs(picture: Path, target: Path, limit: int) -> None:
+    shutil.copyfile(picture, target)
+    size = target.stat().st_size
+    print(f"  {'docs picture':15} {target} ({size / 1000:.0f} kB)")
+    if size > limit:
+        sys.exit(f"{target} is larger than {limit / 1000:.0f} kB")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output-dir", type=Path, default=sample.DEFAULT_OUTPUT)
     parser.add_argument(
-        "--update-docs", action="store_true", help=f"copy the PNG to {DOCS_PNG.relative_to(ROOT)}"
+        "--update-docs",
+        action="store_true",
+        help=f"copy the PNGs to {DOCS_PNG.relative_to(ROOT)} and {DOCS_3D_PNG.relative_to(ROOT)}",
     )
+    parser.add_argument("--no-3d", action="store_true", help="skip the 3D picture")
     arguments = parser.parse_args()
     start = time.perf_counter()
     output_dir = arguments.output_dir.resolve()
     terrain, polygons = sample.make_sample_data(output_dir)
     work = Path(tempfile.mkdtemp(prefix="bsptri-demo-"))
-    results, mesh, triangles = triangulate(polygons, terrain, output_dir, qgis_environment(work))
+    environment = qgis_environment(work)
+    results, mesh, triangles = triangulate(polygons, terrain, output_dir, environment)
+    _water_results, water = water_model(polygons, terrain, output_dir, environment)
+    solids, buildings, building_triangles = building_solids(
+        polygons, terrain, output_dir, environment
+    )
     triangulated = time.perf_counter()
     picture = render_views(terrain, polygons, triangles, output_dir / "triangles.png")
+    picture_3d = None
+    if not arguments.no_3d:
+        picture_3d = render_3d(output_dir, output_dir / "demo-3d.png")
     elapsed = time.perf_counter() - start
 
     print("BSP Triangulate demo")
     for key in COUNTS:
         print(f"  {key.lower().replace('_', ' '):15} {results.get(key, 'n/a')}")
+    print("  buildings:")
+    for key in BUILDING_COUNTS:
+        print(f"    {key.lower().replace('_', ' '):13} {solids.get(key, 'n/a')}")
     for label, path in (
         ("terrain", terrain),
         ("polygons", polygons),
         ("mesh", mesh),
         ("triangles", triangles),
+        ("water model", water),
+        ("building model", buildings),
+        ("building faces", building_triangles),
         ("picture", picture),
+        ("3D picture", picture_3d),
     ):
-        print(f"  {label:15} {path}")
+        print(f"  {label:15} {path if path is not None else 'not made'}")
     print(f"  {'time':15} {elapsed:.1f} s ({triangulated - start:.1f} s data + qgis_process)")
     if arguments.update_docs:
-        shutil.copyfile(picture, DOCS_PNG)
-        size = DOCS_PNG.stat().st_size
-        print(f"  {'docs picture':15} {DOCS_PNG} ({size / 1000:.0f} kB)")
-        if size > DOCS_PNG_LIMIT:
-            sys.exit(f"{DOCS_PNG} is larger than {DOCS_PNG_LIMIT / 1000:.0f} kB")
+        copy_to_docs(picture, DOCS_PNG, DOCS_PNG_LIMIT)
+        if picture_3d is not None:
+            copy_to_docs(picture_3d, DOCS_3D_PNG, DOCS_3D_PNG_LIMIT)
 
 
 if __name__ == "__main__":

@@ -32,6 +32,7 @@ RIVER_HALF_WIDTH = 70.0
 LAKE_CENTRE = (3050.0, 2450.0)
 LAKE_RADIUS = 230.0
 LAKE_LEVEL = 236.0
+ROOF_CLEARANCE = 3.0  # metres: the lowest roof vertex above the terrain
 
 gdal.UseExceptions()
 ogr.UseExceptions()
@@ -174,7 +175,11 @@ def roof(rng: np.random.Generator, outline: Polygon, noise: float) -> Polygon:
         z = z + rng.uniform(-noise, noise, len(coords))
         return np.column_stack([coords[:, :2], z])
 
-    return shapely.transform(shapely.force_3d(outline), lift, include_z=True)
+    lifted = shapely.transform(shapely.force_3d(outline), lift, include_z=True)
+    # every roof vertex at least ROOF_CLEARANCE above the terrain, so the roof makes a solid
+    coords = shapely.get_coordinates(lifted, include_z=True)
+    clearance = float((coords[:, 2] - terrain(coords[:, 0], coords[:, 1])).min())
+    return affinity.translate(lifted, zoff=max(ROOF_CLEARANCE - clearance, 0.0))
 
 
 def buildings(rng: np.random.Generator, avoid: Polygon, count: int = 9) -> list[Polygon]:

@@ -148,24 +148,74 @@ def draw_title(image: QImage, title: str) -> None:
     painter.end()
 
 
-def side_by_side(images: Sequence[Path], output: Path, gap: int = 6, palette: bool = False) -> Path:
-    """Join PNG images horizontally (top-aligned) into one PNG; ``palette``: 256 colours."""
+def side_by_side(
+    images: Sequence[Path],
+    output: Path,
+    gap: int = 6,
+    palette: bool = False,
+    legend: QImage | None = None,
+) -> Path:
+    """Join PNG images horizontally (top-aligned) into one PNG, with ``legend`` below them;
+    ``palette``: 256 colours."""
     loaded = [QImage(str(path)) for path in images]
     width = sum(image.width() for image in loaded) + gap * (len(loaded) - 1)
     height = max(image.height() for image in loaded)
-    joined = QImage(width, height, QImage.Format_RGB32)
+    joined = QImage(width, height + (legend.height() if legend else 0), QImage.Format_RGB32)
     joined.fill(QColor("white"))
     painter = QPainter(joined)
     x = 0
     for image in loaded:
         painter.drawImage(x, 0, image)
         x += image.width() + gap
+    if legend is not None:
+        painter.drawImage(0, height, legend)
     painter.end()
     if not joined.save(str(output), "PNG"):
         raise RuntimeError(f"cannot write {output}")
     if palette:
         to_palette(output)
     return output
+
+
+def graduated_classes(layer: QgsVectorLayer) -> list[tuple[str, QColor]]:
+    """The (label, colour) of each class of a graduated renderer, as its legend shows them."""
+    renderer = layer.renderer()
+    ranges = renderer.ranges() if hasattr(renderer, "ranges") else []
+    return [(item.label(), item.symbol().color()) for item in ranges]
+
+
+def legend_strip(
+    width: int, title: str, classes: Sequence[tuple[str, QColor]], note: str, height: int = 34
+) -> QImage:
+    """A one-line legend: the title, a swatch per class with its label, then a note."""
+    image = QImage(width, height, QImage.Format_RGB32)
+    image.fill(QColor("white"))
+    painter = QPainter(image)
+    painter.setRenderHint(QPainter.Antialiasing)
+    font = QFont("DejaVu Sans", 10)
+    bold = QFont(font)
+    bold.setBold(True)
+    middle = height // 2
+    x = 10
+    painter.setFont(bold)
+    painter.setPen(QColor("black"))
+    metrics = painter.fontMetrics()
+    painter.drawText(x, middle + metrics.ascent() // 2 - 1, title)
+    x += metrics.horizontalAdvance(title) + 10
+    painter.setFont(font)
+    metrics = painter.fontMetrics()
+    for label, colour in classes:
+        painter.fillRect(x, middle - 8, 26, 16, colour)
+        painter.setPen(QColor("#666666"))
+        painter.drawRect(x, middle - 8, 26, 16)
+        painter.setPen(QColor("black"))
+        x += 31
+        painter.drawText(x, middle + metrics.ascent() // 2 - 1, label)
+        x += metrics.horizontalAdvance(label) + 12
+    x += 18
+    painter.drawText(x, middle + metrics.ascent() // 2 - 1, note)
+    painter.end()
+    return image
 
 
 def to_palette(path: Path) -> bool:
