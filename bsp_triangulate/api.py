@@ -22,6 +22,7 @@ from .triangulation import Triangulation, TriangulationError
 def triangulate(
     rings: Sequence[object],
     *,
+    points: object = None,
     rule: str = "first",
     planar_tolerance: float = 0.0,
     invalid: str = "fail",
@@ -49,12 +50,25 @@ def triangulate(
     works in XY, for footprints draped on terrain and for z in another unit than x and y
     (degrees). Every result is checked: its triangles' absolute areas in the working plane
     add up to the polygon's area (with ``invalid="fail"``), or the polygon fails.
+
+    ``points``: None or interior points, an (m, 2) or (m, 3) array of (x, y[, z]) in the
+    rings' coordinates (z = 0 where absent), classified in the working plane. Each point
+    strictly inside the polygon becomes a vertex (one-point island joined by a bridge); the
+    result's ``vertices`` are the ring vertices followed by the used points in the given
+    order, and ``point_ids`` gives each given point's row there, or -1 for a point outside
+    the polygon, on its boundary or repeating an earlier point. Each used point adds two
+    triangles.
     """
     _check_plane(plane)
     # overflow in float filters only routes values to the exact path
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         return _triangulate(
-            rings, rule=rule, planar_tolerance=planar_tolerance, invalid=invalid, plane=plane
+            rings,
+            rule=rule,
+            planar_tolerance=planar_tolerance,
+            invalid=invalid,
+            plane=plane,
+            points=points,
         )
 
 
@@ -67,6 +81,7 @@ def triangulate_many(
     invalid: str = "fail",
     proven: Sequence[bool] | None = None,
     plane: str = "auto",
+    points: Sequence[object] | None = None,
 ) -> list:
     """Triangulate many polygons; results in input order, equal to :func:`triangulate`'s.
 
@@ -74,30 +89,52 @@ def triangulate_many(
     engine one by one. With ``on_error="return"`` a polygon that fails gets its
     ``TriangulationError`` in its slot instead of stopping the batch. ``proven``: per
     polygon, True where ``validity.proven_valid`` has proven it valid (it spares the batch
-    path its own search for touching rings).
+    path its own search for touching rings). ``points``: None or, per polygon, its interior
+    points (see :func:`triangulate`) or None.
     """
     polygons = list(polygons)
     _check_many_options(rule, invalid, on_error, proven, len(polygons))
     _check_plane(plane)
+    if points is not None and len(points) != len(polygons):
+        raise ValueError(f"points has {len(points)} entries for {len(polygons)} polygons")
+    # polygons with interior points go to the one-polygon builder
+    plain = [i for i in range(len(polygons)) if points is None or _point_count(points[i]) == 0]
     results: list = [None] * len(polygons)
-    if planar_tolerance <= 0 and len(polygons) > 1:
+    if planar_tolerance <= 0 and len(plain) > 1:
         # many small polygons in lock-step; it leaves (None) what it does not decide exactly
         from .tree.batch import triangulate_batch
 
+        batch = [polygons[i] for i in plain]
+        flags = None if proven is None else [proven[i] for i in plain]
         try:
-            results = list(triangulate_batch(polygons, rule, proven=proven, plane=plane))
+            decided = list(triangulate_batch(batch, rule, proven=flags, plane=plane))
         except (ArithmeticError, ValueError, TypeError):
             # malformed or non-finite input broke the lock-step path: batch only the polygons
             # that normalise, the engine names the ring of the others
-            results = _batch_well_formed(polygons, rule, triangulate_batch, plane)
+            decided = _batch_well_formed(batch, rule, triangulate_batch, plane)
+        for index, done in zip(plain, decided):
+            results[index] = done
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
             if isinstance(done, TriangulationError) and on_error == "raise":
                 raise done
             continue
-        results[index] = _engine_result(rings, rule, planar_tolerance, invalid, on_error, plane)
+        results[index] = _engine_result(
+            rings,
+            rule,
+            planar_tolerance,
+            invalid,
+            on_error,
+            plane,
+            points=None if points is None else points[index],
+        )
     return results
+
+
+def _point_count(points: object) -> int:
+    """How many interior points one polygon is given (None: none)."""
+    return 0 if points is None else len(points)
 
 
 def _check_many_options(
@@ -120,6 +157,7 @@ def _engine_result(
     on_error: str,
     plane: str,
     tick: Callable[[float], None] | None = None,
+    points: object = None,
 ) -> Triangulation | TriangulationError:
     """:func:`triangulate` of one polygon of many: its error is returned (``on_error`` is
     "return") or raised. ``tick``: see ``one_polygon._triangulate``."""
@@ -132,6 +170,7 @@ def _engine_result(
                 invalid=invalid,
                 plane=plane,
                 tick=tick,
+                points=points,
             )
     except TriangulationError as exc:
         if on_error == "raise":
@@ -149,38 +188,74 @@ def triangulate_packed(
     proven: Sequence[bool] | None = None,
     plane: str = "auto",
     progress: Callable[[float], None] | None = None,
+    points: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> PackedTriangulations:
     """:func:`triangulate_many` of packed polygons, with packed results: the same vertices,
     triangles and trees, in flat arrays (no object per polygon). A polygon that fails with
     ``on_error="return"`` has no vertices or triangles and its error in ``errors``.
     ``progress``: called now and then with the share of the polygons done (0 to 1); an
-    exception it raises (a cancelled run) stops the call."""
+    exception it raises (a cancelled run) stops the call. ``points``: None or interior
+    points as ``(coordinates (K, 2 or 3), counts (P,))``, polygon i's being the ``counts[i]``
+    rows after the previous polygons' (see :func:`triangulate`); their ids come back in
+    ``point_ids`` and ``point_count`` of the result."""
     _check_many_options(rule, invalid, on_error, proven, len(polygons))
     _check_plane(plane)
+    coordinates, counts = _packed_points(points, len(polygons))
+    plain = None if counts is None else np.flatnonzero(counts == 0)
     pieces: list[Piece] = []
-    if planar_tolerance <= 0 and len(polygons) > 1:
+    if planar_tolerance <= 0 and len(polygons if plain is None else plain) > 1:
         from .tree.batch import triangulate_batch_packed
 
+        # polygons with interior points go to the one-polygon builder
+        batch = polygons if plain is None else polygons.take(plain)
+        flags = proven if plain is None or proven is None else [proven[i] for i in plain]
         try:
-            pieces = triangulate_batch_packed(polygons, rule, proven=proven, plane=plane)
+            pieces = triangulate_batch_packed(batch, rule, proven=flags, plane=plane)
         except (ArithmeticError, ValueError, TypeError):
             pieces = []  # the engine takes every polygon and names what is wrong
+        if plain is not None:
+            for piece in pieces:
+                piece.index = plain[piece.index]
     decided = np.zeros(len(polygons), dtype=bool)
     for piece in pieces:
         decided[piece.index] = True
     errors: dict[int, TriangulationError] = {}
     report = _Reporter(progress, len(polygons), int(decided.sum()))
+    starts = None if counts is None else np.cumsum(counts) - counts
     for index in np.flatnonzero(~decided).tolist():
         report.one_more()
         rings = polygons.rings(index)
+        given = None
+        if counts is not None and counts[index]:
+            given = coordinates[starts[index] : starts[index] + counts[index]]
         result = _engine_result(
-            rings, rule, planar_tolerance, invalid, on_error, plane, report.tick
+            rings, rule, planar_tolerance, invalid, on_error, plane, report.tick, given
         )
         if isinstance(result, TriangulationError):
             errors[index] = result
         else:
             pieces.append(Piece.of(index, result))
-    return assemble(len(polygons), pieces, errors)
+    return assemble(len(polygons), pieces, errors, counts)
+
+
+def _packed_points(
+    points: tuple[np.ndarray, np.ndarray] | None, count: int
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The coordinates and per-polygon counts of packed interior points, checked."""
+    if points is None:
+        return None, None
+    coordinates, counts = points
+    coordinates = np.asarray(coordinates, dtype=np.float64)
+    counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+    if coordinates.size == 0:
+        coordinates = coordinates.reshape(0, 3)
+    if coordinates.ndim != 2 or coordinates.shape[1] not in (2, 3):
+        raise ValueError("point coordinates must be a (K, 2) or (K, 3) array")
+    if len(counts) != count:
+        raise ValueError(f"points has {len(counts)} counts for {count} polygons")
+    if (counts < 0).any() or int(counts.sum()) != len(coordinates):
+        raise ValueError("point counts must be non-negative and add up to the coordinates")
+    return coordinates, counts
 
 
 class _Reporter:

@@ -68,6 +68,13 @@ class PackedPolygons:
         """(P,) the first ring of each polygon."""
         return self._first_ring
 
+    def take(self, polygons: np.ndarray) -> PackedPolygons:
+        """The polygons ``polygons`` (indices), in that order."""
+        polygons = np.asarray(polygons, dtype=np.int64)
+        rings = ragged_index(self._first_ring[polygons], self.ring_count[polygons])
+        rows = ragged_index(self._ring_start[rings], self.ring_len[rings])
+        return PackedPolygons(self.points[rows], self.ring_len[rings], self.ring_count[polygons])
+
     def rings(self, index: int) -> list[np.ndarray]:
         """The rings of polygon ``index`` (views of ``points``)."""
         first = int(self._first_ring[index])
@@ -84,7 +91,10 @@ class PackedTriangulations:
     triangles ``triangles[triangle_start[i]:][:triangle_count[i]]`` (indices into its own
     vertices), with their ``parent``, ``depth`` and ``side``, all as in
     :class:`Triangulation`. A polygon that failed has no vertices and no triangles and its
-    error in ``errors``.
+    error in ``errors``. Interior points: polygon i was given ``point_count[i]`` of them,
+    whose ``point_ids`` (rows of its own vertices, -1 where unused or where the polygon
+    failed) are ``point_ids[point_start[i]:][:point_count[i]]``; without points
+    ``point_ids`` is empty and ``point_count`` all zero.
     """
 
     vertices: np.ndarray
@@ -95,6 +105,12 @@ class PackedTriangulations:
     depth: np.ndarray
     side: np.ndarray
     errors: dict[int, TriangulationError] = field(default_factory=dict)
+    point_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    point_count: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    def __post_init__(self) -> None:
+        if len(self.point_count) != len(self.vertex_count):
+            self.point_count = np.zeros(len(self.vertex_count), dtype=np.int64)
 
     @classmethod
     def without_triangles(
@@ -124,13 +140,21 @@ class PackedTriangulations:
     def triangle_start(self) -> np.ndarray:
         return np.cumsum(self.triangle_count) - self.triangle_count
 
+    @functools.cached_property
+    def point_start(self) -> np.ndarray:
+        return np.cumsum(self.point_count) - self.point_count
+
     def __getitem__(self, index: int) -> Triangulation | TriangulationError:
         if index in self.errors:
             return self.errors[index]
-        return self._slice(
+        result = self._slice(
             int(self.vertex_start[index]), int(self.vertex_count[index]),
             int(self.triangle_start[index]), int(self.triangle_count[index]),
         )  # fmt: skip
+        if len(self.point_ids):
+            start = int(self.point_start[index])
+            result.point_ids = self.point_ids[start : start + int(self.point_count[index])]
+        return result
 
     def _slice(self, v: int, n: int, t: int, m: int) -> Triangulation:
         """The polygon of ``n`` vertices from row ``v`` and ``m`` triangles from row ``t``."""
@@ -146,10 +170,15 @@ class PackedTriangulations:
         """The results of ``polygons`` (indices), in that order, without the errors."""
         vertex_rows = ragged_index(self.vertex_start[polygons], self.vertex_count[polygons])
         rows = ragged_index(self.triangle_start[polygons], self.triangle_count[polygons])
-        return PackedTriangulations(
+        taken = PackedTriangulations(
             self.vertices[vertex_rows], self.vertex_count[polygons], self.triangles[rows],
             self.triangle_count[polygons], self.parent[rows], self.depth[rows], self.side[rows],
         )  # fmt: skip
+        if len(self.point_ids):
+            point_rows = ragged_index(self.point_start[polygons], self.point_count[polygons])
+            taken.point_ids = self.point_ids[point_rows]
+            taken.point_count = self.point_count[polygons]
+        return taken
 
     def tree(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(parent, depth, side) of every triangle."""
@@ -169,6 +198,11 @@ class PackedTriangulations:
             Triangulation(vertices[a:b], triangles[c:d], parent[c:d], depth[c:d], side[c:d])
             for a, b, c, d in rows
         ]
+        if len(self.point_ids):
+            p0 = self.point_start.tolist()
+            p1 = (self.point_start + self.point_count).tolist()
+            for result, a, b in zip(out, p0, p1):
+                result.point_ids = self.point_ids[a:b]
         for index, error in self.errors.items():
             out[index] = error
         return out
@@ -194,15 +228,48 @@ class Piece:
                 np.asarray(result.parent, dtype=np.int64),
                 np.asarray(result.depth, dtype=np.int64),
                 np.asarray(result.side, dtype=np.int8),
+                point_ids=np.asarray(result.point_ids, dtype=np.int64),
+                point_count=np.array([len(result.point_ids)], dtype=np.int64),
             ),
         )
 
 
 def assemble(
+    count: int,
+    pieces: list[Piece],
+    errors: dict[int, TriangulationError],
+    point_count: np.ndarray | None = None,
+) -> PackedTriangulations:
+    """The pieces (each polygon in one of them, or failed in ``errors``) in polygon order.
+
+    ``point_count``: the interior points given per polygon (None: none); those of a polygon
+    that failed get the point id -1.
+    """
+    pieces = [piece for piece in pieces if len(piece.index)]
+    result = _assemble_triangles(count, pieces, errors)
+    if point_count is None and not any(p.results.point_count.any() for p in pieces):
+        return result
+    counts = np.zeros(count, dtype=np.int64)
+    for piece in pieces:
+        counts[piece.index] = piece.results.point_count
+    if point_count is not None:
+        counts = np.asarray(point_count, dtype=np.int64)
+    point_ids = np.full(int(counts.sum()), -1, dtype=np.int64)
+    if pieces:
+        index = np.concatenate([piece.index for piece in pieces])
+        rows = ragged_index(
+            (np.cumsum(counts) - counts)[index],
+            np.concatenate([piece.results.point_count for piece in pieces]),
+        )
+        point_ids[rows] = np.concatenate([piece.results.point_ids for piece in pieces])
+    result.point_ids, result.point_count = point_ids, counts
+    return result
+
+
+def _assemble_triangles(
     count: int, pieces: list[Piece], errors: dict[int, TriangulationError]
 ) -> PackedTriangulations:
-    """The pieces (each polygon in one of them, or failed in ``errors``) in polygon order."""
-    pieces = [piece for piece in pieces if len(piece.index)]
+    """:func:`assemble` without the interior points."""
     if not pieces:
         return PackedTriangulations.without_triangles(
             np.zeros((0, 3)), np.zeros(count, dtype=np.int64), errors

@@ -25,6 +25,9 @@ class Triangulation:
     - ``parent``: (M,) index of the parent triangle, -1 for the root.
     - ``depth``: (M,) depth in the tree, 0 for the root.
     - ``side``: (M,) 0 root, 1 left child, 2 right child.
+    - ``point_ids``: one per given interior point: the row of ``vertices`` it became, or -1
+      where it was not used (outside the polygon, on its boundary, or a repeat of an earlier
+      point); empty when no points were given.
     """
 
     vertices: np.ndarray = field(default_factory=lambda: _empty((0, 3), np.float64))
@@ -32,6 +35,7 @@ class Triangulation:
     parent: np.ndarray = field(default_factory=lambda: _empty((0,), np.int64))
     depth: np.ndarray = field(default_factory=lambda: _empty((0,), np.int64))
     side: np.ndarray = field(default_factory=lambda: _empty((0,), np.int8))
+    point_ids: np.ndarray = field(default_factory=lambda: _empty((0,), np.int64))
 
     def __len__(self) -> int:
         return len(self.triangles)

@@ -11,6 +11,7 @@ from fractions import Fraction
 import numpy as np
 
 from ..triangulation import TriangulationError
+from .points import delaunay_point_bridge
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
 from .spatial_index import PointColumns, SegmentGrid
@@ -391,7 +392,10 @@ class _Bridger:
             self.bridges[self.bridge_count] = (sk, h)
             self.bridge_count += 1
             shared = np.array([sk], dtype=np.int64)
-            parts = [shared, loop, loop[:1]] if k == 0 else [loop, loop[:1], shared]
+            if len(loop) == 1:  # an interior point: ..., s_k, p, s_k, ...
+                parts = [shared, loop] if k == 0 else [loop, shared]
+            else:
+                parts = [shared, loop, loop[:1]] if k == 0 else [loop, loop[:1], shared]
         # k == 0: the island goes to the end, so that S keeps its first two vertices
         self._insert_after(int(self.prv[0]) if k == 0 else k, np.concatenate(parts))
         self._add_points(island)
@@ -475,7 +479,11 @@ def bridge_islands(
             slot, h_index = item[2], item[3]
             target = None
             if not final:
-                found = bridger.find_delaunay_bridge(rings[slot], h_index)
+                if len(rings[slot]) == 1:
+                    point = delaunay_point_bridge(bridger, int(rings[slot][0]))
+                    found = None if point is None else (*point, 0)
+                else:
+                    found = bridger.find_delaunay_bridge(rings[slot], h_index)
                 if found is None:
                     waiting.append(item)
                     continue
@@ -507,17 +515,21 @@ def _touch_index(x: np.ndarray, y: np.ndarray, ring: np.ndarray, bridger: _Bridg
     return best[1] if best is not None else 0
 
 
-def remove_spikes(x: np.ndarray, y: np.ndarray, seq: np.ndarray) -> np.ndarray:
+def remove_spikes(
+    x: np.ndarray, y: np.ndarray, seq: np.ndarray, kept: np.ndarray | None = None
+) -> np.ndarray:
     """Cancel every edge that is immediately walked back (..., p, s, p, ...) -> (..., p, ...).
 
     Such zero-width spikes come from rings sharing an edge (invalid input, e.g. an island
-    along the outer ring); they enclose no area. The sequence is cyclic.
+    along the outer ring); they enclose no area. The sequence is cyclic. ``kept``: per
+    vertex id, True for the tips that stay (interior points joined by a bridge).
     """
     xs, ys = x[seq].tolist(), y[seq].tolist()
+    tip = [False] * len(seq) if kept is None else kept[seq].tolist()
     stack: list[int] = []
     for index in range(len(seq)):
         point = (xs[index], ys[index])
-        if len(stack) >= 2 and (xs[stack[-2]], ys[stack[-2]]) == point:
+        if len(stack) >= 2 and (xs[stack[-2]], ys[stack[-2]]) == point and not tip[stack[-1]]:
             stack.pop()
             continue
         stack.append(index)
@@ -526,10 +538,10 @@ def remove_spikes(x: np.ndarray, y: np.ndarray, seq: np.ndarray) -> np.ndarray:
         changed = False
         first, second = stack[0], stack[1]
         last, before_last = stack[-1], stack[-2]
-        if (xs[last], ys[last]) == (xs[second], ys[second]):
+        if (xs[last], ys[last]) == (xs[second], ys[second]) and not tip[first]:
             stack = stack[1:-1] if len(stack) > 3 else []  # spike at the first position
             changed = True
-        elif (xs[before_last], ys[before_last]) == (xs[first], ys[first]):
+        elif (xs[before_last], ys[before_last]) == (xs[first], ys[first]) and not tip[last]:
             stack = stack[:-2]  # spike at the last position
             changed = True
     if len(stack) < 3:

@@ -12,7 +12,10 @@ from .predicates import ring_area_sign
 
 
 def ring_label(ring_number: int) -> str:
-    """Human name of input ring ``ring_number`` (0-based): 'ring 1 (outer)', 'ring 3 (island 2)'."""
+    """Human name of input ring ``ring_number`` (0-based): 'ring 1 (outer)', 'ring 3 (island 2)';
+    a negative number -k names the given interior point k ('point 4')."""
+    if ring_number < 0:
+        return f"point {-ring_number}"
     if ring_number == 0:
         return "ring 1 (outer)"
     return f"ring {ring_number + 1} (island {ring_number})"
@@ -42,6 +45,22 @@ class PreparedRings:
     @property
     def is_degenerate(self) -> bool:
         return not self.rings
+
+    def with_points(
+        self, points: np.ndarray, px: np.ndarray, py: np.ndarray, numbers: np.ndarray
+    ) -> PreparedRings:
+        """These rings with interior points appended to the vertices: ``points`` (k, 3) output
+        coordinates, ``px``, ``py`` their working coordinates (mirrored as ``x``), ``numbers``
+        their 0-based positions among the given points (``ring_of`` holds -1 - number)."""
+        return PreparedRings(
+            np.concatenate([self.vertices, points]),
+            np.concatenate([self.x, px]),
+            np.concatenate([self.y, py]),
+            self.rings,
+            self.ring_numbers,
+            np.concatenate([self.ring_of, -1 - np.asarray(numbers, dtype=np.int64)]),
+            self.mirrored,
+        )
 
 
 def _as_points(ring: object, ring_number: int) -> np.ndarray:

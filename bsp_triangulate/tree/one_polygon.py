@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..geometry.bridges import bridge_islands, remove_spikes, split_touching
+from ..geometry.points import as_point_array, first_occurrences, strictly_inside
 from ..geometry.predicates import (
     grid_exact,
     incircle_many,
@@ -809,13 +810,17 @@ def _triangulate(
     plane: str = "auto",
     repair: bool = True,
     tick: Callable[[float], None] | None = None,
+    points: object = None,
 ) -> Triangulation:
     """:func:`~bsp_triangulate.api.triangulate` of one polygon; ``repair``: a polygon whose
     rings cross may be repaired (False inside the repair itself); ``tick``: called every 64
-    triangles with the share of the tree built (it may raise to stop)."""
+    triangles with the share of the tree built (it may raise to stop); ``points``: interior
+    points, each joined as a one-point island."""
     apex_rule = get_rule(rule)
     as_given = _as_given(invalid)
     clean, axes = normalise_rings(rings, plane)
+    given = as_point_array(points)
+    unused = np.full(len(given), -1, dtype=np.int64)
     if planar_tolerance > 0 and clean:
         clean = _snap(clean, planar_tolerance)
     prepared = prepare(clean, axes)
@@ -827,35 +832,58 @@ def _triangulate(
                 "(invalid polygon: self-intersection)"
             )
         if repair:
-            repaired = _repaired(clean, rule=rule, plane=plane)
+            repaired = _repaired(clean, rule=rule, plane=plane, points=given)
             if repaired is not None:
                 return repaired
     if prepared.is_degenerate or negligible_area(prepared):
-        return Triangulation(vertices=prepared.vertices)
+        return Triangulation(vertices=prepared.vertices, point_ids=unused)
+    ring_count = len(prepared.vertices)
+    prepared, point_ids = _with_points(prepared, given, axes)
+    point_rings = [np.array([vid], dtype=np.int64) for vid in point_ids[point_ids >= 0].tolist()]
     ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
     sequence = bridge_islands(
         prepared.x,
         prepared.y,
-        ring_ids,
-        prepared.ring_numbers,
+        ring_ids + point_rings,
+        prepared.ring_numbers + (-1 - np.flatnonzero(point_ids >= 0)).tolist(),
         relaxed=as_given,
         delaunay=getattr(apex_rule, "in_plane", False),
     )
-    sequence = remove_spikes(prepared.x, prepared.y, sequence)
+    is_point = np.arange(len(prepared.vertices)) >= ring_count
+    sequence = remove_spikes(prepared.x, prepared.y, sequence, is_point if point_rings else None)
     if len(sequence) < 3:
-        return Triangulation(vertices=prepared.vertices)
+        return Triangulation(vertices=prepared.vertices, point_ids=point_ids)
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given, tick)
     result = tree.build()
+    result.point_ids = point_ids
     if tree.used_fallback and repair:
         lost = _area_loss(prepared, result, axes)
         if lost > _AREA_KEPT:
             # crossing rings: a triangulation of the rings as given cannot keep the area
-            repaired = _repaired(clean, rule=rule, plane=plane)
+            repaired = _repaired(clean, rule=rule, plane=plane, points=given)
             if repaired is not None and _area_loss(prepared, repaired, axes) < lost:
                 return repaired
     if not as_given:
         check_area(prepared, result, axes)
     return result
+
+
+def _with_points(
+    prepared: PreparedRings, given: np.ndarray, axes: tuple[int, int]
+) -> tuple[PreparedRings, np.ndarray]:
+    """The rings with the usable interior points appended to their vertices, and each given
+    point's row in them (-1: outside, on the boundary, or a repeat of an earlier point)."""
+    point_ids = np.full(len(given), -1, dtype=np.int64)
+    if len(given) == 0:
+        return prepared, point_ids
+    px, py = given[:, axes[0]].copy(), given[:, axes[1]].copy()
+    if prepared.mirrored:
+        px = -px
+    use = first_occurrences(px, py)
+    use[use] = strictly_inside(prepared.x, prepared.y, prepared.rings, px[use], py[use])
+    numbers = np.flatnonzero(use)
+    point_ids[numbers] = len(prepared.vertices) + np.arange(len(numbers))
+    return prepared.with_points(given[numbers], px[numbers], py[numbers], numbers), point_ids
 
 
 def check_area(prepared: PreparedRings, result: Triangulation, axes: tuple[int, int]) -> None:
@@ -946,11 +974,14 @@ def _ring_area2(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-def _repaired(clean: list[np.ndarray], *, rule: str, plane: str) -> Triangulation | None:
+def _repaired(
+    clean: list[np.ndarray], *, rule: str, plane: str, points: np.ndarray | None = None
+) -> Triangulation | None:
     """Triangulation of the rings made valid (shapely's make_valid, "structure" method).
 
     The parts are triangulated one by one and merged (one root per part); points where the
-    input rings cross become vertices. None when shapely is not available or repair fails.
+    input rings cross become vertices; each interior point goes to the part that holds it.
+    None when shapely is not available or repair fails.
     """
     try:
         import shapely
@@ -978,9 +1009,13 @@ def _repaired(clean: list[np.ndarray], *, rule: str, plane: str) -> Triangulatio
                 invalid="as_given",
                 plane=plane,
                 repair=False,
+                points=points,
             )
         )
-    return merge_triangulations(pieces)
+    merged = merge_triangulations(pieces)
+    if points is not None and len(points) and not pieces:
+        merged.point_ids = np.full(len(points), -1, dtype=np.int64)
+    return merged
 
 
 def _with_z(ring: np.ndarray, known: np.ndarray) -> np.ndarray:
@@ -1002,12 +1037,17 @@ def merge_triangulations(pieces: list[Triangulation]) -> Triangulation:
     offsets = np.cumsum([0] + [len(p.vertices) for p in pieces[:-1]])
     starts = np.cumsum([0] + [len(p.triangles) for p in pieces[:-1]])
     parent = [np.where(p.parent < 0, -1, p.parent + s) for p, s in zip(pieces, starts)]
+    point_ids = np.full(len(pieces[0].point_ids), -1, dtype=np.int64)
+    for piece, offset in zip(pieces, offsets):
+        used = piece.point_ids >= 0
+        point_ids[used] = piece.point_ids[used] + offset
     return Triangulation(
         vertices=np.concatenate([p.vertices for p in pieces]),
         triangles=np.concatenate([p.triangles + o for p, o in zip(pieces, offsets)]),
         parent=np.concatenate(parent).astype(np.int64),
         depth=np.concatenate([p.depth for p in pieces]),
         side=np.concatenate([p.side for p in pieces]),
+        point_ids=point_ids,
     )
 
 

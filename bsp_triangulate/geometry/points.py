@@ -1,0 +1,194 @@
+"""Interior points: parse them, keep those strictly inside the polygon, join them as islands.
+
+Each kept point becomes a one-point island (docs/algorithm.md, "Interior points"). Its
+classification is exact: a crossing count of a horizontal ray against the ring edges whose
+y-range holds the point, with the exact signs of :mod:`.predicates`.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+
+from ..triangulation import TriangulationError
+from .predicates import orient_many
+
+# (edge, point) pairs tested at once: bounds the memory of the vectorised tests
+_PAIR_CHUNK = 1 << 18
+
+
+def as_point_array(points: object) -> np.ndarray:
+    """The given interior points as an (m, 3) float64 array (z = 0 where absent)."""
+    if points is None:
+        return np.zeros((0, 3))
+    try:
+        array = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TriangulationError(f"points: not an array of numeric points ({exc})") from None
+    if array.size == 0:
+        return np.zeros((0, 3))
+    if array.ndim != 2 or array.shape[1] not in (2, 3):
+        raise TriangulationError(
+            f"points: expected an (m, 2) or (m, 3) array, got shape {array.shape}"
+        )
+    bad = np.flatnonzero(~np.isfinite(array).all(axis=1))
+    if len(bad):
+        raise TriangulationError(f"point {int(bad[0]) + 1}: coordinates are not finite")
+    if array.shape[1] == 2:
+        return np.column_stack([array, np.zeros(len(array))])
+    return np.ascontiguousarray(array)
+
+
+def first_occurrences(px: np.ndarray, py: np.ndarray) -> np.ndarray:
+    """Mask of the points that do not repeat an earlier point (equal x and y)."""
+    keep = np.ones(len(px), dtype=bool)
+    if len(px) < 2:
+        return keep
+    order = np.lexsort((np.arange(len(px)), py, px))
+    sx, sy = px[order], py[order]
+    repeat = (sx[1:] == sx[:-1]) & (sy[1:] == sy[:-1])
+    keep[order[1:][repeat]] = False
+    return keep
+
+
+def strictly_inside(
+    x: np.ndarray, y: np.ndarray, rings: list[np.ndarray], px: np.ndarray, py: np.ndarray
+) -> np.ndarray:
+    """Mask of the points (px, py) strictly inside the polygon of ``rings`` (vertex ids into
+    ``x``, ``y``): an odd number of ring edges crosses the ray to their right, and none of
+    the edges holds them (end points included). Exact."""
+    count = len(px)
+    if count == 0 or not rings:
+        return np.zeros(count, dtype=bool)
+    starts = np.concatenate(rings)
+    ends = np.concatenate([np.roll(r, -1) for r in rings])
+    ax, ay, bx, by = x[starts], y[starts], x[ends], y[ends]
+    # the points in y order: each edge meets those of a contiguous run
+    order = np.argsort(py, kind="stable")
+    sorted_y = py[order]
+    first = np.searchsorted(sorted_y, np.minimum(ay, by), side="left")
+    last = np.searchsorted(sorted_y, np.maximum(ay, by), side="right")
+    spans = last - first
+    crossings = np.zeros(count, dtype=np.int64)
+    boundary = np.zeros(count, dtype=bool)
+    for lo, hi in _chunks(spans, _PAIR_CHUNK):
+        part = spans[lo:hi]
+        total = int(part.sum())
+        if total == 0:
+            continue
+        edge = np.repeat(np.arange(lo, hi), part)
+        offsets = np.arange(total, dtype=np.int64) - np.repeat(np.cumsum(part) - part, part)
+        point = order[np.repeat(first[lo:hi], part) + offsets]
+        qx, qy = px[point], py[point]
+        eax, eay, ebx, eby = ax[edge], ay[edge], bx[edge], by[edge]
+        # only pairs with the point left of the edge's right end can cross or touch
+        near = qx <= np.maximum(eax, ebx)
+        edge, point, qx, qy = edge[near], point[near], qx[near], qy[near]
+        eax, eay, ebx, eby = eax[near], eay[near], ebx[near], eby[near]
+        side = orient_many(eax, eay, ebx, eby, qx, qy)
+        on = (side == 0) & (qx >= np.minimum(eax, ebx))
+        boundary[point[on]] = True
+        # half-open rule: an edge counts when exactly one end lies above the point's line
+        upward = (eay <= qy) & (eby > qy)
+        downward = (eby <= qy) & (eay > qy)
+        crossing = (upward & (side > 0)) | (downward & (side < 0))
+        crossings += np.bincount(point[crossing], minlength=count)
+    return (crossings % 2 == 1) & ~boundary
+
+
+def _chunks(counts: np.ndarray, size: int) -> list[tuple[int, int]]:
+    """Consecutive index ranges [lo, hi) of ``counts`` summing to about ``size`` each."""
+    if len(counts) == 0:
+        return []
+    cumulative = np.cumsum(counts)
+    cuts = np.searchsorted(cumulative, np.arange(size, int(cumulative[-1]), size)).tolist()
+    bounds = sorted({0, *cuts, len(counts)})
+    return list(zip(bounds[:-1], bounds[1:]))
+
+
+def delaunay_point_bridge(bridger, h: int, tries: int = 16) -> tuple[int, int] | None:
+    """(node, vertex id) of a bridge from the one-point island ``h`` that is a constrained
+    Delaunay edge of the rings, or None (the point waits for other islands).
+
+    The valid targets of section 2 are tried nearest first (float distance; at most
+    ``tries`` of them). Target ``v`` is taken when no vertex strictly inside the circle with
+    diameter h-v is visible from ``h``: then none is visible from the segment's interior
+    either (such a vertex would leave one visible from ``h`` in the same circle), so that
+    circle proves h-v a constrained Delaunay edge.
+    """
+    x, y = bridger.x, bridger.y
+    hx, hy = float(x[h]), float(y[h])
+    grid = bridger.points
+    radius = max(grid.size_x, grid.size_y)
+    full = max(grid.size_x * grid.nx, grid.size_y * grid.ny) * 2.0 + radius
+    island = np.array([h], dtype=np.int64)
+    seen: set[int] = set()
+    while True:
+        found = bridger.point_ids[
+            np.unique(grid.query_box(hx - radius, hy - radius, hx + radius, hy + radius))
+        ]
+        found = found[bridger.in_seq[found]]
+        d2 = (x[found] - hx) ** 2 + (y[found] - hy) ** 2
+        # within the box's inscribed circle the distance order is final
+        inner = d2 <= radius * radius
+        if radius >= full:
+            inner[:] = True
+        for idx in np.argsort(d2, kind="stable").tolist():
+            vid = int(found[idx])
+            if not inner[idx]:
+                break
+            if vid in seen:
+                continue
+            seen.add(vid)
+            ks = bridger._valid_occurrences(vid, island, 0)
+            if not ks:
+                continue
+            if _disk_hidden(bridger, h, vid):
+                return min(ks, key=lambda k: int(bridger.label[k])), vid
+            tries -= 1
+            if tries <= 0:
+                return None
+        if radius >= full:
+            return None
+        radius *= 2.0
+
+
+def _disk_hidden(bridger, h: int, v: int) -> bool:
+    """Every vertex strictly inside the circle with diameter h-v is hidden from ``h``: some
+    ring edge crosses the segment to it properly (touching does not count: conservative)."""
+    x, y = bridger.x, bridger.y
+    hx, hy, vx, vy = float(x[h]), float(y[h]), float(x[v]), float(y[v])
+    mx, my = 0.5 * (hx + vx), 0.5 * (hy + vy)
+    r = 0.5 * float(np.hypot(vx - hx, vy - hy)) * (1 + 1e-9)
+    found = bridger.point_ids[np.unique(bridger.points.query_box(mx - r, my - r, mx + r, my + r))]
+    wx, wy = x[found], y[found]
+    dot = (wx - hx) * (wx - vx) + (wy - hy) * (wy - vy)
+    scale = np.abs(wx - hx) * np.abs(wx - vx) + np.abs(wy - hy) * np.abs(wy - vy)
+    unsure = np.abs(dot) <= 8.0 * 2.0**-53 * scale + 1e-300
+    inside = found[(dot < 0) & ~unsure].tolist()
+    ahx, ahy, avx, avy = Fraction(hx), Fraction(hy), Fraction(vx), Fraction(vy)
+    for w in found[unsure].tolist():
+        fx, fy = Fraction(float(x[w])), Fraction(float(y[w]))
+        if (fx - ahx) * (fx - avx) + (fy - ahy) * (fy - avy) < 0:
+            inside.append(w)
+    return all(_crossed(bridger, h, w) for w in inside)
+
+
+def _crossed(bridger, u: int, w: int) -> bool:
+    """Some ring edge crosses the segment u-w properly (a single point, interior to both)."""
+    x, y = bridger.x, bridger.y
+    ux, uy, wx, wy = x[u], y[u], x[w], y[w]
+    found = bridger.edges.query_triangle(np.array([ux, wx]), np.array([uy, wy]))
+    a, b = bridger.edge_a[found], bridger.edge_b[found]
+    if len(a) == 0:
+        return False
+    o1 = orient_many(ux, uy, wx, wy, x[a], y[a])
+    o2 = orient_many(ux, uy, wx, wy, x[b], y[b])
+    straddle = (o1.astype(np.int16) * o2) < 0
+    if not straddle.any():
+        return False
+    a, b = a[straddle], b[straddle]
+    o3 = orient_many(x[a], y[a], x[b], y[b], ux, uy)
+    o4 = orient_many(x[a], y[a], x[b], y[b], wx, wy)
+    return bool(((o3.astype(np.int16) * o4) < 0).any())
