@@ -1,0 +1,446 @@
+"""Interior points from a DEM, added greedily until a mesh follows the DEM within a tolerance.
+
+The DEM's cell centres strictly inside a polygon are both the candidate points and the places
+where the error is measured: the surface (barycentric in the containing triangle) against the
+cell's value. Each round, every triangle whose worst cell is off by more than the tolerance
+gets that cell as a new vertex; the polygon is triangulated again with all its points, until
+every cell is within the tolerance or the polygon's group reaches its cap of points.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .raster_sampling import PreparedGrid
+
+# (triangle, cell) pairs examined per numpy step of the point location
+LOCATE_CHUNK = 2_000_000
+# a cell centre this close to a ring edge (in cell widths) counts as on the boundary
+BOUNDARY_SHARE = 1e-9
+# barycentric weights down to this count as inside (shared edges belong to both triangles)
+INSIDE_WEIGHT = -1e-9
+
+
+@dataclass(frozen=True)
+class CellGrid:
+    """North-up raster cells: ``x0``, ``y0`` the outer top-left corner, ``dx``, ``dy`` the
+    (positive) cell width and height, ``values`` (rows, cols) float64, NaN for no value."""
+
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    values: np.ndarray
+
+    @classmethod
+    def from_prepared(cls, grid: PreparedGrid) -> CellGrid:
+        """The cells of a ``PreparedGrid`` (north-up geotransforms only)."""
+        gt = [float(v) for v in grid.geotransform]
+        if gt[2] != 0 or gt[4] != 0 or gt[1] <= 0 or gt[5] >= 0:
+            raise ValueError("only north-up grids with positive cell sizes are supported")
+        padded = grid.values.reshape(grid.rows + 2, grid.width)
+        return cls(gt[0], gt[3], gt[1], -gt[5], padded[1:-1, 1:-1])
+
+    @classmethod
+    def from_array(
+        cls, array: np.ndarray, geotransform: Sequence[float], nodata: float | None = None
+    ) -> CellGrid:
+        """Cells of a raster array and its GDAL geotransform (nodata as ``PreparedGrid``)."""
+        return cls.from_prepared(PreparedGrid(array, geotransform, nodata))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.values.shape
+
+    def centre_x(self, cols: np.ndarray) -> np.ndarray:
+        return self.x0 + (np.asarray(cols) + 0.5) * self.dx
+
+    def centre_y(self, rows: np.ndarray) -> np.ndarray:
+        return self.y0 - (np.asarray(rows) + 0.5) * self.dy
+
+    def column_range(self, xmin: np.ndarray, xmax: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """First and last column whose centre lies in [xmin, xmax] (empty when first > last)."""
+        first = np.ceil((np.asarray(xmin) - self.x0) / self.dx - 0.5).astype(np.int64)
+        last = np.floor((np.asarray(xmax) - self.x0) / self.dx - 0.5).astype(np.int64)
+        return np.maximum(first, 0), np.minimum(last, self.shape[1] - 1)
+
+    def row_range(self, ymin: np.ndarray, ymax: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """First and last row whose centre lies in [ymin, ymax] (rows go south)."""
+        first = np.ceil((self.y0 - np.asarray(ymax)) / self.dy - 0.5).astype(np.int64)
+        last = np.floor((self.y0 - np.asarray(ymin)) / self.dy - 0.5).astype(np.int64)
+        return np.maximum(first, 0), np.minimum(last, self.shape[0] - 1)
+
+    def window(self, xmin: float, ymin: float, xmax: float, ymax: float) -> CellGrid:
+        """The cells whose centres lie in the box (a view; possibly empty)."""
+        c0, c1 = (int(v) for v in self.column_range(xmin, xmax))
+        r0, r1 = (int(v) for v in self.row_range(ymin, ymax))
+        c1, r1 = max(c1, c0 - 1), max(r1, r0 - 1)
+        return CellGrid(
+            self.x0 + c0 * self.dx,
+            self.y0 - r0 * self.dy,
+            self.dx,
+            self.dy,
+            self.values[r0 : r1 + 1, c0 : c1 + 1],
+        )
+
+
+def cells_inside(rings: Sequence[np.ndarray], grid: CellGrid) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) of the cells whose centres lie strictly inside the polygon (even-odd rule
+    over all rings; a centre on a ring edge is not inside), row by row."""
+    none = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    rings = [np.asarray(ring, dtype=np.float64)[:, :2] for ring in rings if len(ring) >= 3]
+    if not rings or grid.values.size == 0:
+        return none
+    start = np.concatenate([ring for ring in rings])
+    end = np.concatenate([np.roll(ring, -1, axis=0) for ring in rings])
+    r0, r1 = (int(v) for v in grid.row_range(start[:, 1].min(), start[:, 1].max()))
+    c0, c1 = (int(v) for v in grid.column_range(start[:, 0].min(), start[:, 0].max()))
+    if r1 < r0 or c1 < c0:
+        return none
+    eps = BOUNDARY_SHARE * grid.dx
+    # rows crossed by each edge, half-open in y (lower end in, upper end out)
+    y_low = np.minimum(start[:, 1], end[:, 1])
+    y_high = np.maximum(start[:, 1], end[:, 1])
+    first_row = np.maximum(grid.row_range(y_low, y_high)[0] - 1, r0)
+    last_row = np.minimum(np.floor((grid.y0 - y_low) / grid.dy - 0.5).astype(np.int64) + 1, r1)
+    spans = np.maximum(last_row - first_row + 1, 0)
+    edge = np.repeat(np.arange(len(start)), spans)
+    row = np.repeat(first_row, spans) + (
+        np.arange(len(edge)) - np.repeat(np.cumsum(spans) - spans, spans)
+    )
+    yc = grid.centre_y(row)
+    sloped = y_low[edge] != y_high[edge]
+    # edges meeting the row (closed in y) tell "on the boundary"; the half-open ones count
+    touches = sloped & (y_low[edge] <= yc) & (yc <= y_high[edge])
+    flat = ~sloped & (np.abs(yc - y_low[edge]) <= eps)
+    flat_edge, flat_row = edge[flat], row[flat]
+    edge, yc, row = edge[touches], yc[touches], row[touches]
+    crosses = yc < y_high[edge]
+    ax, ay = start[edge, 0], start[edge, 1]
+    bx, by = end[edge, 0], end[edge, 1]
+    x_touch = ax + (yc - ay) * (bx - ax) / (by - ay)
+    rows = np.arange(r0, r1 + 1)
+    cols = np.arange(c0, c1 + 1)
+    cell_row = np.repeat(rows, len(cols))
+    cell_col = np.tile(cols, len(rows))
+    cx = grid.centre_x(cell_col)
+    # crossings left of each centre, by merging (row, x) of the touches and the centres
+    key_row = np.concatenate([row, cell_row])
+    key_x = np.concatenate([x_touch, cx])
+    is_cell = np.concatenate([np.zeros(len(row), bool), np.ones(len(cx), bool)])
+    counts = np.concatenate([crosses, np.zeros(len(cx), bool)])
+    order = np.lexsort((is_cell, key_x, key_row))
+    is_cell, counts = is_cell[order], counts[order]
+    row_sorted, x_sorted = key_row[order], key_x[order]
+    counted = np.cumsum(counts)
+    row_start = np.flatnonzero(np.r_[True, row_sorted[1:] != row_sorted[:-1]])
+    before = np.repeat(
+        counted[row_start] - counts[row_start], np.diff(np.r_[row_start, len(order)])
+    )
+    inside_sorted = ((counted - before) % 2 == 1) & is_cell
+    # a touch within eps of a centre puts the centre on the boundary
+    positions = np.arange(len(order))
+    previous = np.maximum.accumulate(np.where(is_cell, -1, positions))
+    following = np.minimum.accumulate(np.where(is_cell, len(order), positions)[::-1])[::-1]
+    for other in (previous, following):
+        pick = np.clip(other, 0, max(len(order) - 1, 0))
+        inside_sorted &= ~(
+            (other >= 0)
+            & (other < len(order))
+            & (row_sorted[pick] == row_sorted)
+            & (np.abs(x_sorted[pick] - x_sorted) <= eps)
+        )
+    inside = np.zeros(len(order), bool)
+    inside[order] = inside_sorted
+    inside = inside[len(row) :]
+    if flat.any():
+        on_flat = np.zeros(len(cx), bool)
+        for e, r in zip(flat_edge.tolist(), flat_row.tolist()):
+            lo, hi = sorted((start[e, 0], end[e, 0]))
+            in_row = cell_row == r
+            on_flat |= in_row & (cx >= lo - eps) & (cx <= hi + eps)
+        inside &= ~on_flat
+    return cell_row[inside], cell_col[inside]
+
+
+def locate_cells(
+    corners: np.ndarray, grids: Sequence[CellGrid], grid_of: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(triangle, row, col, z) of every cell centre inside a triangle: ``corners`` (t, 3, 3)
+    x, y, z of each triangle, ``grid_of`` (t,) the index of its grid in ``grids`` (all the
+    first when None). Each triangle enumerates the centres of its bounding box; barycentric
+    weights decide containment (a centre on a shared edge is found in both triangles) and
+    give the interpolated z."""
+    corners = np.asarray(corners, dtype=np.float64)
+    count = len(corners)
+    grid_of = np.zeros(count, np.int64) if grid_of is None else np.asarray(grid_of, np.int64)
+    empty = np.zeros(0, np.int64)
+    if count == 0 or not grids:
+        return empty, empty, empty, np.zeros(0)
+    x0, y0, dx, dy = (
+        np.array([getattr(g, name) for g in grids], dtype=np.float64)[grid_of]
+        for name in ("x0", "y0", "dx", "dy")
+    )
+    rows_n, cols_n = (np.array([g.shape[k] for g in grids], np.int64)[grid_of] for k in (0, 1))
+    xs, ys = corners[:, :, 0], corners[:, :, 1]
+    c0 = np.maximum(np.ceil((xs.min(1) - x0) / dx - 0.5), 0).astype(np.int64)
+    c1 = np.minimum(np.floor((xs.max(1) - x0) / dx - 0.5), cols_n - 1).astype(np.int64)
+    r0 = np.maximum(np.ceil((y0 - ys.max(1)) / dy - 0.5), 0).astype(np.int64)
+    r1 = np.minimum(np.floor((y0 - ys.min(1)) / dy - 0.5), rows_n - 1).astype(np.int64)
+    width = np.maximum(c1 - c0 + 1, 0)
+    sizes = width * np.maximum(r1 - r0 + 1, 0)
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    found: list[tuple[np.ndarray, ...]] = []
+    first = 0
+    while first < count:
+        last = int(np.searchsorted(starts, starts[first] + LOCATE_CHUNK, side="right")) - 1
+        last = min(max(last, first + 1), count)
+        block = np.arange(first, last)
+        tri = np.repeat(block, sizes[block])
+        offset = np.arange(len(tri)) - np.repeat(starts[block] - starts[first], sizes[block])
+        col = c0[tri] + offset % np.maximum(width[tri], 1)
+        row = r0[tri] + offset // np.maximum(width[tri], 1)
+        px = x0[tri] + (col + 0.5) * dx[tri]
+        py = y0[tri] - (row + 0.5) * dy[tri]
+        a, b, c = corners[tri, 0], corners[tri, 1], corners[tri, 2]
+        det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            wb = ((px - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (py - a[:, 1])) / det
+            wc = ((b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (px - a[:, 0]) * (b[:, 1] - a[:, 1])) / det
+            wa = 1.0 - wb - wc
+            z = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
+        hit = (det != 0) & (wa >= INSIDE_WEIGHT) & (wb >= INSIDE_WEIGHT) & (wc >= INSIDE_WEIGHT)
+        found.append((tri[hit], row[hit], col[hit], z[hit]))
+        first = last
+    return tuple(np.concatenate(column) for column in zip(*found))  # type: ignore[return-value]
+
+
+@dataclass
+class Refinement:
+    """The outcome for one polygon.
+
+    - ``points``: (k, 3) the interior points to triangulate with: the fixed points given,
+      then the DEM cell centres added (with the cells' values as z);
+    - ``added``: DEM points among them that the mesh uses;
+    - ``max_error``: the largest |surface - DEM| over the cells measured (0 with none);
+    - ``cells``: cells measured (centres strictly inside, with a value);
+    - ``rounds``: triangulations made; ``within``: every cell within the tolerance;
+    - ``capped``: the group's cap of points stopped the refinement;
+    - ``error``: the engine's error that stopped it (``points`` are then the last ones that
+      triangulated, or the fixed points).
+    """
+
+    points: np.ndarray
+    added: int = 0
+    max_error: float = 0.0
+    cells: int = 0
+    rounds: int = 0
+    within: bool = True
+    capped: bool = False
+    error: Exception | None = None
+
+
+def refine(
+    rings: Sequence[np.ndarray],
+    grid: CellGrid,
+    tolerance: float,
+    max_points: int = 10_000,
+    *,
+    engine: Callable[..., list],
+    fixed: np.ndarray | None = None,
+    share: float = 0.0,
+    **options: object,
+) -> Refinement:
+    """:func:`refine_many` of one polygon."""
+    return refine_many(
+        [rings], [grid], tolerance, max_points, engine=engine, fixed=[fixed], share=share, **options
+    )[0]
+
+
+def refine_many(
+    polygons: Sequence[Sequence[np.ndarray]],
+    grids: Sequence[CellGrid],
+    tolerance: float,
+    max_points: int = 10_000,
+    *,
+    engine: Callable[..., list],
+    fixed: Sequence[np.ndarray | None] | None = None,
+    groups: Sequence[int] | None = None,
+    share: float = 0.0,
+    progress: Callable[[int, int], None] | None = None,
+    **options: object,
+) -> list[Refinement]:
+    """Interior points that bring each polygon's mesh within ``tolerance`` of its grid.
+
+    ``polygons``: rings (x, y, z) per polygon, z already from the DEM; ``grids``: the DEM
+    cells of each polygon (the same grid may repeat); ``fixed``: per polygon, points (m, 3)
+    always in the mesh (survey points); ``groups``: per polygon, the group whose
+    ``max_points`` added points it shares (a feature's parts; each polygon its own by
+    default). ``share``: a round adds only the cells off by at least this share of the
+    polygon's largest error (0: every triangle's worst cell). ``progress(round, active)``
+    is called before each round. ``engine``: ``bsp_triangulate.triangulate_many`` (passed
+    in, as ``terrain`` imports nothing of the engine), called once per round over all the
+    polygons still refined, with ``options`` (rule, plane...).
+    """
+    count = len(polygons)
+    fixed_points = [_points(fixed[p] if fixed is not None else None) for p in range(count)]
+    group = np.arange(count) if groups is None else np.asarray(groups, np.int64)
+    windows, candidates = _candidates(polygons, grids)
+    owner, cell_row, cell_col, value = candidates
+    cand_xyz = np.column_stack(
+        [
+            np.concatenate([windows[p].centre_x(cell_col[owner == p]) for p in range(count)])
+            if count
+            else np.zeros(0),
+            np.concatenate([windows[p].centre_y(cell_row[owner == p]) for p in range(count)])
+            if count
+            else np.zeros(0),
+            value,
+        ]
+    )
+    lookup, base = _lookup(windows, candidates)
+    outcome = [Refinement(fixed_points[p]) for p in range(count)]
+    cells_of = np.bincount(owner, minlength=count)
+    for p in range(count):
+        outcome[p].cells = int(cells_of[p])
+    added: list[np.ndarray] = [np.zeros(0, np.int64) for _ in range(count)]
+    used_cells = np.zeros(count, np.int64)
+    spent = np.zeros(int(group.max()) + 1 if count else 0, np.int64)
+    taken = np.zeros(len(value), bool)  # given to the engine (used or not)
+    active = [p for p in range(count) if cells_of[p] > 0]
+    rounds = 0
+    while active:
+        rounds += 1
+        if progress is not None:
+            progress(rounds, len(active))
+        given = [np.vstack([fixed_points[p], cand_xyz[added[p]]]) for p in active]
+        results = engine([polygons[p] for p in active], points=given, on_error="return", **options)
+        measured, corners, grid_of = [], [], []
+        for p, points, result in zip(active, given, results):
+            if isinstance(result, Exception) or not hasattr(result, "triangles"):
+                outcome[p].error = result if isinstance(result, Exception) else None
+                continue
+            if not len(result.triangles):
+                continue
+            ids = np.asarray(result.point_ids)[len(fixed_points[p]) :]
+            used_cells[p] = int((ids >= 0).sum())
+            outcome[p].points = points
+            outcome[p].added = int(used_cells[p])
+            outcome[p].rounds = rounds
+            measured.append(p)
+            corners.append(result.vertices[result.triangles])
+            grid_of.append(np.full(len(result.triangles), p, np.int64))
+        if not measured:
+            break
+        tri_corners = np.concatenate(corners)
+        tri_grid = np.concatenate(grid_of)
+        tri, row, col, z = locate_cells(tri_corners, windows, tri_grid)
+        polygon_of_hit = tri_grid[tri]
+        cand = lookup[base[polygon_of_hit] + row * _cols(windows)[polygon_of_hit] + col]
+        keep = cand >= 0
+        tri, cand, z = tri[keep], cand[keep], z[keep]
+        error = np.abs(z - value[cand])
+        is_measured = np.zeros(count, bool)
+        is_measured[measured] = True
+        in_round = is_measured[owner]
+        located = np.zeros(len(value), bool)
+        located[cand] = True
+        worst = np.zeros(count)
+        np.maximum.at(worst, owner[cand], error)
+        missing = np.bincount(owner[in_round & ~located], minlength=count)
+        # each triangle's worst cell beyond the tolerance, if not given already
+        want = (error > tolerance) & ~taken[cand]
+        if share > 0:
+            want &= error >= share * worst[owner[cand]]
+        tri, cand, error = tri[want], cand[want], error[want]
+        order = np.lexsort((-error, tri))
+        first = order[np.r_[True, tri[order][1:] != tri[order][:-1]]] if len(order) else order
+        pick, pick_error = cand[first], error[first]
+        pick, unique_at = np.unique(pick, return_index=True)
+        pick_error = pick_error[unique_at]
+        # the cap: each group's remaining points go to its worst cells first
+        pick_group = group[owner[pick]]
+        order = np.lexsort((-pick_error, pick_group))
+        pick, pick_group = pick[order], pick_group[order]
+        group_start = np.r_[True, pick_group[1:] != pick_group[:-1]]
+        starts = np.flatnonzero(group_start)
+        rank = np.arange(len(pick)) - np.repeat(starts, np.diff(np.r_[starts, len(pick)]))
+        allowed = rank < (max_points - spent[pick_group])
+        chosen = pick[allowed]
+        np.add.at(spent, pick_group[allowed], 1)
+        refused = np.bincount(owner[pick[~allowed]], minlength=count)
+        chosen_of = np.bincount(owner[chosen], minlength=count)
+        taken[chosen] = True
+        next_active = []
+        for p in measured:
+            outcome[p].max_error = float(worst[p])
+            outcome[p].within = worst[p] <= tolerance and missing[p] == 0
+            if outcome[p].within:
+                continue
+            if chosen_of[p]:
+                added[p] = np.concatenate([added[p], chosen[owner[chosen] == p]])
+                next_active.append(p)
+            elif refused[p] or spent[group[p]] >= max_points:
+                outcome[p].capped = True
+        active = next_active
+    return outcome
+
+
+def _points(points: np.ndarray | None) -> np.ndarray:
+    """Fixed points as (m, 3) float64 (z 0 where not given)."""
+    if points is None:
+        return np.zeros((0, 3))
+    points = np.asarray(points, dtype=np.float64).reshape(
+        -1, np.shape(points)[-1] if np.ndim(points) else 3
+    )
+    if points.shape[1] == 2:
+        points = np.column_stack([points, np.zeros(len(points))])
+    return points[:, :3]
+
+
+def _candidates(
+    polygons: Sequence[Sequence[np.ndarray]], grids: Sequence[CellGrid]
+) -> tuple[list[CellGrid], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """Each polygon's window of cells (over its outer ring's box) and the cells strictly
+    inside with a value: (owner, row, col, value), rows and columns in the windows."""
+    windows: list[CellGrid] = []
+    columns: list[tuple[np.ndarray, ...]] = []
+    for p, (rings, grid) in enumerate(zip(polygons, grids)):
+        outer = np.asarray(rings[0], dtype=np.float64) if len(rings) else np.zeros((0, 3))
+        if len(outer) < 3 or not np.isfinite(outer[:, :2]).all():
+            window = grid.window(0.0, 0.0, -1.0, -1.0)
+        else:
+            window = grid.window(*outer[:, :2].min(0), *outer[:, :2].max(0))
+        windows.append(window)
+        rows, cols = (
+            cells_inside(rings, window) if len(outer) >= 3 else (np.zeros(0, np.int64),) * 2
+        )
+        values = window.values[rows, cols]
+        valid = np.isfinite(values)
+        rows, cols, values = rows[valid], cols[valid], values[valid]
+        columns.append((np.full(len(rows), p, np.int64), rows, cols, values))
+    if not columns:
+        empty = np.zeros(0, np.int64)
+        return windows, (empty, empty, empty, np.zeros(0))
+    owner, rows, cols, values = (np.concatenate(c) for c in zip(*columns))
+    return windows, (owner, rows, cols, values)
+
+
+def _cols(windows: Sequence[CellGrid]) -> np.ndarray:
+    return np.array([w.shape[1] for w in windows], np.int64)
+
+
+def _lookup(
+    windows: Sequence[CellGrid], candidates: tuple[np.ndarray, ...]
+) -> tuple[np.ndarray, np.ndarray]:
+    """A flat table over all windows' cells: the candidate index of a cell, -1 for none;
+    and each window's first position in it."""
+    owner, rows, cols, _values = candidates
+    sizes = np.array([w.values.size for w in windows], np.int64)
+    base = np.cumsum(sizes) - sizes
+    table = np.full(int(sizes.sum()), -1, np.int64)
+    table[base[owner] + rows * _cols(windows)[owner] + cols] = np.arange(len(owner))
+    return table, base

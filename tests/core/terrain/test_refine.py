@@ -1,0 +1,214 @@
+"""Interior points from a DEM until the mesh is within a tolerance at every inside cell."""
+
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+import pytest
+import shapely
+
+import bsp_triangulate
+from bsp_triangulate.terrain.refine import CellGrid, cells_inside, locate_cells, refine, refine_many
+
+RULES = ("first", "elevation", "delaunay")
+CELL = 10.0
+SIZE = 48  # cells per side of the synthetic DEM
+
+
+needs_points = pytest.mark.skipif(
+    "points" not in inspect.signature(bsp_triangulate.triangulate_many).parameters,
+    reason="the engine takes no interior points yet",
+)
+
+
+def engine(*args, **kwargs):
+    """The engine, looked up at call time."""
+    return bsp_triangulate.triangulate_many(*args, **kwargs)
+
+
+def hill_grid(nodata_patch: bool = False) -> CellGrid:
+    """A Gaussian hill and a ridge on SIZE x SIZE cells of CELL m, origin (0, SIZE * CELL)."""
+    centres = (np.arange(SIZE) + 0.5) * CELL
+    x, y = np.meshgrid(centres, centres[::-1])
+    values = 80.0 * np.exp(-((x - 200) ** 2 + (y - 260) ** 2) / (2 * 90.0**2))
+    values += 15.0 * np.abs(np.sin(x / 37.0)) + 0.02 * y
+    if nodata_patch:
+        values[10:14, 30:36] = -9999.0
+    return CellGrid.from_array(values, (0.0, CELL, 0.0, SIZE * CELL, 0.0, -CELL), -9999.0)
+
+
+def with_z(rings: list[np.ndarray], grid: CellGrid) -> list[np.ndarray]:
+    """Rings with z bilinear from the grid (as the DEM elevation source gives it)."""
+    from bsp_triangulate.terrain.raster_sampling import fill_along_ring, sample_grid
+
+    values = grid.values
+    geotransform = (grid.x0, grid.dx, 0.0, grid.y0, 0.0, -grid.dy)
+    out = []
+    for ring in rings:
+        ring = np.asarray(ring, dtype=np.float64)[:, :2]
+        z = sample_grid(values, geotransform, ring[:, 0], ring[:, 1])
+        out.append(np.column_stack([ring, fill_along_ring(z, ring)]))
+    return out
+
+
+def square_with_islands() -> list[np.ndarray]:
+    outer = np.array([[13.0, 17.0], [461.0, 9.0], [455.0, 470.0], [230.0, 300.0], [7.0, 452.0]])
+    island = np.array([[100.0, 100.0], [100.0, 180.0], [190.0, 175.0], [180.0, 105.0]])
+    triangle = np.array([[300.0, 60.0], [330.0, 140.0], [400.0, 70.0]])
+    return [outer, island, triangle]
+
+
+def inside_cells(rings: list[np.ndarray], grid: CellGrid) -> tuple[np.ndarray, np.ndarray]:
+    """(x, y, value) of the cell centres strictly inside (shapely), with a value."""
+    polygon = shapely.Polygon(rings[0][:, :2], [ring[:, :2] for ring in rings[1:]])
+    rows, cols = np.indices(grid.shape)
+    x, y = grid.centre_x(cols.ravel()), grid.centre_y(rows.ravel())
+    keep = shapely.contains_xy(polygon, x, y) & np.isfinite(grid.values.ravel())
+    return np.column_stack([x[keep], y[keep]]), grid.values.ravel()[keep]
+
+
+def surface(vertices: np.ndarray, triangles: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """The mesh's z at each point by brute force over all triangles (NaN where none)."""
+    a, b, c = (vertices[triangles[:, k]] for k in range(3))
+    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    px, py = xy[:, :1], xy[:, 1:2]
+    wb = ((px - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (py - a[:, 1])) / det
+    wc = ((b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (px - a[:, 0]) * (b[:, 1] - a[:, 1])) / det
+    wa = 1 - wb - wc
+    inside = (wa >= -1e-9) & (wb >= -1e-9) & (wc >= -1e-9)
+    z = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
+    found = inside.any(axis=1)
+    first = inside.argmax(axis=1)
+    return np.where(found, z[np.arange(len(xy)), first], np.nan)
+
+
+def final_mesh(rings, result, rule):
+    [mesh] = engine([rings], points=[result.points], rule=rule, plane="xy", on_error="raise")
+    return mesh
+
+
+@needs_points
+@pytest.mark.parametrize("rule", RULES)
+def test_bound_holds_at_every_inside_cell(rule):
+    grid = hill_grid()
+    rings = with_z(square_with_islands(), grid)
+    tolerance = 1.0
+    result = refine(rings, grid, tolerance, engine=engine, rule=rule, plane="xy")
+    assert result.within and not result.capped and result.error is None
+    assert result.max_error <= tolerance
+    assert result.added > 10
+    xy, values = inside_cells(rings, grid)
+    assert result.cells == len(values)
+    mesh = final_mesh(rings, result, rule)
+    z = surface(mesh.vertices, mesh.triangles, xy)
+    assert not np.isnan(z).any()
+    assert np.abs(z - values).max() <= tolerance
+    # every added point is a cell centre with its cell's value
+    cols = (result.points[:, 0] - grid.x0) / grid.dx - 0.5
+    rows = (grid.y0 - result.points[:, 1]) / grid.dy - 0.5
+    assert np.array_equal(cols, np.round(cols)) and np.array_equal(rows, np.round(rows))
+    assert np.array_equal(result.points[:, 2], grid.values[rows.astype(int), cols.astype(int)])
+
+
+@needs_points
+def test_cap_is_respected_and_reported():
+    grid = hill_grid()
+    rings = with_z(square_with_islands(), grid)
+    result = refine(rings, grid, 0.5, 7, engine=engine, plane="xy")
+    assert result.capped and not result.within
+    assert result.added <= 7 and len(result.points) <= 7
+    assert result.max_error > 0.5
+    xy, values = inside_cells(rings, grid)
+    mesh = final_mesh(rings, result, "first")
+    z = surface(mesh.vertices, mesh.triangles, xy)
+    assert np.abs(z - values).max() == pytest.approx(result.max_error)
+
+
+@needs_points
+def test_groups_share_their_cap():
+    grid = hill_grid()
+    left = with_z([np.array([[5.0, 5.0], [230.0, 5.0], [230.0, 470.0], [5.0, 470.0]])], grid)
+    right = with_z([np.array([[250.0, 5.0], [470.0, 5.0], [470.0, 470.0], [250.0, 470.0]])], grid)
+    results = refine_many(
+        [left, right], [grid, grid], 0.5, 12, engine=engine, groups=[0, 0], plane="xy"
+    )
+    assert sum(r.added for r in results) <= 12
+    assert all(r.capped for r in results)
+
+
+@needs_points
+def test_survey_points_are_kept():
+    grid = hill_grid()
+    rings = with_z(square_with_islands(), grid)
+    survey = np.array([[50.0, 60.0, 123.0], [420.0, 420.0, -5.0], [600.0, 600.0, 1.0]])
+    result = refine(rings, grid, 2.0, engine=engine, fixed=survey, plane="xy")
+    assert np.array_equal(result.points[:3], survey)
+    mesh = final_mesh(rings, result, "first")
+    assert mesh.point_ids[0] >= 0 and mesh.point_ids[1] >= 0
+    assert mesh.point_ids[2] == -1  # outside the polygon
+    assert np.array_equal(mesh.vertices[mesh.point_ids[:2]], survey[:2])
+
+
+def test_tiny_polygon_without_cells():
+    grid = hill_grid()
+    rings = with_z([np.array([[11.0, 11.0], [14.0, 11.0], [12.0, 14.0]])], grid)
+    fixed = np.array([[12.0, 12.0, 3.0]])
+    result = refine(rings, grid, 0.1, engine=engine, fixed=fixed)
+    assert result.cells == 0 and result.rounds == 0 and result.within
+    assert np.array_equal(result.points, fixed)
+
+
+@needs_points
+def test_nodata_cells_are_skipped():
+    grid = hill_grid(nodata_patch=True)
+    rings = with_z([np.array([[5.0, 5.0], [470.0, 5.0], [470.0, 470.0], [5.0, 470.0]])], grid)
+    result = refine(rings, grid, 1.0, engine=engine, plane="xy")
+    xy, values = inside_cells(rings, grid)
+    assert result.cells == len(values) == 46 * 46 - 24
+    assert result.within
+    mesh = final_mesh(rings, result, "first")
+    assert np.abs(surface(mesh.vertices, mesh.triangles, xy) - values).max() <= 1.0
+    assert np.isfinite(result.points[:, 2]).all()
+
+
+def test_cells_inside_agree_with_shapely():
+    grid = hill_grid()
+    rng = np.random.default_rng(3)
+    for _ in range(30):
+        angles = np.sort(rng.uniform(0, 2 * np.pi, 9))
+        radius = rng.uniform(60, 220, 9)
+        outer = np.column_stack([240 + radius * np.cos(angles), 240 + radius * np.sin(angles)])
+        # vertices on cell centres make edges through centres (on the boundary: not inside)
+        outer[::3] = np.round(outer[::3] / CELL - 0.5) * CELL + CELL / 2
+        island = np.array([[225.0, 225.0], [225.0, 255.0], [255.0, 255.0], [255.0, 225.0]])
+        rings = [outer, island]
+        polygon = shapely.Polygon(outer, [island])
+        if not polygon.is_valid:
+            continue
+        rows, cols = cells_inside(rings, grid)
+        got = set(zip(rows.tolist(), cols.tolist()))
+        all_rows, all_cols = np.indices(grid.shape)
+        x, y = grid.centre_x(all_cols.ravel()), grid.centre_y(all_rows.ravel())
+        keep = shapely.contains_xy(polygon, x, y)
+        want = set(zip(all_rows.ravel()[keep].tolist(), all_cols.ravel()[keep].tolist()))
+        assert got == want
+
+
+def test_locate_cells_finds_every_centre_once_per_triangle():
+    grid = hill_grid()
+    # two triangles tiling a square whose diagonal passes through cell centres
+    corners = np.array(
+        [
+            [[0.0, 0.0, 0.0], [100.0, 0.0, 10.0], [100.0, 100.0, 20.0]],
+            [[0.0, 0.0, 0.0], [100.0, 100.0, 20.0], [0.0, 100.0, 10.0]],
+        ]
+    )
+    tri, row, col, z = locate_cells(corners, [grid])
+    x, y = grid.centre_x(col), grid.centre_y(row)
+    assert set(zip(row.tolist(), col.tolist())) == {
+        (r, c) for r in range(38, 48) for c in range(10)
+    }
+    assert np.allclose(z, 0.1 * x + 0.1 * y)
+    on_diagonal = x == y
+    assert np.bincount(tri[on_diagonal]).tolist() == [10, 10]
