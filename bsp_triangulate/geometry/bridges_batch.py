@@ -158,7 +158,7 @@ def _segment_clear(
 
 
 def bridge_sequences(
-    flat: FlatRings, wx: np.ndarray, wy: np.ndarray, polys: np.ndarray
+    flat: FlatRings, wx: np.ndarray, wy: np.ndarray, polys: np.ndarray, delaunay: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Bridged vertex sequences of ``polys`` (rings must not touch).
 
@@ -173,6 +173,9 @@ def bridge_sequences(
     seq_start = np.cumsum(seq_len) - seq_len
     ok = np.ones(len(polys), dtype=bool)
     if not (islands > 0).any():
+        return seq, seq_start, seq_len, ok
+    if delaunay:
+        ok[islands > 0] = False
         return seq, seq_start, seq_len, ok
     trav = traversal_ids(flat)
     # islands of each polygon in the order of their leftmost vertex (x, then y)

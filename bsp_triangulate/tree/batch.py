@@ -11,7 +11,8 @@ Contract of :func:`triangulate_batch`:
   area, outer rings of zero or near-zero area, polygons whose net area may be negligible
   (``one_polygon.negligible_area``), steep faces (working plane other than XY),
   nearly equal bridge distances, unusual input (empty rings, non-finite or malformed points),
-  rules other than "first" and "elevation", and polygons the engine would reject (its error
+  rules other than "first", "elevation" and "delaunay", islands whose Delaunay bridge
+  (docs/algorithm.md 5a) is not the first tried, and polygons the engine would reject (its error
   message comes from the engine).
 - The result arrays are slices of arrays shared by the batch (disjoint per polygon).
 - Speed comes from many polygons per call: every round of the tree costs a fixed number of
@@ -55,7 +56,7 @@ MAX_VERTICES = 256
 # ... unless a call has many of them up to this size: they are batched among themselves
 MID_VERTICES = 640
 MID_MIN_COUNT = 32
-_RULES = {"first": False, "elevation": True}
+_RULES = ("first", "elevation", "delaunay")
 # polygons per internal group; vertices per group of mid-size polygons (their trees take a
 # round per fan triangle, hundreds of rounds of fixed cost: fewer, larger groups pay off)
 _GROUP = 10_000
@@ -152,12 +153,11 @@ def batch_pieces(
     known = np.zeros(count, dtype=bool)
     if proven is not None:
         known[:] = np.asarray(proven, dtype=bool)
-    exhaustive = _RULES[rule]
     decided = np.zeros(count, dtype=bool)
     again: list[np.ndarray] = []
 
     def run(index: np.ndarray, limit: int) -> None:
-        group = _triangulate(flatten(index, limit), exhaustive, known[index])
+        group = _triangulate(flatten(index, limit), rule, known[index])
         # a tree to build again keeps its place (and its incomplete rows) in the piece
         pieces.append(_globalised(group.piece(), index))
         decided[pieces[-1].index] = True
@@ -176,7 +176,7 @@ def batch_pieces(
             # in one group (a few such trees would keep each group going for as many rounds
             # as a whole group)
             valid = np.ones(len(redo), dtype=bool)
-            built = _triangulate(flatten(redo, MID_VERTICES), exhaustive, valid, False)
+            built = _triangulate(flatten(redo, MID_VERTICES), rule, valid, False)
             fixed = _globalised(built.piece(), redo)
             pieces = [
                 _take_over(piece, wanted, fixed) if len(wanted) else piece
@@ -292,9 +292,7 @@ class _Group:
         return _piece(self.flat, self.empties, self.polys[kept], trees, kept)
 
 
-def _triangulate(
-    flat: FlatRings, exhaustive: bool, known: np.ndarray, shortcut: bool = True
-) -> _Group:
+def _triangulate(flat: FlatRings, rule: str, known: np.ndarray, shortcut: bool = True) -> _Group:
     """The polygons of ``flat`` that the batch path decides; the trees of proven-valid
     polygons that did not complete with the shortcut are marked ``again`` (built with every
     table later); ``shortcut=False`` builds every tree with every table."""
@@ -322,7 +320,7 @@ def _triangulate(
     polys = np.flatnonzero(handled & ~flat.empty)
     if len(polys) == 0:
         return _Group(flat, empties, polys, None)
-    seq, seq_start, seq_len, bridged = bridge_sequences(flat, wx, wy, polys)
+    seq, seq_start, seq_len, bridged = bridge_sequences(flat, wx, wy, polys, rule == "delaunay")
     polys_ok = polys[bridged]
     seq_start, seq_len = seq_start[bridged], seq_len[bridged]
     # each sequence with its closing repeat of position 0
@@ -342,7 +340,7 @@ def _triangulate(
         ext_start,
         seq_len,
         flat.mirrored[polys_ok],
-        exhaustive,
+        rule,
         proven[polys_ok] if shortcut else None,
     )
     # a tree whose triangles do not cover its polygon exactly is left to the engine, which

@@ -22,7 +22,13 @@ from fractions import Fraction
 
 import numpy as np
 
-from ..geometry.predicates import CCW_ERRBOUND, grid_exact, orient_many, strictly_between
+from ..geometry.predicates import (
+    CCW_ERRBOUND,
+    grid_exact,
+    incircle_many,
+    orient_many,
+    strictly_between,
+)
 from ..geometry.predicates_batch import crossing, orient_items, orient_rows, row_bound
 from ..geometry.rings_batch import ragged_index
 
@@ -651,6 +657,8 @@ _SPAN = 4
 _SPAN_LARGE = 12
 # closest-first tries of rule "elevation" before a node tests all its candidates
 _ELEVATION_TRIES = 16
+# largest-angle-first tries of rule "delaunay" before a node tests all its candidates left
+_DELAUNAY_TRIES = 8
 # rounds of at least this many nodes test first candidates with _facing_ear
 _EAR_ROUND = 1024
 # candidates tested per node in rounds of fewer nodes, its first one included
@@ -978,6 +986,187 @@ def _elevation_apex(
     return found, apex
 
 
+def _delaunay_apex(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rule "delaunay" for the open nodes ``state``: per node whether it has a correct apex,
+    and the one ``rules.DelaunayRule.choose_in_plane`` picks among all of them (or -1).
+
+    First for every node at once: the candidate seeing the base under the largest angle in
+    float (all candidates, with the base's first corner as the origin) is tested (conditions
+    1 and 4, then the tables); where it passes and every other candidate is surely not
+    better (strictly outside its circle, or not strictly left of the base, by float values
+    beyond their error bounds), it is the rule's choice. The other nodes (near-cocircular
+    candidates, a first guess that fails) go to :func:`_delaunay_tries`."""
+    lo, hi = state[_LO], state[_HI]
+    n = len(lo)
+    span = hi - lo - 1
+    sx, sy = seqs.sx, seqs.sy
+    # base a = s_hi -> b = s_lo; per candidate d: D = d - a, E = D . (d - b), the cross
+    # product B x D (> 0: d strictly left); the circle through a, b and d has its centre at
+    # E / (B x D) times half the base's normal, so the smaller that key, the larger the angle
+    ax, ay = sx[hi], sy[hi]
+    bx, by = sx[lo] - ax, sy[lo] - ay
+    starts = np.cumsum(span) - span
+    # per candidate its node (gathers of per-node values are cheaper than repeats)
+    owner = np.repeat(np.arange(n, dtype=np.int64), span)
+    c = (hi - 1 + starts)[owner]
+    c -= np.arange(len(c), dtype=np.int64)
+    cx, cy = sx[c], sy[c]
+    dx = cx - ax[owner]
+    dy = cy - ay[owner]
+    rbx, rby = bx[owner], by[owner]
+    e = dx - rbx
+    e *= dx
+    f = dy - rby
+    f *= dy
+    e += f
+    cross = rbx * dy
+    cross -= rby * dx
+    with np.errstate(divide="ignore", invalid="ignore"):
+        key = e / cross
+    key[~(cross > 0)] = np.inf
+    low = np.minimum.reduceat(key, starts)
+    at_low = np.flatnonzero(key == low[owner])
+    owner_low = owner[at_low]
+    first = np.r_[True, owner_low[1:] != owner_low[:-1]]
+    head, nodes = at_low[first], owner_low[first]
+    # nodes whose key is nan everywhere have no head: the tries decide them
+    apex = np.full(n, -1, dtype=np.int64)
+    found = np.zeros(n, dtype=bool)
+    sure = np.zeros(n, dtype=bool)
+    guess = c[head]
+    passed = _facing(seqs, lo[nodes], hi[nodes], guess)
+    tested = nodes[passed]
+    good = _pass_tables(seqs, lo[tested], hi[tested], guess[passed])
+    sure[tested[good]] = True
+    apex[nodes] = guess
+    # every other candidate surely not better: f = (B x C) E_d - E_c (B x D) > 0 (d strictly
+    # outside the circle through a, b and c) beyond its error bound, or B x D < 0 beyond its
+    # bound; with X, Y the sequence's extents, |D|, |B|, |d - b| <= (X, Y) per axis, so
+    # |E| <= 2 (X^2 + Y^2) and |B x D| <= 2 X Y, and each float value is within a few
+    # roundings of those magnitudes (16 eps and 128 eps cover them)
+    ex, ey = seqs.extent_x[lo], seqs.extent_y[lo]
+    cross_bound = 16.0 * _EPS * ex * ey + _UNDERFLOW_SLACK
+    circle_bound = 128.0 * _EPS * ex * ey * (ex * ex + ey * ey) + _UNDERFLOW_SLACK
+    cross_c = np.zeros(n)
+    e_c = np.zeros(n)
+    cross_c[nodes], e_c[nodes] = cross[head], e[head]
+    value = cross_c[owner] * e
+    value -= e_c[owner] * cross
+    clear = value > circle_bound[owner]
+    clear |= cross < -cross_bound[owner]
+    clear[head] = True
+    doubt = np.flatnonzero(~clear)
+    if len(doubt):
+        # exactly not better: d at a corner of the base, or at c's point and after it in
+        # candidate order
+        who = owner[doubt]
+        px, py = cx[doubt], cy[doubt]
+        g = apex[who]
+        fine = ((px == ax[who]) & (py == ay[who])) | ((px == sx[lo[who]]) & (py == sy[lo[who]]))
+        fine |= (px == sx[g]) & (py == sy[g]) & (c[doubt] < g) & (g >= 0)
+        sure[who[~fine]] = False
+    found[sure] = True
+    rest = np.flatnonzero(~sure)
+    apex[rest] = -1
+    if len(rest):
+        found[rest], apex[rest] = _delaunay_tries(seqs, state[:, rest])
+    return found, apex
+
+
+def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_delaunay_apex` of nodes whose first guess does not decide.
+
+    The candidates that pass conditions 1 and 4 are tried in order of their circle's centre
+    offset along the base's normal (in float: largest angle first; ties in candidate order),
+    one per node and try. A candidate found correct becomes the node's best, and every
+    untried candidate that is not better (exact in-circle: strictly outside its circle, or on
+    it and later in candidate order) drops out. The best left when none remains is the
+    largest (angle, position) among the correct candidates, whatever the order of the tries:
+    the rule's choice. After ``_DELAUNAY_TRIES`` tries a node tests all its candidates left
+    at once. In proven polygons the tables are those of :func:`_bent_in_triangle`: a
+    candidate passed wrongly is chosen only if it is the best of those passed, and then its
+    tree cannot complete (it is built again with every table).
+    """
+    lo, hi = state[_LO], state[_HI]
+    n = len(lo)
+    found = np.zeros(n, dtype=bool)
+    apex = np.full(n, -1, dtype=np.int64)
+    span = hi - lo - 1
+    owner = np.repeat(np.arange(n, dtype=np.int64), span)
+    c = np.repeat(hi - 1, span) - ragged_index(np.zeros(n, np.int64), span)
+    facing = _facing(seqs, lo[owner], hi[owner], c)
+    owner, c = owner[facing], c[facing]
+    if not len(c):
+        return found, apex
+    sx, sy = seqs.sx, seqs.sy
+    # base a = s_hi -> b = s_lo; the candidates lie on its left
+    ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
+    key = _centre_offset(ax[owner], ay[owner], bx[owner], by[owner], sx[c], sy[c])
+    # by node, then key; a stable sort keeps candidate order among equal keys
+    order = np.lexsort((key, owner))
+    owner, c = owner[order], c[order]
+    alive = np.ones(len(c), dtype=bool)
+    known = np.zeros(len(c), dtype=bool)
+    best = np.full(n, -1, dtype=np.int64)
+    tries = 0
+    while True:
+        live = np.flatnonzero(alive)
+        if tries >= _DELAUNAY_TRIES and len(live):
+            untested = live[~known[live]]
+            if len(untested):
+                t = owner[untested]
+                good = _pass_tables(seqs, lo[t], hi[t], c[untested])
+                known[untested] = True
+                alive[untested[~good]] = False
+                live = live[alive[live]]
+        if not len(live):
+            break
+        tries += 1
+        live_owner = owner[live]
+        head = live[np.r_[True, live_owner[1:] != live_owner[:-1]]]
+        test = head[~known[head]]
+        if len(test):
+            t = owner[test]
+            good = _pass_tables(seqs, lo[t], hi[t], c[test])
+            known[test] = True
+            alive[test[~good]] = False
+        better = head[alive[head]]
+        if not len(better):
+            continue
+        nodes = owner[better]
+        best[nodes] = c[better]
+        alive[better] = False
+        changed = np.zeros(n, dtype=bool)
+        changed[nodes] = True
+        rest = np.flatnonzero(alive)
+        rest = rest[changed[owner[rest]]]
+        if len(rest):
+            o = owner[rest]
+            b = best[o]
+            d = c[rest]
+            inside = incircle_many(ax[o], ay[o], bx[o], by[o], sx[b], sy[b], sx[d], sy[d])
+            keep = (inside > 0) | ((inside == 0) & (d > b))
+            alive[rest[~keep]] = False
+    found = best >= 0
+    return found, best
+
+
+def _centre_offset(
+    ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray, cx: np.ndarray, cy: np.ndarray
+) -> np.ndarray:
+    """Per candidate c left of the base a -> b: the offset of the centre of the circle
+    through a, b and c along the base's left normal, in float (smaller: c sees the base
+    under a larger angle); inf where c is not clearly on the left. Only an order of tries."""
+    mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
+    ux, uy = cx - mx, cy - my
+    toward = ux * (ay - by) + uy * (bx - ax)
+    half2 = 0.25 * ((bx - ax) ** 2 + (by - ay) ** 2)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        key = np.where(toward > 0, (ux * ux + uy * uy - half2) / toward, np.inf)
+    key[np.isnan(key)] = np.inf
+    return key
+
+
 def _elevation_distance(
     zc: np.ndarray, z1: np.ndarray, z2: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -1087,12 +1276,13 @@ def build_trees(
     seq_start: np.ndarray,
     seq_len: np.ndarray,
     mirrored: np.ndarray,
-    exhaustive: bool,
+    rule: str,
     proven: np.ndarray | None = None,
 ) -> Trees:
     """BSP trees of sequences laid out with their closing repeat (length ``seq_len + 1``) at
     ``seq_start``; ``ids`` are the output vertex indices of every position, ``twin`` the other
-    position of the same vertex or -1; ``proven``: per sequence, its polygon is proven valid
+    position of the same vertex or -1; ``rule``: "first", "elevation" or "delaunay" (the
+    apex rule); ``proven``: per sequence, its polygon is proven valid
     (``validity.proven_valid``), which lets its candidates skip most tables
     (:func:`_bent_in_triangle`; a proven polygon whose tree does not complete is marked
     ``again``, for the caller to build with every table, with the trees of other groups)."""
@@ -1115,8 +1305,11 @@ def build_trees(
     # rows are written as they are emitted; a sequence that fails is not read
     while state.shape[1]:
         lo = state[_LO]
-        if exhaustive:
-            found, apex = _elevation_apex(seqs, sz, state)
+        if rule != "first":
+            if rule == "delaunay":
+                found, apex = _delaunay_apex(seqs, state)
+            else:
+                found, apex = _elevation_apex(seqs, sz, state)
             failed = ~found
             # no node tries again: the rule tested all its candidates
             retry, blocker = np.zeros(0, dtype=np.int64), apex
