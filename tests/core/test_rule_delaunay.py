@@ -43,10 +43,14 @@ def _incircle_fraction(a, b, c, d) -> int:
     return (det > 0) - (det < 0)
 
 
-def delaunay_violations(rings: list, result) -> list[str]:
-    """Triangles with a vertex visible from their interior strictly inside their circle."""
+def delaunay_violations(rings: list, result, extra: object = None) -> list[str]:
+    """Triangles with a vertex visible from their interior strictly inside their circle;
+    ``extra``: further vertices (interior points), (k, 2) or more columns."""
     kept = used_rings(rings)
-    points = np.unique(np.concatenate([np.asarray(r, dtype=float)[:, :2] for r in kept]), axis=0)
+    columns = [np.asarray(r, dtype=float)[:, :2] for r in kept]
+    if extra is not None and len(extra):
+        columns.append(np.asarray(extra, dtype=float)[:, :2])
+    points = np.unique(np.concatenate(columns), axis=0)
     boundary = shapely.MultiLineString(
         [[tuple(p[:2]) for p in r] + [tuple(r[0][:2])] for r in kept]
     )
