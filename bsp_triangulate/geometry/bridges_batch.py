@@ -8,6 +8,8 @@ is not clear-cut in float64 (near-equal distances to different points) is not ha
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 
 from .predicates import strictly_between
@@ -157,6 +159,146 @@ def _segment_clear(
     return np.bincount(item[blocked], minlength=len(tests)) == 0
 
 
+# nearest_valid's result for an island whose nearest valid bridge is not decided here
+_UNDECIDED = -2
+# island vertices tried per island for a Delaunay bridge before it is left to the engine
+_DELAUNAY_ATTEMPTS = 8
+
+
+class _Search:
+    """The nearest valid bridge targets of one bridging step: every occurrence ``c_id`` of
+    the active polygons' sequences (``c_start``, ``c_len`` per polygon) and the edges that
+    may block a bridge (``e_start``, ``e_count`` per polygon)."""
+
+    def __init__(
+        self,
+        wx: np.ndarray,
+        wy: np.ndarray,
+        c_id: np.ndarray,
+        c_x: np.ndarray,
+        c_y: np.ndarray,
+        c_start: np.ndarray,
+        c_len: np.ndarray,
+        e_start: np.ndarray,
+        e_count: np.ndarray,
+        edges: _Edges,
+    ) -> None:
+        self.wx, self.wy, self.c_id, self.c_x, self.c_y = wx, wy, c_id, c_x, c_y
+        self.c_start, self.c_len = c_start, c_len
+        self.e_start, self.e_count, self.edges = e_start, e_count, edges
+
+    def nearest_valid(self, hx: np.ndarray, hy: np.ndarray, pending: np.ndarray) -> np.ndarray:
+        """Per active polygon whose island is ``pending``, bridging from (hx, hy): the index
+        in its sequence of the nearest valid occurrence, -1 where none is valid, or
+        ``_UNDECIDED`` (near-equal distances to different points, a zero distance, too many
+        tries); -1 for the others."""
+        wx, wy, c_id, c_x, c_y = self.wx, self.wy, self.c_id, self.c_x, self.c_y
+        c_start, c_len, edges = self.c_start, self.c_len, self.edges
+        pending = pending.copy()
+        k_of = np.full(len(c_start), -1, dtype=np.int64)
+        d2 = c_x - np.repeat(hx, c_len)
+        d2 *= d2
+        dy = c_y - np.repeat(hy, c_len)
+        dy *= dy
+        d2 += dy
+        remaining = np.ones(len(c_id), dtype=bool)
+        for attempt in range(_MAX_TRIES):
+            if not pending.any():
+                break
+            # the first attempt: every occurrence remains
+            masked = (
+                d2
+                if attempt == 0 and pending.all()
+                else np.where(remaining & np.repeat(pending, c_len), d2, np.inf)
+            )
+            low = np.minimum.reduceat(masked, c_start)
+            live = np.flatnonzero(pending & np.isfinite(low) & (low > 1e-200))
+            dead = pending.copy()
+            dead[live] = False
+            pending[dead] = False
+            k_of[dead & np.isfinite(low)] = _UNDECIDED
+            if len(live) == 0:
+                break
+            # the first occurrence at the lowest distance of each live polygon (one at least)
+            target = np.full(len(c_start), np.nan)
+            target[live] = low[live]
+            hits = np.flatnonzero(masked == np.repeat(target, c_len))
+            hit_owner = np.searchsorted(c_start, hits, side="right") - 1
+            b = hits[np.r_[True, hit_owner[1:] != hit_owner[:-1]]]
+            n_len = c_len[live]
+            seq0 = c_start[live]
+            k = b - seq0
+            prev = c_id[seq0 + (k - 1) % n_len]
+            nxt_occ = c_id[seq0 + (k + 1) % n_len]
+            valid = _inside_angle(wx, wy, prev, c_id[b], nxt_occ, hx[live], hy[live])
+            test = np.flatnonzero(valid)
+            if len(test):
+                u = c_id[b[test]]
+                clear = _segment_clear(
+                    wx[u],
+                    wy[u],
+                    hx[live[test]],
+                    hy[live[test]],
+                    self.e_start[live[test]],
+                    self.e_count[live[test]],
+                    edges,
+                )
+                valid[test[~clear]] = False
+            remaining[b[~valid]] = False
+            done = live[valid]
+            if len(done):
+                # a different point at a near-equal distance: the engine decides exactly
+                bd = b[valid]
+                limit = np.full(len(c_start), -np.inf)
+                limit[done] = low[done] * (1 + _TIE)
+                near = np.flatnonzero(d2 <= np.repeat(limit, c_len))
+                near = near[remaining[near]]
+                best = np.zeros(len(c_start), dtype=np.int64)
+                best[done] = bd
+                rep = best[np.searchsorted(c_start, near, side="right") - 1]
+                other = near[(c_x[near] != c_x[rep]) | (c_y[near] != c_y[rep])]
+                tie = np.zeros(len(c_start), dtype=bool)
+                tie[np.searchsorted(c_start, other, side="right") - 1] = True
+                k_of[done] = np.where(tie[done], _UNDECIDED, bd - c_start[done])
+                pending[done] = False
+        k_of[pending] = _UNDECIDED
+        return k_of
+
+
+def _diametral_empty(
+    wx: np.ndarray,
+    wy: np.ndarray,
+    h: np.ndarray,
+    v: np.ndarray,
+    vstart: np.ndarray,
+    vcount: np.ndarray,
+) -> np.ndarray:
+    """Per test: no vertex of its polygon (``vcount`` vertices from ``vstart``) lies
+    strictly inside the circle with diameter h-v (``bridges._Bridger.diametral_disk_empty``:
+    w is inside iff (w - h) . (w - v) < 0, exact)."""
+    item = np.repeat(np.arange(len(h), dtype=np.int64), vcount)
+    w = ragged_index(vstart, vcount)
+    px, py = wx[w], wy[w]
+    hx, hy, vx, vy = wx[h][item], wy[h][item], wx[v][item], wy[v][item]
+    a1, a2, b1, b2 = px - hx, px - vx, py - hy, py - vy
+    dot = a1 * a2 + b1 * b2
+    bound = 8.0 * 2.0**-53 * (np.abs(a1) * np.abs(a2) + np.abs(b1) * np.abs(b2)) + 1e-300
+    inside = dot < -bound
+    unsure = np.flatnonzero(~inside & ~(dot > bound))
+    if len(unsure):
+        # the ends themselves: exactly 0
+        at_end = ((px[unsure] == hx[unsure]) & (py[unsure] == hy[unsure])) | (
+            (px[unsure] == vx[unsure]) & (py[unsure] == vy[unsure])
+        )
+        for i in unsure[~at_end].tolist():
+            fx, fy = Fraction(float(px[i])), Fraction(float(py[i]))
+            exact = (fx - Fraction(float(hx[i]))) * (fx - Fraction(float(vx[i]))) + (
+                fy - Fraction(float(hy[i]))
+            ) * (fy - Fraction(float(vy[i])))
+            inside[i] = exact < 0
+    return np.bincount(item[inside], minlength=len(h)) == 0
+
+
 def bridge_sequences(
     flat: FlatRings, wx: np.ndarray, wy: np.ndarray, polys: np.ndarray, delaunay: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -173,9 +315,6 @@ def bridge_sequences(
     seq_start = np.cumsum(seq_len) - seq_len
     ok = np.ones(len(polys), dtype=bool)
     if not (islands > 0).any():
-        return seq, seq_start, seq_len, ok
-    if delaunay:
-        ok[islands > 0] = False
         return seq, seq_start, seq_len, ok
     trav = traversal_ids(flat)
     # islands of each polygon in the order of their leftmost vertex (x, then y)
@@ -240,73 +379,39 @@ def bridge_sequences(
         else:
             c_id = seq[ragged_index(seq_start[active], c_len)]
         c_x, c_y = wx[c_id], wy[c_id]
-        d2 = c_x - np.repeat(hx, c_len)
-        d2 *= d2
-        dy = c_y - np.repeat(hy, c_len)
-        dy *= dy
-        d2 += dy
-        remaining = np.ones(len(c_id), dtype=bool)
-        pending = np.ones(len(active), dtype=bool)
-        k_of = np.full(len(active), -1, dtype=np.int64)
-        for attempt in range(_MAX_TRIES):
-            if not pending.any():
-                break
-            # the first attempt: every occurrence remains, every polygon is pending
-            masked = (
-                d2 if attempt == 0 else np.where(remaining & np.repeat(pending, c_len), d2, np.inf)
-            )
-            low = np.minimum.reduceat(masked, c_start)
-            live = np.flatnonzero(pending & np.isfinite(low) & (low > 1e-200))
-            dead = pending.copy()
-            dead[live] = False
-            pending[dead] = False
-            ok[active[dead]] = False
-            if len(live) == 0:
-                break
-            # the first occurrence at the lowest distance of each live polygon (one at least)
-            target = np.full(len(active), np.nan)
-            target[live] = low[live]
-            hits = np.flatnonzero(masked == np.repeat(target, c_len))
-            hit_owner = np.searchsorted(c_start, hits, side="right") - 1
-            b = hits[np.r_[True, hit_owner[1:] != hit_owner[:-1]]]
-            n_len = c_len[live]
-            seq0 = c_start[live]
-            k = b - seq0
-            prev = c_id[seq0 + (k - 1) % n_len]
-            nxt_occ = c_id[seq0 + (k + 1) % n_len]
-            valid = _inside_angle(wx, wy, prev, c_id[b], nxt_occ, hx[live], hy[live])
-            test = np.flatnonzero(valid)
-            if len(test):
-                u, w = c_id[b[test]], hid[live[test]]
-                clear = _segment_clear(
-                    wx[u],
-                    wy[u],
-                    wx[w],
-                    wy[w],
-                    e_start[live[test]],
-                    e_count[live[test]],
-                    edges,
-                )
-                valid[test[~clear]] = False
-            remaining[b[~valid]] = False
-            done = live[valid]
-            if len(done):
-                # a different point at a near-equal distance: the engine decides exactly
-                bd = b[valid]
-                limit = np.full(len(active), -np.inf)
-                limit[done] = low[done] * (1 + _TIE)
-                near = np.flatnonzero(d2 <= np.repeat(limit, c_len))
-                near = near[remaining[near]]
-                best = np.zeros(len(active), dtype=np.int64)
-                best[done] = bd
-                rep = best[np.searchsorted(c_start, near, side="right") - 1]
-                other = near[(c_x[near] != c_x[rep]) | (c_y[near] != c_y[rep])]
-                tie = np.zeros(len(active), dtype=bool)
-                tie[np.searchsorted(c_start, other, side="right") - 1] = True
-                k_of[done] = bd - c_start[done]
-                pending[done] = False
-                ok[active[done[tie[done]]]] = False
-        ok[active[pending]] = False
+        search = _Search(wx, wy, c_id, c_x, c_y, c_start, c_len, e_start, e_count, edges)
+        if not delaunay:
+            k_of = search.nearest_valid(hx, hy, np.ones(len(active), dtype=bool))
+            ok[active[k_of < 0]] = False
+            h_used = h_index[chosen]
+        else:
+            # rule "delaunay": from the leftmost vertex on in ring order, the first island
+            # vertex whose nearest valid target has an empty diametral circle; an island
+            # that has none (it would wait for the others) is left to the engine
+            il = flat.ring_len[ring]
+            h_used = h_index[chosen].copy()
+            k_of = np.full(len(active), -1, dtype=np.int64)
+            searching = np.ones(len(active), dtype=bool)
+            for attempt in range(_DELAUNAY_ATTEMPTS):
+                if attempt:
+                    h_used = np.where(searching, (h_index[chosen] + attempt) % il, h_used)
+                    hid = trav[flat.ring_start[ring] + h_used]
+                    hx, hy = wx[hid], wy[hid]
+                k = search.nearest_valid(hx, hy, searching)
+                undecided = searching & (k == _UNDECIDED)
+                ok[active[undecided]] = False
+                searching &= ~undecided
+                test = np.flatnonzero(searching & (k >= 0))
+                if len(test):
+                    target = c_id[c_start[test] + k[test]]
+                    empty = _diametral_empty(wx, wy, hid[test], target, vstart[test], vcount[test])
+                    done = test[empty]
+                    k_of[done] = k[done]
+                    searching[done] = False
+                searching &= attempt + 1 < il
+                if not searching.any():
+                    break
+            ok[active[k_of < 0]] = False
         # splice the island into every decided sequence
         go = np.flatnonzero(ok[active] & (k_of >= 0))
         if len(go) == 0:
@@ -318,7 +423,7 @@ def bridge_sequences(
         r = ring[go]
         i0 = flat.ring_start[r] + len(seq)
         il = flat.ring_len[r]
-        hi_ = h_index[chosen[go]]
+        hi_ = h_used[go]
         at0 = k == 0
         zero = np.zeros(len(go), dtype=np.int64)
         starts = np.column_stack([s0, s0, i0 + hi_, i0, i0 + hi_, s0 + k])
@@ -334,7 +439,7 @@ def bridge_sequences(
         )
         new_seq, new_len = _segments(np.concatenate([seq, trav]), starts, lengths)
         bridge_a.append(seq[s0 + k])
-        bridge_b.append(h_id[chosen[go]])
+        bridge_b.append(trav[flat.ring_start[r] + hi_])
         bridge_p.append(gp)
         # rebuild the flat sequence with the grown polygons replaced
         if len(gp) == len(polys):
