@@ -504,3 +504,149 @@ def test_trees_started_again_under_rule_elevation(monkeypatch: pytest.MonkeyPatc
     assert problems == []
     assert handled == len(polygons)
     assert log.restarted
+
+
+# rule "delaunay": the largest angle among all correct candidates (cocircular ties to the
+# first in candidate order), and Delaunay bridges; the same families as above
+
+
+@pytest.mark.parametrize(
+    ("family", "options"),
+    [
+        ("integer-star", {}),
+        ("polyomino-collinear-runs", {"grid": True}),
+        ("float-star", {"integer": False}),
+        ("one-to-three-islands", {"islands": None}),
+        ("float-islands", {"islands": 2, "integer": False}),
+    ],
+)
+def test_rule_delaunay_equals_engine_on_random_simple_polygons(family: str, options: dict) -> None:
+    seed = sum(map(ord, family)) + 1
+    if options.get("islands", 0) is None:
+        rnd = random.Random(seed)
+        polygons = [random_polygon(rnd, islands=rnd.randint(1, 3)) for _ in range(80)]
+    else:
+        polygons = random_set(seed, 80, **options)
+    problems, handled = mismatches(polygons, rule="delaunay")
+    assert problems == []
+    assert handled >= 0.8 * len(polygons)
+
+
+def test_rule_delaunay_with_duplicate_and_closing_points() -> None:
+    rnd = random.Random(13)
+    polygons = [
+        with_duplicates(rnd, random_polygon(rnd, islands=rnd.randint(0, 2))) for _ in range(60)
+    ]
+    problems, handled = mismatches(polygons, rule="delaunay")
+    assert problems == []
+    assert handled >= 0.8 * len(polygons)
+
+
+def regular_polygons(count: int) -> list:
+    """Regular polygons (all vertices cocircular), squares with square islands and grid
+    rectangles: every base has cocircular candidates, decided by the tie rule."""
+    polygons: list = []
+    for k in range(count):
+        n = 4 + k % 13
+        angles = 2.0 * np.pi * np.arange(n) / n
+        radius = 10.0 + k
+        polygons.append([np.column_stack([radius * np.cos(angles), radius * np.sin(angles)])])
+        size = 4 + k % 5
+        outer = [(0, 0), (size, 0), (size, size), (0, size)]
+        island = [(1, 1), (1, 2), (2, 2), (2, 1)]
+        polygons.append([outer, island] if size > 4 else [outer])
+        polygons.append([[(x, 0) for x in range(size)] + [(size, 1), (0, 1)]])
+    return polygons
+
+
+def test_rule_delaunay_on_cocircular_vertices_equals_engine(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Cocircular candidates are never decided by the float guess: the exact tries take
+    them, with the first in candidate order among the best."""
+    from bsp_triangulate.tree import lockstep
+
+    tried = []
+    tries = lockstep._delaunay_tries
+
+    def counted(seqs, state):
+        tried.append(state.shape[1])
+        return tries(seqs, state)
+
+    monkeypatch.setattr(lockstep, "_delaunay_tries", counted)
+    polygons = regular_polygons(40)
+    problems, handled = mismatches(polygons, rule="delaunay")
+    assert problems == []
+    assert handled == len(polygons)
+    assert sum(tried) > 0
+
+
+def test_rule_delaunay_tries_alone_equal_engine(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every node through the exact tries (no float guess): the same results."""
+    from bsp_triangulate.tree import lockstep
+
+    monkeypatch.setattr(lockstep, "_delaunay_apex", lockstep._delaunay_tries)
+    rnd = random.Random(3)
+    polygons = concave_stars(rnd, 60) + regular_polygons(10)
+    polygons += [random_polygon(rnd, islands=rnd.randint(0, 2)) for _ in range(40)]
+    problems, handled = mismatches(polygons, rule="delaunay")
+    assert problems == []
+    assert handled >= 0.9 * len(polygons)
+
+
+def test_rule_delaunay_on_small_earcut_fixtures_and_farms() -> None:
+    polygons = []
+    for path in sorted(EARCUT.glob("*.json")):
+        rings = json.loads(path.read_text())
+        if sum(len(ring) for ring in rings) <= MAX_VERTICES:
+            polygons.append(rings)
+    problems, _ = mismatches(polygons, rule="delaunay")
+    assert problems == []
+    farms = farm_polygons(120)
+    problems, handled = mismatches(farms, rule="delaunay")
+    assert problems == []
+    assert handled >= 0.9 * len(farms)
+
+
+@pytest.mark.parametrize("integer", [True, False])
+def test_rule_delaunay_on_many_mid_size_polygons(integer: bool) -> None:
+    rnd = random.Random(37 + integer)
+    polygons = mid_size_polygons(rnd, MID_MIN_COUNT + 4, integer)
+    small = [random_polygon(rnd, islands=1) for _ in range(20)]
+    problems, handled = mismatches(polygons + small, rule="delaunay")
+    assert problems == []
+    assert handled >= 0.8 * (len(polygons) + len(small))
+
+
+def test_rule_delaunay_bridge_from_another_island_vertex() -> None:
+    """The island's leftmost vertex has its nearest target at a notch whose diametral
+    circle holds another island vertex: the batch path bridges from the next island vertex
+    in ring order, as the engine does."""
+    from bsp_triangulate.geometry.bridges import bridge_islands
+    from bsp_triangulate.geometry.rings import normalise_rings, prepare
+
+    outer = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0), (0.0, 6.0), (2.5, 5.5)]
+    outer += [(0.0, 5.0)]
+    island = [(4.0, 4.0), (6.0, 3.5), (4.0, 4.9)]
+    clean, axes = normalise_rings([outer, island], "auto")
+    prepared = prepare(clean, axes)
+    bridged = [
+        bridge_islands(prepared.x, prepared.y, prepared.rings, prepared.ring_numbers, delaunay=d)
+        for d in (False, True)
+    ]
+    # leftmost vertex 7 (4, 4) for rule first, vertex 9 (4, 4.9) under rule delaunay
+    assert bridged[0][6] == 7 and bridged[1][6] == 9
+    problems, handled = mismatches([[outer, island]] * 3, rule="delaunay")
+    assert problems == []
+    assert handled == 3
+
+
+def test_rule_delaunay_trees_started_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A candidate passed wrongly without a table and chosen stops its tree, which is
+    built again with every table and equals the engine's."""
+    polygons = concave_stars(random.Random(47), 300)
+    log = RestartLog(monkeypatch)
+    problems, handled = mismatches(polygons, rule="delaunay")
+    assert problems == []
+    assert handled >= 0.9 * len(polygons)
+    assert log.restarted
