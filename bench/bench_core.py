@@ -2,7 +2,9 @@
 
 All triangulate the same polygons, read once into numpy rings; only the triangulation call is
 timed (each library's input is prepared beforehand). Ours twice: ``triangulate_many`` on
-lists of rings, ``triangulate_packed`` on the same polygons packed into flat arrays.
+lists of rings, ``triangulate_packed`` on the same polygons packed into flat arrays. On the
+sets of many polygons also ours under rule "delaunay" (the constrained Delaunay
+triangulation, as GEOS's), with its time over rule "first" and over GEOS.
 
 Usage: python bench/bench_core.py [--quick]
 """
@@ -104,12 +106,17 @@ def vertex_count(polygons: list[Rings]) -> int:
     return sum(len(ring) for rings in polygons for ring in rings)
 
 
+def time_ours_delaunay(polygons: list[Rings], repeat: int = 1) -> Timing:
+    return time_ours(polygons, repeat, rule="delaunay")
+
+
 LIBRARIES: dict[str, Callable[[list[Rings], int], Timing]] = {
     "bsp_triangulate (first)": time_ours,
     "bsp_triangulate packed (first)": time_ours_packed,
     "mapbox_earcut": time_earcut,
     "GEOS constrained Delaunay": time_geos,
 }
+DELAUNAY = "bsp_triangulate (delaunay)"
 
 
 def measure(
@@ -133,17 +140,22 @@ def compare(
     repeat: int = 1,
     budget: float | None = DEFAULT_BUDGET,
     rounds: int = 1,
+    delaunay: bool = False,
 ) -> list[Row]:
-    """Rows with vertices/s of the three libraries and our time ratios to the other two.
+    """Rows with vertices/s of the three libraries and our time ratios to the other two;
+    ``delaunay``: ours under rule "delaunay" too, with its ratios to rule "first" and GEOS.
 
     Each of ``rounds`` rounds measures every library once, in turn, each in its own forked
     process (best of ``repeat`` calls there); a library's time is its best round. On a shared
     machine whose speed drifts by 5-25 % over a minute, alternating gives every library the
     same chances, and the best round of each is the least disturbed one."""
     vertices = vertex_count(polygons)
+    libraries = dict(LIBRARIES)
+    if delaunay:
+        libraries[DELAUNAY] = time_ours_delaunay
     best: dict[str, Timing | str] = {}
     for _ in range(rounds):
-        for name, run in LIBRARIES.items():
+        for name, run in libraries.items():
             if isinstance(best.get(name), str):
                 continue  # over budget or failed: not tried again
             timing = measure(run, polygons, repeat, budget)
@@ -167,6 +179,12 @@ def compare(
         rows.append(Row(case, f"{label} / earcut time", ours / seconds["mapbox_earcut"], "x"))
         geos = seconds["GEOS constrained Delaunay"]
         rows.append(Row(case, f"{label} / GEOS time", ours / geos, "x"))
+    if delaunay:
+        ours = seconds[DELAUNAY]
+        first = seconds["bsp_triangulate (first)"]
+        rows.append(Row(case, "delaunay / first time", ours / first, "x"))
+        geos = seconds["GEOS constrained Delaunay"]
+        rows.append(Row(case, "delaunay / GEOS time", ours / geos, "x"))
     return rows
 
 
@@ -212,17 +230,18 @@ def run(
     # best of 2 for every library: a first call in a fresh process also pays for the pages
     # of its new arrays (about 0.35 s of ours on the stars), which later calls reuse; the
     # target set in alternated rounds
-    rows = compare(case, stars, 2, budget, rounds=1 if quick else STAR_ROUNDS)
+    rows = compare(case, stars, 2, budget, rounds=1 if quick else STAR_ROUNDS, delaunay=True)
     footprints = footprint_polygons(FOOTPRINTS_PER_STAR * count)
     courtyards = sum(len(rings) - 1 for rings in footprints)
     footprint_case = (
         f"{len(footprints):,} building footprints, {courtyards:,} with a courtyard "
         f"({vertex_count(footprints):,} vertices)"
     )
-    rows += compare(footprint_case, footprints, 2, budget)
+    rows += compare(footprint_case, footprints, 2, budget, delaunay=True)
     mid_size = mid_size_polygons(max(count // STARS_PER_MID_SIZE, 1))
     mid_case = f"{len(mid_size):,} polygons of 260-600 vertices with 1 island"
-    rows += compare(f"{mid_case} ({vertex_count(mid_size):,} vertices)", mid_size, 1, budget)
+    mid_case = f"{mid_case} ({vertex_count(mid_size):,} vertices)"
+    rows += compare(mid_case, mid_size, 1, budget, delaunay=True)
     if WATER_HUGE3.exists():
         water = [earcut_fixture(WATER_HUGE3)]
         holes = len(water[0]) - 1
