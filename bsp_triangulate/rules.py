@@ -69,9 +69,8 @@ class DelaunayRule:
 
     The rule decides in the working plane, so it has :meth:`choose_in_plane`; the builders
     call that instead of :meth:`choose` (``in_plane`` is True). Under it the bridges are
-    constrained Delaunay edges too (``geometry/bridges.py``, ``delaunay=True``). Only the
-    one-polygon builder implements it: the lock-step batch builder leaves its polygons to
-    that builder (a known gap).
+    constrained Delaunay edges too (``geometry/bridges.py``, ``delaunay=True``). Both
+    builders implement it (the lock-step one in ``tree/lockstep.py``, ``_delaunay_apex``).
     """
 
     name = "delaunay"
