@@ -69,18 +69,18 @@ def near_collinear_polygon(rng: np.random.Generator, count: int, wobble: float) 
     return [outer]
 
 
-def batch_equals_engine(polygons: list) -> int:
+def batch_equals_engine(polygons: list, rule: str = "first") -> int:
     """Assert that every batch result equals the engine's; return how many were batched."""
     from bsp_triangulate import TriangulationError, triangulate
     from bsp_triangulate.tree.batch import triangulate_batch
 
     handled = 0
-    for rings, mine in zip(polygons, triangulate_batch(polygons)):
+    for rings, mine in zip(polygons, triangulate_batch(polygons, rule)):
         if mine is None:
             continue
         handled += 1
         try:
-            expected = triangulate(rings)
+            expected = triangulate(rings, rule=rule)
         except TriangulationError:
             pytest.fail("the engine rejects a polygon the batch path triangulated")
         for name in ("vertices", "triangles", "parent", "depth", "side"):
@@ -278,3 +278,51 @@ def test_bent_vertices_in_triangle_equal_every_bent_vertex_tested(scale: float) 
     assert (expected_found >= 0).sum() > 1_000
     assert np.array_equal(bad, expected_bad)
     assert np.array_equal(found, expected_found)
+
+
+@pytest.mark.parametrize("wobble", [0.0, 1e-15, 1e-12, 1e-9])
+def test_rule_delaunay_on_near_collinear_combs(wobble: float) -> None:
+    rng = np.random.default_rng(19)
+    polygons = [near_collinear_polygon(rng, int(rng.integers(5, 25)), wobble) for _ in range(40)]
+    assert batch_equals_engine(polygons, "delaunay") >= 0.9 * len(polygons)
+
+
+def near_cocircular_polygon(rng: np.random.Generator, count: int, wobble: float) -> list:
+    """Vertices on a circle far from the origin, moved by ``wobble`` (relative) along the
+    radius: the in-circle signs of most candidate pairs are within rounding of zero."""
+    angles = np.sort(rng.uniform(0.0, 2.0 * np.pi, count))
+    radius = 50.0 * (1.0 + wobble * rng.standard_normal(count))
+    ring = np.column_stack([radius * np.cos(angles), radius * np.sin(angles)])
+    ring += np.array([512_345.678, 6_012_345.25])
+    return [ring]
+
+
+@pytest.mark.parametrize("wobble", [0.0, 1e-16, 1e-14, 1e-12, 1e-9])
+def test_rule_delaunay_float_guess_equals_exact_tries_near_cocircular(
+    wobble: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Nearly cocircular vertices: the float guess decides a node only beyond its error
+    bounds, so its apexes are those of the exact tries, and the results the engine's."""
+    from bsp_triangulate.tree import lockstep
+
+    apex, tries = lockstep._delaunay_apex, lockstep._delaunay_tries
+    counts = {"nodes": 0, "tried": 0}
+
+    def both(seqs, state):
+        found, chosen = apex(seqs, state)
+        exact_found, exact = tries(seqs, state)
+        assert np.array_equal(found, exact_found)
+        assert np.array_equal(chosen[found], exact[found])
+        counts["nodes"] += state.shape[1]
+        return found, chosen
+
+    def counted(seqs, state):
+        counts["tried"] += state.shape[1]
+        return tries(seqs, state)
+
+    monkeypatch.setattr(lockstep, "_delaunay_apex", both)
+    monkeypatch.setattr(lockstep, "_delaunay_tries", counted)
+    rng = np.random.default_rng(23)
+    polygons = [near_cocircular_polygon(rng, int(rng.integers(4, 40)), wobble) for _ in range(40)]
+    assert batch_equals_engine(polygons, "delaunay") == len(polygons)
+    assert counts["nodes"] > counts["tried"] > 0
