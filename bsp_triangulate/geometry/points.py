@@ -107,15 +107,15 @@ def _chunks(counts: np.ndarray, size: int) -> list[tuple[int, int]]:
     return list(zip(bounds[:-1], bounds[1:]))
 
 
-def delaunay_point_bridge(bridger, h: int, tries: int = 16) -> tuple[int, int] | None:
+def delaunay_point_bridge(bridger, h: int, more: int = 8) -> tuple[int, int] | None:
     """(node, vertex id) of a bridge from the one-point island ``h`` that is a constrained
     Delaunay edge of the rings, or None (the point waits for other islands).
 
-    The valid targets of section 2 are tried nearest first (float distance; at most
-    ``tries`` of them). Target ``v`` is taken when no vertex strictly inside the circle with
-    diameter h-v is visible from ``h``: then none is visible from the segment's interior
-    either (such a vertex would leave one visible from ``h`` in the same circle), so that
-    circle proves h-v a constrained Delaunay edge.
+    The targets of section 2 are tried nearest first (float distance), up to ``more`` of
+    them after the nearest valid one. Target ``v`` is taken when no vertex strictly inside
+    the circle with diameter h-v is visible from ``h``: then none is visible from the
+    segment's interior either (such a vertex would leave one visible from ``h`` in the same
+    circle), so that circle proves h-v a constrained Delaunay edge.
     """
     x, y = bridger.x, bridger.y
     hx, hy = float(x[h]), float(y[h])
@@ -124,6 +124,7 @@ def delaunay_point_bridge(bridger, h: int, tries: int = 16) -> tuple[int, int] |
     full = max(grid.size_x * grid.nx, grid.size_y * grid.ny) * 2.0 + radius
     island = np.array([h], dtype=np.int64)
     seen: set[int] = set()
+    budget = None  # targets left to try once the nearest valid one has failed
     while True:
         found = bridger.point_ids[
             np.unique(grid.query_box(hx - radius, hy - radius, hx + radius, hy + radius))
@@ -141,14 +142,17 @@ def delaunay_point_bridge(bridger, h: int, tries: int = 16) -> tuple[int, int] |
             if vid in seen:
                 continue
             seen.add(vid)
+            if budget is not None:
+                budget -= 1
+                if budget < 0:
+                    return None
             ks = bridger._valid_occurrences(vid, island, 0)
             if not ks:
                 continue
             if _disk_hidden(bridger, h, vid):
                 return min(ks, key=lambda k: int(bridger.label[k])), vid
-            tries -= 1
-            if tries <= 0:
-                return None
+            if budget is None:
+                budget = more
         if radius >= full:
             return None
         radius *= 2.0
@@ -165,7 +169,8 @@ def _disk_hidden(bridger, h: int, v: int) -> bool:
     wx, wy = x[found], y[found]
     dot = (wx - hx) * (wx - vx) + (wy - hy) * (wy - vy)
     scale = np.abs(wx - hx) * np.abs(wx - vx) + np.abs(wy - hy) * np.abs(wy - vy)
-    unsure = np.abs(dot) <= 8.0 * 2.0**-53 * scale + 1e-300
+    # scale 0 (w is h or v, or on an axis line through one): dot is exactly 0
+    unsure = (np.abs(dot) <= 8.0 * 2.0**-53 * scale + 1e-300) & (scale > 0)
     inside = found[(dot < 0) & ~unsure].tolist()
     ahx, ahy, avx, avy = Fraction(hx), Fraction(hy), Fraction(vx), Fraction(vy)
     for w in found[unsure].tolist():
