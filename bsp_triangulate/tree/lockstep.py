@@ -990,56 +990,97 @@ def _delaunay_apex(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     """Rule "delaunay" for the open nodes ``state``: per node whether it has a correct apex,
     and the one ``rules.DelaunayRule.choose_in_plane`` picks among all of them (or -1).
 
-    First for every node at once: the candidate seeing the base under the largest angle in
-    float (all candidates, with the base's first corner as the origin) is tested (conditions
-    1 and 4, then the tables); where it passes and every other candidate is surely not
-    better (strictly outside its circle, or not strictly left of the base, by float values
-    beyond their error bounds), it is the rule's choice. The other nodes (near-cocircular
-    candidates, a first guess that fails) go to :func:`_delaunay_tries`."""
+    First for every node at once (:func:`_delaunay_guess`): the candidate seeing the base
+    under the largest angle in float; where every other candidate is surely not better, and
+    the guess passes conditions 1 and 4 and the tables, it is the rule's choice. The other
+    nodes (near-cocircular candidates, a guess that fails) go to :func:`_delaunay_tries`."""
     lo, hi = state[_LO], state[_HI]
     n = len(lo)
     span = hi - lo - 1
+    # a node of one candidate has nothing to compare
+    guess = hi - 1
+    clear = np.ones(n, dtype=bool)
+    more = np.flatnonzero(span > 1)
+    if len(more):
+        widest = int(span[more].max())
+        if len(more) * widest <= _ONE_TABLE:
+            classes = [(more, widest)]
+        else:
+            width_of = np.searchsorted(_GUESS_WIDTHS, span[more])
+            classes = []
+            for k in np.unique(width_of).tolist():
+                idx = more[width_of == k]
+                width = int(_GUESS_WIDTHS[k]) if k < len(_GUESS_WIDTHS) else widest
+                classes.append((idx, width))
+        for idx, width in classes:
+            # tables of a bounded size stay in the cache
+            step = max(_GUESS_CHUNK // width, 1)
+            for first in range(0, len(idx), step):
+                part = idx[first : first + step]
+                guess[part], clear[part] = _delaunay_guess(seqs, lo[part], hi[part], width)
+    found = np.zeros(n, dtype=bool)
+    nodes = np.flatnonzero(clear)
+    passed = _facing(seqs, lo[nodes], hi[nodes], guess[nodes])
+    tested = nodes[passed]
+    good = tested[_pass_tables(seqs, lo[tested], hi[tested], guess[tested])]
+    found[good] = True
+    apex = np.full(n, -1, dtype=np.int64)
+    apex[good] = guess[good]
+    rest = np.flatnonzero(~found)
+    if len(rest):
+        found[rest], apex[rest] = _delaunay_tries(seqs, state[:, rest])
+    return found, apex
+
+
+# table entries per call of :func:`_delaunay_guess`
+_GUESS_CHUNK = 1 << 14
+# padded row widths of the tables of :func:`_delaunay_guess`
+_GUESS_WIDTHS = np.array([2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512])
+
+
+def _delaunay_guess(
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, width: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per node of the sub-polygons [lo, hi] (at most ``width`` candidates each): the
+    candidate c seeing the base under the largest angle in float (the first in candidate
+    order among equal values), and whether every other candidate d is surely not better: d
+    strictly outside the circle through the base and c, or not strictly left of the base
+    (float values beyond their error bounds), or at a corner of the base, or at c's point
+    and after it in candidate order. Tables are (candidates, nodes), padded with lo + 1.
+    """
+    m = len(lo)
     sx, sy = seqs.sx, seqs.sy
+    # columns are nodes: every operation runs along a row of all nodes
+    k = np.arange(width, dtype=np.int64)[:, None]
+    pos = (hi - 1) - k
+    np.maximum(pos, lo + 1, out=pos)
     # base a = s_hi -> b = s_lo; per candidate d: D = d - a, E = D . (d - b), the cross
     # product B x D (> 0: d strictly left); the circle through a, b and d has its centre at
     # E / (B x D) times half the base's normal, so the smaller that key, the larger the angle
     ax, ay = sx[hi], sy[hi]
     bx, by = sx[lo] - ax, sy[lo] - ay
-    starts = np.cumsum(span) - span
-    # per candidate its node (gathers of per-node values are cheaper than repeats)
-    owner = np.repeat(np.arange(n, dtype=np.int64), span)
-    c = (hi - 1 + starts)[owner]
-    c -= np.arange(len(c), dtype=np.int64)
-    cx, cy = sx[c], sy[c]
-    dx = cx - ax[owner]
-    dy = cy - ay[owner]
-    rbx, rby = bx[owner], by[owner]
-    e = dx - rbx
+    dx = np.take(sx, pos)
+    dx -= ax
+    dy = np.take(sy, pos)
+    dy -= ay
+    e = dx - bx
     e *= dx
-    f = dy - rby
+    f = dy - by
     f *= dy
     e += f
-    cross = rbx * dy
-    cross -= rby * dx
+    cross = bx * dy
+    cross -= by * dx
     with np.errstate(divide="ignore", invalid="ignore"):
         key = e / cross
-    key[~(cross > 0)] = np.inf
-    low = np.minimum.reduceat(key, starts)
-    at_low = np.flatnonzero(key == low[owner])
-    owner_low = owner[at_low]
-    first = np.r_[True, owner_low[1:] != owner_low[:-1]]
-    head, nodes = at_low[first], owner_low[first]
-    # nodes whose key is nan everywhere have no head: the tries decide them
-    apex = np.full(n, -1, dtype=np.int64)
-    found = np.zeros(n, dtype=bool)
-    sure = np.zeros(n, dtype=bool)
-    guess = c[head]
-    passed = _facing(seqs, lo[nodes], hi[nodes], guess)
-    tested = nodes[passed]
-    good = _pass_tables(seqs, lo[tested], hi[tested], guess[passed])
-    sure[tested[good]] = True
-    apex[nodes] = guess
-    # every other candidate surely not better: f = (B x C) E_d - E_c (B x D) > 0 (d strictly
+    np.copyto(key, np.inf, where=~(cross > 0))
+    # the first row at the lowest key (nan keys never are: their node goes to the tries)
+    low = key.min(axis=0)
+    head = np.where(key == low, k, width).min(axis=0)
+    rows = np.arange(m, dtype=np.int64)
+    lost = head >= width
+    head[lost] = 0
+    guess = pos[head, rows]
+    # every other candidate surely not better: (B x C) E_d - E_c (B x D) > 0 (d strictly
     # outside the circle through a, b and c) beyond its error bound, or B x D < 0 beyond its
     # bound; with X, Y the sequence's extents, |D|, |B|, |d - b| <= (X, Y) per axis, so
     # |E| <= 2 (X^2 + Y^2) and |B x D| <= 2 X Y, and each float value is within a few
@@ -1047,30 +1088,22 @@ def _delaunay_apex(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     ex, ey = seqs.extent_x[lo], seqs.extent_y[lo]
     cross_bound = 16.0 * _EPS * ex * ey + _UNDERFLOW_SLACK
     circle_bound = 128.0 * _EPS * ex * ey * (ex * ex + ey * ey) + _UNDERFLOW_SLACK
-    cross_c = np.zeros(n)
-    e_c = np.zeros(n)
-    cross_c[nodes], e_c[nodes] = cross[head], e[head]
-    value = cross_c[owner] * e
-    value -= e_c[owner] * cross
-    clear = value > circle_bound[owner]
-    clear |= cross < -cross_bound[owner]
-    clear[head] = True
-    doubt = np.flatnonzero(~clear)
-    if len(doubt):
-        # exactly not better: d at a corner of the base, or at c's point and after it in
-        # candidate order
-        who = owner[doubt]
-        px, py = cx[doubt], cy[doubt]
-        g = apex[who]
-        fine = ((px == ax[who]) & (py == ay[who])) | ((px == sx[lo[who]]) & (py == sy[lo[who]]))
-        fine |= (px == sx[g]) & (py == sy[g]) & (c[doubt] < g) & (g >= 0)
-        sure[who[~fine]] = False
-    found[sure] = True
-    rest = np.flatnonzero(~sure)
-    apex[rest] = -1
-    if len(rest):
-        found[rest], apex[rest] = _delaunay_tries(seqs, state[:, rest])
-    return found, apex
+    value = cross[head, rows] * e
+    value -= e[head, rows] * cross
+    clear = value > circle_bound
+    clear |= cross < -cross_bound
+    clear |= k >= hi - lo - 1
+    clear[head, rows] = True
+    sure = ~lost
+    col, r = np.nonzero(~clear)
+    if len(r):
+        p = pos[col, r]
+        px, py = sx[p], sy[p]
+        g = guess[r]
+        fine = ((px == ax[r]) & (py == ay[r])) | ((px == sx[lo[r]]) & (py == sy[lo[r]]))
+        fine |= (px == sx[g]) & (py == sy[g]) & (p < g)
+        sure[r[~fine]] = False
+    return guess, sure
 
 
 def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
