@@ -201,12 +201,12 @@ def triangulate_packed(
     _check_many_options(rule, invalid, on_error, proven, len(polygons))
     _check_plane(plane)
     coordinates, counts = _packed_points(points, len(polygons))
-    plain = None if counts is None else np.flatnonzero(counts == 0)
+    # polygons with interior points go to the one-polygon builder
+    plain = None if counts is None or not counts.any() else np.flatnonzero(counts == 0)
     pieces: list[Piece] = []
     if planar_tolerance <= 0 and len(polygons if plain is None else plain) > 1:
         from .tree.batch import triangulate_batch_packed
 
-        # polygons with interior points go to the one-polygon builder
         batch = polygons if plain is None else polygons.take(plain)
         flags = proven if plain is None or proven is None else [proven[i] for i in plain]
         try:
