@@ -1072,10 +1072,13 @@ def _delaunay_guess(
     cross -= by * dx
     with np.errstate(divide="ignore", invalid="ignore"):
         key = e / cross
-    np.copyto(key, np.inf, where=~(cross > 0))
-    # the first row at the lowest key (nan keys never are: their node goes to the tries)
-    low = key.min(axis=0)
-    head = np.where(key == low, k, width).min(axis=0)
+    # a nan key (overflow) leaves its node to the tries: its values fail every bound below
+    np.copyto(key, np.inf, where=cross <= 0)
+    # the first row at the lowest key (numpy's argmin along the rows is slow on few rows)
+    if width >= 16:
+        head = key.argmin(axis=0)
+    else:
+        head = np.where(key == key.min(axis=0), k, width).min(axis=0)
     rows = np.arange(m, dtype=np.int64)
     lost = head >= width
     head[lost] = 0
