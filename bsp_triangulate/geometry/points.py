@@ -8,11 +8,13 @@ y-range holds the point, with the exact signs of :mod:`.predicates`.
 from __future__ import annotations
 
 from fractions import Fraction
+from typing import Protocol
 
 import numpy as np
 
 from ..triangulation import TriangulationError
 from .predicates import orient_many
+from .spatial_index import SegmentGrid
 
 # (edge, point) pairs tested at once: bounds the memory of the vectorised tests
 _PAIR_CHUNK = 1 << 18
@@ -107,7 +109,23 @@ def _chunks(counts: np.ndarray, size: int) -> list[tuple[int, int]]:
     return list(zip(bounds[:-1], bounds[1:]))
 
 
-def delaunay_point_bridge(bridger, h: int, more: int = 8) -> tuple[int, int] | None:
+class Bridging(Protocol):
+    """What the point bridges need of ``bridges._Bridger`` (the sequence being built)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    points: SegmentGrid  # every vertex, as zero-length segments
+    point_ids: np.ndarray
+    in_seq: np.ndarray
+    edges: SegmentGrid  # the ring edges
+    edge_a: np.ndarray
+    edge_b: np.ndarray
+    label: np.ndarray
+
+    def _valid_occurrences(self, vid: int, island: np.ndarray, h_index: int) -> list[int]: ...
+
+
+def delaunay_point_bridge(bridger: Bridging, h: int, more: int = 8) -> tuple[int, int] | None:
     """(node, vertex id) of a bridge from the one-point island ``h`` that is a constrained
     Delaunay edge of the rings, or None (the point waits for other islands).
 
@@ -158,7 +176,7 @@ def delaunay_point_bridge(bridger, h: int, more: int = 8) -> tuple[int, int] | N
         radius *= 2.0
 
 
-def _disk_hidden(bridger, h: int, v: int) -> bool:
+def _disk_hidden(bridger: Bridging, h: int, v: int) -> bool:
     """Every vertex strictly inside the circle with diameter h-v is hidden from ``h``: some
     ring edge crosses the segment to it properly (touching does not count: conservative)."""
     x, y = bridger.x, bridger.y
@@ -180,7 +198,7 @@ def _disk_hidden(bridger, h: int, v: int) -> bool:
     return all(_crossed(bridger, h, w) for w in inside)
 
 
-def _crossed(bridger, u: int, w: int) -> bool:
+def _crossed(bridger: Bridging, u: int, w: int) -> bool:
     """Some ring edge crosses the segment u-w properly (a single point, interior to both)."""
     x, y = bridger.x, bridger.y
     ux, uy, wx, wy = x[u], y[u], x[w], y[w]
