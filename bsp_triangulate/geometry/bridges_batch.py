@@ -3,7 +3,10 @@
 Only for polygons whose rings do not touch (no shared points, no vertex on an edge), where the
 engine joins the islands in leftmost order, each to its nearest valid bridge vertex. Each round
 tests the nearest untested occurrence of every polygon; a polygon whose nearest valid bridge
-is not clear-cut in float64 (near-equal distances to different points) is not handled.
+is not clear-cut in float64 (near-equal distances to different points) is not handled. Under
+rule "delaunay" an island bridges from the first of its vertices (from the leftmost on, in
+ring order) whose nearest valid target has an empty diametral circle; a polygon with an
+island that has none is not handled.
 """
 
 from __future__ import annotations
@@ -302,7 +305,8 @@ def _diametral_empty(
 def bridge_sequences(
     flat: FlatRings, wx: np.ndarray, wy: np.ndarray, polys: np.ndarray, delaunay: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Bridged vertex sequences of ``polys`` (rings must not touch).
+    """Bridged vertex sequences of ``polys`` (rings must not touch); ``delaunay``: the
+    bridges of rule "delaunay" (each a constrained Delaunay edge, docs/algorithm.md 5a).
 
     Returns the flat sequence of vertex ids, each polygon's start and length in it, and a mask
     of the polygons whose bridges were decided (the others are left to the engine).
