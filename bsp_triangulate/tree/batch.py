@@ -11,9 +11,9 @@ Contract of :func:`triangulate_batch`:
   area, outer rings of zero or near-zero area, polygons whose net area may be negligible
   (``one_polygon.negligible_area``), steep faces (working plane other than XY),
   nearly equal bridge distances, unusual input (empty rings, non-finite or malformed points),
-  rules other than "first", "elevation" and "delaunay", islands whose Delaunay bridge
-  (docs/algorithm.md 5a) is not the first tried, and polygons the engine would reject (its error
-  message comes from the engine).
+  rules other than "first", "elevation" and "delaunay", under rule "delaunay" islands that
+  would wait for a Delaunay bridge (docs/algorithm.md 5a), and polygons the engine would
+  reject (its error message comes from the engine).
 - The result arrays are slices of arrays shared by the batch (disjoint per polygon).
 - Speed comes from many polygons per call: every round of the tree costs a fixed number of
   numpy calls, so calls of a few polygons gain little; thousands per call is the intent.
