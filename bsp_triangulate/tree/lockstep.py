@@ -13,6 +13,10 @@ triangle is tested first against the node's next candidates (``_strictly_inside`
 rules out most failing candidates without a table. Candidates in proven-valid polygons test
 only the sub-polygon's bent vertices (``_bent_in_triangle``); a tree that then does not
 complete is marked to be built again with every table (``Trees.again``).
+
+Rule "delaunay" (``_delaunay_apex``) compares every candidate of a node with its largest-angle
+guess in padded float tables, decided beyond static error bounds; nodes it cannot decide so
+take exact tries (``_delaunay_tries``).
 """
 
 from __future__ import annotations
