@@ -717,10 +717,14 @@ class _Tree:
         side = np.empty(max(m - 2, 0), dtype=np.int8)
         # work item: (lo, hi, v1_at_hi, parent, depth, side); popped in pre-order
         work = [(1, m, True, -1, 0, 0)]
+        # as given: loops cut off at a repeated vertex, each triangulated as a tree of its own
+        loops: list[tuple[int, int, bool, int, int, int]] = []
         count = 0
         mirrored = self.prepared.mirrored
         tick = self.tick
-        while work:
+        while work or loops:
+            if not work:
+                work.append(loops.pop(0))
             lo, hi, v1_at_hi, par, dep, sd = work.pop()
             if tick is not None and count & 63 == 0:
                 tick(count / len(triangles))
@@ -731,6 +735,17 @@ class _Tree:
             if apex < 0 and self.as_given:
                 apex = self._fallback_apex(lo, hi)
                 self.used_fallback = True
+                if ids[apex] == ids[lo] or ids[apex] == ids[hi]:
+                    # a pinch: no triangle (it would repeat a vertex); the rest of the chain
+                    # keeps this node's place, the loop cut off becomes a tree of its own
+                    loop, rest = ((lo, apex), (apex, hi))
+                    if ids[apex] == ids[hi]:
+                        loop, rest = rest, loop
+                    if loop[1] - loop[0] > 2:
+                        loops.append((loop[0] + 1, loop[1], True, -1, 0, 0))
+                    if rest[1] - rest[0] > 1:
+                        work.append((*rest, v1_at_hi, par, dep, sd))
+                    continue
             if apex < 0:
                 raise TriangulationError(
                     f"{self._label(v1)}: no correct triangle on the edge between vertices "
