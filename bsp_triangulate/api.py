@@ -42,8 +42,7 @@ def triangulate(
 
     ``rule``: the apex rule (``rules.RULES``): "first" (the paper's), "elevation" (paper
     §4.1) or "delaunay" (the constrained Delaunay triangulation, docs/algorithm.md section
-    5a; the batch path of ``triangulate_many`` and ``triangulate_packed`` leaves its polygons
-    to the one-polygon builder, a known gap).
+    5a), each available in both builders.
 
     ``plane``: "auto" (default) works in XY unless the outer ring is a steep face (a wall:
     its plane is then used), which is right when x, y and z share one unit; "xy" always
