@@ -19,6 +19,7 @@ from qgis.core import (
 )
 
 from ..bsp_triangulate.terrain.raster_sampling import PreparedGrid, fill_along_ring
+from ..bsp_triangulate.terrain.refine import CellGrid
 from .geometry_io import FeatureRings
 
 ELEVATION_NONE = 0
@@ -225,6 +226,21 @@ class DemSampler:
             grid = self._tile(int(keys[start]))
             values[chosen] = grid.sample(xy[chosen, 0], xy[chosen, 1], self.method)
         return values
+
+    def cells(self, xmin: float, ymin: float, xmax: float, ymax: float) -> CellGrid:
+        """The DEM's cells whose centres lie in the box (in the DEM's CRS; possibly none),
+        from the cached tile that holds them all, else read at once."""
+        c0 = max(int(np.ceil((xmin - self.xmin) / self.xres - 0.5)), 0)
+        c1 = min(int(np.floor((xmax - self.xmin) / self.xres - 0.5)), self.cols - 1)
+        r0 = max(int(np.ceil((self.ymax - ymax) / self.yres - 0.5)), 0)
+        r1 = min(int(np.floor((self.ymax - ymin) / self.yres - 0.5)), self.rows - 1)
+        if c1 < c0 or r1 < r0:
+            return CellGrid(self.xmin, self.ymax, self.xres, self.yres, np.zeros((0, 0)))
+        first = (r0 // self.TILE) * self.tiles_x + c0 // self.TILE
+        if first == (r1 // self.TILE) * self.tiles_x + c1 // self.TILE:
+            tile = CellGrid.from_prepared(self._tile(first))
+            return tile.window(xmin, ymin, xmax, ymax)
+        return CellGrid.from_array(*self._read(r0, r1 + 1, c0, c1 + 1))
 
     def _tile(self, key: int) -> PreparedGrid:
         if key in self._cache:

@@ -44,17 +44,21 @@ class EngineOptions:
         }
 
 
-# parts per feature, the parts packed and their proven flags (``_pack``)
-Packed = tuple[np.ndarray, PackedPolygons, np.ndarray]
+# parts per feature, the parts packed, their proven flags and their interior points as
+# (coordinates, counts per part), or None without points (``_pack``)
+Packed = tuple[np.ndarray, PackedPolygons, np.ndarray, "tuple[np.ndarray, np.ndarray] | None"]
+# per feature of a batch: its interior points, one (k, 3) array per part, or None for none
+FeaturePoints = list[list[np.ndarray] | None]
 
 
 @dataclass(eq=False)
 class _Call:
-    """One engine call: its features, their parts ``packed`` (None if they cannot be), and
-    the future of its result in a worker."""
+    """One engine call: its features, their parts ``packed`` (None if they cannot be), the
+    features' interior points (None for none) and the future of its result in a worker."""
 
     items: list[FeatureRings]
     packed: Packed | None
+    points: FeaturePoints | None = None
     future: concurrent.futures.Future | None = None
 
 
@@ -66,9 +70,9 @@ class BatchJob:
     calls: list[_Call] = field(default_factory=list)
 
 
-def _pack(items: list[FeatureRings]) -> Packed:
-    """Parts per item, all parts packed and their proven flags (raises when the rings
-    cannot be packed)."""
+def _pack(items: list[FeatureRings], points: FeaturePoints | None = None) -> Packed:
+    """Parts per item, all parts packed, their proven flags and interior points (raises
+    when the rings cannot be packed)."""
     rings = [ring for item in items for part in item.parts for ring in part]
     part_count = np.fromiter((len(item.parts) for item in items), np.int64, len(items))
     proven = np.repeat([item.proven for item in items], part_count)
@@ -79,16 +83,31 @@ def _pack(items: list[FeatureRings]) -> Packed:
             (len(part) for item in items for part in item.parts), np.int64, part_count.sum()
         ),
     )
-    return part_count, polygons, proven
+    return part_count, polygons, proven, _pack_points(items, points)
 
 
-def _call(items: list[FeatureRings]) -> _Call:
+def _pack_points(
+    items: list[FeatureRings], points: FeaturePoints | None
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The items' interior points as (coordinates (K, 3), counts per part), or None."""
+    if points is None or all(p is None for p in points):
+        return None
+    arrays: list[np.ndarray] = []
+    for item, of_item in zip(items, points):
+        for index in range(len(item.parts)):
+            part = of_item[index] if of_item is not None and index < len(of_item) else None
+            arrays.append(np.zeros((0, 3)) if part is None else np.asarray(part, np.float64))
+    counts = np.fromiter((len(a) for a in arrays), np.int64, len(arrays))
+    return (np.concatenate(arrays) if arrays else np.zeros((0, 3))), counts
+
+
+def _call(items: list[FeatureRings], points: FeaturePoints | None = None) -> _Call:
     """The call of ``items``; one whose rings cannot be packed runs in this process, which
     names the feature."""
     try:
-        return _Call(items, _pack(items))
+        return _Call(items, _pack(items, points), points)
     except Exception:
-        return _Call(items, None)
+        return _Call(items, None, points)
 
 
 class EngineRunner:
@@ -133,30 +152,35 @@ class EngineRunner:
         """Calls may run in workers: finish a batch after submitting the next one."""
         return self.workers > 1
 
-    def submit(self, batch: list[FeatureRings]) -> BatchJob:
-        """The batch cut into engine calls, started in the workers when they are used."""
+    def submit(self, batch: list[FeatureRings], points: FeaturePoints | None = None) -> BatchJob:
+        """The batch cut into engine calls, started in the workers when they are used;
+        ``points``: per feature of the batch, its interior points (or None)."""
         job = BatchJob(batch)
         chunk: list[FeatureRings] = []
+        chunk_points: FeaturePoints = []
         vertices = 0
         for index, item in enumerate(batch):
             if item.ok:
                 chunk.append(item)
+                of_item = points[index] if points is not None else None
+                chunk_points.append(of_item)
                 vertices += item.vertex_count()
+                vertices += sum(len(part) for part in of_item) if of_item else 0
             last = index == len(batch) - 1
             if chunk and (
                 last or len(chunk) >= self.chunk_features or vertices >= self.chunk_vertices
             ):
-                job.calls.append(_call(chunk))
-                chunk, vertices = [], 0
+                job.calls.append(_call(chunk, chunk_points if points is not None else None))
+                chunk, chunk_points, vertices = [], [], 0
         if self.parallel:
             self._waiting += [call for call in job.calls if call.packed is not None]
             if self._pool is None and len(self._waiting) > 1:
                 self._pool = WorkerPool(self.workers)
             if self._pool is not None:
                 for call in self._waiting:
-                    _part_count, polygons, proven = call.packed
+                    _part_count, polygons, proven, points = call.packed
                     call.future = self._pool.submit(
-                        polygons, proven=proven, **self.options.keywords()
+                        polygons, proven=proven, **self.options.keywords(), **_points_option(points)
                     )
                 self._waiting = []
         return job
@@ -176,7 +200,7 @@ class EngineRunner:
                     report((first + part * size) / max(len(job.batch), 1))
 
                 try:
-                    results += self.run_here(call.items, call.packed, part_done)
+                    results += self.run_here(call.items, call.packed, part_done, call.points)
                 except _CancelledError:
                     return None
             else:
@@ -226,10 +250,11 @@ class EngineRunner:
         items: list[FeatureRings],
         packed: Packed | None = None,
         report: Callable[[float], None] | None = None,
+        points: FeaturePoints | None = None,
     ) -> list[EngineChunk]:
-        """All parts of ``items`` (``packed`` already, or packed here) in one engine call in
-        this process; a failure goes to its feature. ``report`` takes the share done; a
-        cancelled run raises ``_CancelledError`` out of the call."""
+        """All parts of ``items`` (``packed`` already, or packed here with ``points``) in one
+        engine call in this process; a failure goes to its feature. ``report`` takes the
+        share done; a cancelled run raises ``_CancelledError`` out of the call."""
 
         def progress(part: float) -> None:
             if self.feedback.isCanceled():
@@ -238,9 +263,13 @@ class EngineRunner:
                 report(part)
 
         try:
-            part_count, polygons, proven = packed or _pack(items)
+            part_count, polygons, proven, packed_points = packed or _pack(items, points)
             outcome = triangulate_packed(
-                polygons, proven=proven, progress=progress, **self.options.keywords()
+                polygons,
+                proven=proven,
+                progress=progress,
+                **self.options.keywords(),
+                **_points_option(packed_points),
             )
         except _CancelledError:
             raise
@@ -250,9 +279,11 @@ class EngineRunner:
                 return []
             return [
                 result
-                for item in items
+                for index, item in enumerate(items)
                 if not self.feedback.isCanceled()
-                for result in self.run_here([item])
+                for result in self.run_here(
+                    [item], points=[points[index]] if points is not None else None
+                )
             ]
         return [self._chunk(items, part_count, outcome)]
 
@@ -276,3 +307,8 @@ class EngineRunner:
                     where, outcome.errors[part]
                 )
         return EngineChunk(items, part_count, outcome, item_kept)
+
+
+def _points_option(points: tuple[np.ndarray, np.ndarray] | None) -> dict:
+    """The engine's ``points`` keyword, left out when there are none."""
+    return {} if points is None else {"points": points}

@@ -18,6 +18,7 @@ from qgis.core import (
     QgsProcessing,
     QgsProcessingFeatureSource,
     QgsProcessingParameterDefinition,
+    QgsProcessingParameterField,
     QgsProcessingParameterNumber,
     QgsUnitTypes,
     QgsWkbTypes,
@@ -36,6 +37,7 @@ __all__ = [
     "FeatureRequestFlag",
     "GeometryType",
     "ProcessingFeatureSourceFlag",
+    "ProcessingFieldParameterDataType",
     "ProcessingNumberParameterType",
     "ProcessingParameterFlag",
     "ProcessingSourceType",
@@ -99,6 +101,7 @@ else:
     class ProcessingSourceType:
         VectorPolygon = QgsProcessing.SourceType.TypeVectorPolygon
         VectorLine = QgsProcessing.SourceType.TypeVectorLine
+        VectorPoint = QgsProcessing.SourceType.TypeVectorPoint
 
 
 if hasattr(Qgis, "ProcessingNumberParameterType"):
@@ -108,6 +111,14 @@ else:
     class ProcessingNumberParameterType:
         Integer = QgsProcessingParameterNumber.Type.Integer
         Double = QgsProcessingParameterNumber.Type.Double
+
+
+if hasattr(Qgis, "ProcessingFieldParameterDataType"):
+    ProcessingFieldParameterDataType = Qgis.ProcessingFieldParameterDataType
+else:
+
+    class ProcessingFieldParameterDataType:
+        Numeric = QgsProcessingParameterField.DataType.Numeric
 
 
 if hasattr(Qgis, "ProcessingParameterFlag"):

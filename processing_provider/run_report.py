@@ -16,6 +16,15 @@ T = TypeVar("T")
 # Share of the progress bar of each stage a feature goes through; "finish" is the end of the
 # run (closing the outputs, writing the mesh file).
 STAGES = {"read": 0.15, "elevation": 0.10, "engine": 0.30, "write": 0.40, "finish": 0.05}
+# the same with interior points added from a DEM ("refine"), which then takes most of a run
+REFINE_STAGES = {
+    "read": 0.05,
+    "elevation": 0.05,
+    "refine": 0.60,
+    "engine": 0.10,
+    "write": 0.15,
+    "finish": 0.05,
+}
 # failures listed with their ids per kind of reason; the rest are counted
 LISTED_PER_REASON = 10
 
@@ -24,10 +33,13 @@ class Progress:
     """Progress of a run of ``total`` features: each stage reports the features it has
     passed; the bar is the weighted sum of the stages, so it only moves forward."""
 
-    def __init__(self, feedback: QgsProcessingFeedback, total: int) -> None:
+    def __init__(
+        self, feedback: QgsProcessingFeedback, total: int, stages: dict[str, float] | None = None
+    ) -> None:
         self.feedback = feedback
         self.total = max(total, 1)
-        self.done = dict.fromkeys(STAGES, 0.0)
+        self.stages = STAGES if stages is None else stages
+        self.done = dict.fromkeys(self.stages, 0.0)
         self.shown = -1.0
 
     def advance(self, stage: str, features: float) -> None:
@@ -41,7 +53,7 @@ class Progress:
         self._show()
 
     def _show(self) -> None:
-        value = 100.0 * sum(STAGES[s] * d for s, d in self.done.items()) / self.total
+        value = 100.0 * sum(self.stages[s] * d for s, d in self.done.items()) / self.total
         value = min(value, 99.9)
         if value > self.shown:
             self.shown = value
@@ -84,6 +96,7 @@ class FailureLog:
         self.feedback = feedback
         self.tr = tr
         self.kinds: Counter[str] = Counter()
+        self.warning_kinds: Counter[str] = Counter()
         self.examples: dict[str, str] = {}
         self.count = 0
         self.report_path = report_path
@@ -105,6 +118,17 @@ class FailureLog:
         if self.kinds[kind] <= LISTED_PER_REASON:
             self.feedback.reportError(self.tr("Feature {}: {}").format(fid, reason), False)
 
+    def warn(self, fid: int, reason: str) -> None:
+        """A feature that is written but falls short (not a failure): listed as ``add``
+        lists failures, and in the report."""
+        kind = reason_kind(reason)
+        self.warning_kinds[kind] += 1
+        self.examples.setdefault(kind, reason)
+        if self._writer is not None:
+            self._writer.writerow([fid, reason])
+        if self.warning_kinds[kind] <= LISTED_PER_REASON:
+            self.feedback.pushWarning(self.tr("Feature {}: {}").format(fid, reason))
+
     def close(self) -> None:
         """Summarise the kinds with more failures than were listed; close the report."""
         for kind, count in self.kinds.most_common():
@@ -115,6 +139,13 @@ class FailureLog:
                     ),
                     False,
                 )
+        for kind, count in self.warning_kinds.most_common():
+            if count > LISTED_PER_REASON:
+                self.feedback.pushWarning(
+                    self.tr("{} more feature(s) the same way as: {}").format(
+                        count - LISTED_PER_REASON, self.examples[kind]
+                    )
+                )
         if self._file is not None:
             self._file.close()
             self._file = None
@@ -122,5 +153,11 @@ class FailureLog:
                 self.feedback.pushInfo(
                     self.tr("Failures of {} feature(s) listed in {}").format(
                         self.count, self.report_path
+                    )
+                )
+            if self.warning_kinds:
+                self.feedback.pushInfo(
+                    self.tr("Warnings of {} feature(s) listed in {}").format(
+                        sum(self.warning_kinds.values()), self.report_path
                     )
                 )

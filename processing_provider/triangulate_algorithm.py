@@ -6,7 +6,7 @@ import os
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from qgis.core import (
     QgsApplication,
@@ -29,6 +29,7 @@ from qgis.core import (
     QgsProcessingParameterExpression,
     QgsProcessingParameterFeatureSink,
     QgsProcessingParameterFeatureSource,
+    QgsProcessingParameterField,
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterNumber,
     QgsProcessingParameterRasterLayer,
@@ -62,12 +63,14 @@ from .qgis_compat import (
     DistanceUnit,
     GeometryType,
     ProcessingFeatureSourceFlag,
+    ProcessingFieldParameterDataType,
     ProcessingNumberParameterType,
     ProcessingParameterFlag,
     ProcessingSourceType,
     WkbType,
 )
-from .run_report import FailureLog, Progress
+from .run_report import REFINE_STAGES, FailureLog, Progress
+from .terrain_points import CancelledError, InteriorPoints, SurveyPoints, scale_points
 
 ICON = Path(__file__).resolve().parent.parent / "icons" / "triangulate.svg"
 APEX_RULES = ("first", "elevation", "delaunay")
@@ -86,6 +89,10 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
     DEM_BAND = "DEM_BAND"
     DEM_INTERPOLATION = "DEM_INTERPOLATION"
     DEM_NODATA = "DEM_NODATA"
+    MAX_VERTICAL_ERROR = "MAX_VERTICAL_ERROR"
+    MAX_POINTS = "MAX_POINTS"
+    INPUT_POINTS = "INPUT_POINTS"
+    POINTS_Z_FIELD = "POINTS_Z_FIELD"
     Z_OFFSET = "Z_OFFSET"
     Z_SCALE = "Z_SCALE"
     MAX_SEGMENT_LENGTH = "MAX_SEGMENT_LENGTH"
@@ -101,6 +108,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
     TRIANGLE_COUNT = "TRIANGLE_COUNT"
     FAILED_COUNT = "FAILED_COUNT"
     EMPTY_COUNT = "EMPTY_COUNT"
+    POINTS_ADDED = "POINTS_ADDED"
 
     BATCH_FEATURES = 10_000
     BATCH_VERTICES = 400_000
@@ -173,8 +181,27 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "<p><b>Vertices on DEM nodata</b>: <i>fill</i> interpolates their z from the "
             "nearest valid vertices along the ring (default); <i>fail</i> rejects the feature. "
             "Vertices outside the DEM count as nodata.</p>"
+            "<p><b>Maximum vertical error</b> (metres; DEM only; 0 = off, default): DEM cell "
+            "centres inside each polygon are added as interior vertices, each round where the "
+            "mesh is farthest from the DEM, until the mesh is within this distance of the DEM "
+            "at every cell centre strictly inside the polygon (cells on nodata are skipped). "
+            "The DEM must be in the layer's CRS.</p>"
+            "<p><b>Maximum added points per feature</b> (default 10,000): a feature that "
+            "reaches it is still written; it is reported as a warning with its id and the "
+            "error reached (and listed in the failure report). POINTS_ADDED counts the DEM "
+            "points added.</p>"
+            "<p><b>Input points</b> (optional point layer: spot heights, survey points), "
+            "<b>Points Z field</b> (optional; default the points' geometry Z): the points "
+            "strictly inside a polygon become interior vertices of its mesh with their z "
+            "(reprojected to the layer's CRS; points without z are left out); with a maximum "
+            "vertical error they are kept and DEM points are added around them.</p>"
+            "<p>Which rule for interior points: <i>delaunay</i> needs the fewest DEM points for "
+            "a given vertical error and gives well-shaped triangles: the rule for terrain "
+            "surfaces. <i>first</i> and <i>elevation</i> join each point by a bridge from the "
+            "boundary, which gives long thin triangles: they need more points for the same "
+            "error; use them for a few survey points on flat or planar areas.</p>"
             "<p><b>Z offset</b>, <b>Z scale</b>: final z = z × scale + offset (defaults 0 and "
-            "1).</p>"
+            "1), interior points included.</p>"
             "<p><b>Maximum segment length</b>: boundary edges longer than this (layer units) "
             "are split before triangulation; the new points become vertices and get their z "
             "from the elevation source. 0 = off (default).</p>"
@@ -227,6 +254,8 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "wrong triangle is written. "
             "A feature that cannot be triangulated is reported with its id and reason and "
             "counted in FAILED_COUNT; null and empty geometries in EMPTY_COUNT. "
+            "With a maximum vertical error, every feature's mesh is checked against the DEM at "
+            "every cell centre inside it; one that stays farther off is reported. "
             "FEATURE_COUNT = triangulated + FAILED_COUNT + EMPTY_COUNT.</p>"
             "<p>A cancelled run writes no mesh file and deletes the triangle and tree outputs "
             "it created.</p>"
@@ -291,7 +320,40 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 defaultValue=elevation.NODATA_FILL,
             )
         )
+        self.addParameter(
+            QgsProcessingParameterNumber(
+                self.MAX_VERTICAL_ERROR,
+                self.tr("Maximum vertical error from the DEM, metres (0 = off)"),
+                ProcessingNumberParameterType.Double,
+                defaultValue=0.0,
+                minValue=0.0,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterFeatureSource(
+                self.INPUT_POINTS,
+                self.tr("Input points (spot heights, survey points)"),
+                [ProcessingSourceType.VectorPoint],
+                optional=True,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterField(
+                self.POINTS_Z_FIELD,
+                self.tr("Points Z field (default: the points' geometry Z)"),
+                parentLayerParameterName=self.INPUT_POINTS,
+                type=ProcessingFieldParameterDataType.Numeric,
+                optional=True,
+            )
+        )
         advanced = [
+            QgsProcessingParameterNumber(
+                self.MAX_POINTS,
+                self.tr("Maximum added points per feature"),
+                ProcessingNumberParameterType.Integer,
+                defaultValue=10_000,
+                minValue=0,
+            ),
             QgsProcessingParameterNumber(
                 self.Z_OFFSET,
                 self.tr("Z offset"),
@@ -402,6 +464,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             (self.TRIANGLE_COUNT, self.tr("Number of triangles")),
             (self.FAILED_COUNT, self.tr("Number of failed features")),
             (self.EMPTY_COUNT, self.tr("Number of empty features")),
+            (self.POINTS_ADDED, self.tr("Number of DEM points added")),
         ):
             self.addOutput(QgsProcessingOutputNumber(name, label))
 
@@ -448,6 +511,9 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                     "The DEM ({}) does not overlap the input layer: no vertex would get an "
                     "elevation. Check the DEM and the layers' CRSs."
                 ).format(layer.name())
+        refused = self._check_points(parameters, context, source, layer_source)
+        if refused:
+            return False, refused
         path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
         if path and Path(path).suffix.lower().lstrip(".") not in MESH_EXTENSIONS:
             return False, self.tr(
@@ -456,6 +522,47 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         if not path and not self._wants_triangles(parameters):
             return False, self.tr("Nothing to write: choose a mesh file or the triangles output.")
         return True, ""
+
+    def _check_points(
+        self,
+        parameters: dict[str, Any],
+        context: QgsProcessingContext,
+        kind: int,
+        layer_source: QgsProcessingFeatureSource | None,
+    ) -> str:
+        """Why the interior point parameters cannot run together ("" when they can)."""
+        if self.parameterAsDouble(parameters, self.MAX_VERTICAL_ERROR, context) > 0:
+            if kind != elevation.ELEVATION_DEM:
+                return self.tr(
+                    "A maximum vertical error needs the DEM as the elevation source: choose a "
+                    "DEM, or set the maximum vertical error to 0."
+                )
+            dem = self.parameterAsRasterLayer(parameters, self.DEM, context)
+            crs = layer_source.sourceCrs() if layer_source is not None else None
+            if dem is not None and crs is not None and crs.isValid() and dem.crs() != crs:
+                return self.tr(
+                    "A maximum vertical error needs the DEM in the layer's CRS ({}; the DEM is "
+                    "in {}): reproject the DEM or the layer."
+                ).format(crs.authid(), dem.crs().authid())
+        points = self.parameterAsSource(parameters, self.INPUT_POINTS, context)
+        z_field = self._points_z_field(parameters, context)
+        if points is None:
+            if z_field:
+                return self.tr("A points Z field is given without input points.")
+            return ""
+        if z_field and points.fields().lookupField(z_field) < 0:
+            return self.tr("The input points have no field {}.").format(z_field)
+        if not z_field and not QgsWkbTypes.hasZ(points.wkbType()):
+            return self.tr(
+                "The input points have no Z: choose a points Z field with their elevation."
+            )
+        return ""
+
+    def _points_z_field(self, parameters: dict[str, Any], context: QgsProcessingContext) -> str:
+        if parameters.get(self.POINTS_Z_FIELD) in (None, ""):
+            return ""
+        fields = self.parameterAsFields(parameters, self.POINTS_Z_FIELD, context)
+        return fields[0] if fields else ""
 
     def _dem_given(self, parameters: dict[str, Any]) -> bool:
         value = parameters.get(self.DEM)
@@ -705,9 +812,13 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             options, workers, feedback, self.tr, self.CHUNK_FEATURES, self.CHUNK_VERTICES
         )
 
+        interior = self._interior_points(
+            parameters, context, source, source_of_z, options, feedback
+        )
+        refining = interior is not None and interior.sampler is not None
         ellipsoid = _ellipsoid(crs)
         total = source.featureCount()
-        progress = Progress(feedback, total)
+        progress = Progress(feedback, total, REFINE_STAGES if refining else None)
         report_path = self.parameterAsFileOutput(parameters, self.OUTPUT_REPORT, context)
         failures = FailureLog(feedback, self.tr, report_path or None)
         request = QgsFeatureRequest()
@@ -790,8 +901,19 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 for warning in set(source_of_z.warnings) - reported_warnings:
                     feedback.pushInfo(self.tr("Elevation: {}").format(warning))
                     reported_warnings.add(warning)
+                points = None
+                if interior is not None:
+                    try:
+                        points = interior.for_batch(
+                            batch,
+                            failures.warn,
+                            _stage_share(progress, "refine", len(batch)) if refining else _ignore,
+                        )
+                    except CancelledError:
+                        break
+                    scale_points(points, z_scale, z_offset)
                 elevation.scale_z(batch, z_scale, z_offset)
-                pending.append(runner.submit(batch))
+                pending.append(runner.submit(batch, points))
                 while len(pending) > runner.parallel and write(pending.pop(0)):
                     pass
                 if feedback.isCanceled():
@@ -839,6 +961,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             self.TRIANGLE_COUNT: triangles,
             self.FAILED_COUNT: failed,
             self.EMPTY_COUNT: empty,
+            self.POINTS_ADDED: interior.added if interior is not None else 0,
         }
         if written is not None:
             vertex_count, face_count, dataset_files = written
@@ -867,6 +990,45 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         )
         feedback.setProgress(100)
         return results
+
+    def _interior_points(
+        self,
+        parameters: dict[str, Any],
+        context: QgsProcessingContext,
+        source: QgsProcessingFeatureSource,
+        source_of_z: elevation.ElevationSource,
+        options: EngineOptions,
+        feedback: QgsProcessingFeedback,
+    ) -> InteriorPoints | None:
+        """The run's interior points (survey points, DEM points), or None without them."""
+        tolerance = self.parameterAsDouble(parameters, self.MAX_VERTICAL_ERROR, context)
+        points_source = self.parameterAsSource(parameters, self.INPUT_POINTS, context)
+        if tolerance <= 0 and points_source is None:
+            return None
+        survey = None
+        if points_source is not None:
+            transform = None
+            crs, points_crs = source.sourceCrs(), points_source.sourceCrs()
+            if crs.isValid() and points_crs.isValid() and crs != points_crs:
+                transform = QgsCoordinateTransform(points_crs, crs, context.transformContext())
+            try:
+                survey, skipped = SurveyPoints.read(
+                    points_source, self._points_z_field(parameters, context), transform, feedback
+                )
+            except CancelledError:
+                raise self._cancelled() from None
+            feedback.pushInfo(
+                self.tr("Input points: {} read, {} without a z or a position left out.").format(
+                    len(survey), skipped
+                )
+            )
+        sampler = getattr(source_of_z, "sampler", None)
+        if tolerance > 0 and (sampler is None or sampler.transform is not None):
+            raise QgsProcessingException(
+                self.tr("A maximum vertical error needs a DEM in the layer's CRS.")
+            )
+        max_points = self.parameterAsInt(parameters, self.MAX_POINTS, context)
+        return InteriorPoints(survey, sampler, tolerance, max_points, options, feedback)
 
     def _report_repaired(self, repaired: list[int], feedback: QgsProcessingFeedback) -> None:
         listed = ", ".join(str(fid) for fid in repaired[:MAX_LISTED_IDS])
@@ -908,3 +1070,18 @@ def _densify(batch: list[FeatureRings], max_length: float) -> None:
     for item in batch:
         if item.ok:
             item.parts = [[densify_ring(ring, max_length) for ring in part] for part in item.parts]
+
+
+def _stage_share(progress: Progress, stage: str, size: int) -> Callable[[float], None]:
+    """A callback that takes the share of ``size`` features done in ``stage``."""
+    reported = [0.0]
+
+    def report(share: float) -> None:
+        progress.advance(stage, share * size - reported[0])
+        reported[0] = share * size
+
+    return report
+
+
+def _ignore(_share: float) -> None:
+    """A progress callback for work that has no stage of its own."""

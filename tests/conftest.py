@@ -35,9 +35,15 @@ TRIANGULATE_PARAMETERS = frozenset(
         "OUTPUT_MESH",
         "OUTPUT_TRIANGLES",
         "OUTPUT_TREE",
+        "MAX_VERTICAL_ERROR",
+        "MAX_POINTS",
+        "INPUT_POINTS",
+        "POINTS_Z_FIELD",
     }
 )
-TRIANGULATE_OUTPUTS = frozenset({"FEATURE_COUNT", "TRIANGLE_COUNT", "FAILED_COUNT", "EMPTY_COUNT"})
+TRIANGULATE_OUTPUTS = frozenset(
+    {"FEATURE_COUNT", "TRIANGLE_COUNT", "FAILED_COUNT", "EMPTY_COUNT", "POINTS_ADDED"}
+)
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 os.environ.setdefault("QGIS_CUSTOM_CONFIG_PATH", tempfile.mkdtemp(prefix="bsptri-qgis-profile-"))

@@ -22,6 +22,9 @@ LOCATE_CHUNK = 2_000_000
 BOUNDARY_SHARE = 1e-9
 # barycentric weights down to this count as inside (shared edges belong to both triangles)
 INSIDE_WEIGHT = -1e-9
+# a cell counts as within the tolerance only this share below it: another evaluation of the
+# same surface (other corner order, other arithmetic) may differ in the last digits
+TOLERANCE_MARGIN = 1e-6
 
 
 @dataclass(frozen=True)
@@ -286,6 +289,7 @@ def refine_many(
     polygons still refined, with ``options`` (rule, plane...).
     """
     count = len(polygons)
+    limit = tolerance * (1.0 - TOLERANCE_MARGIN)
     fixed_points = [_points(fixed[p] if fixed is not None else None) for p in range(count)]
     group = np.arange(count) if groups is None else np.asarray(groups, np.int64)
     windows, candidates = _candidates(polygons, grids)
@@ -352,7 +356,7 @@ def refine_many(
         np.maximum.at(worst, owner[cand], error)
         missing = np.bincount(owner[in_round & ~located], minlength=count)
         # each triangle's worst cell beyond the tolerance, if not given already
-        want = (error > tolerance) & ~taken[cand]
+        want = (error > limit) & ~taken[cand]
         if share > 0:
             want &= error >= share * worst[owner[cand]]
         tri, cand, error = tri[want], cand[want], error[want]
@@ -377,7 +381,7 @@ def refine_many(
         next_active = []
         for p in measured:
             outcome[p].max_error = float(worst[p])
-            outcome[p].within = worst[p] <= tolerance and missing[p] == 0
+            outcome[p].within = worst[p] <= limit and missing[p] == 0
             if outcome[p].within:
                 continue
             if chosen_of[p]:

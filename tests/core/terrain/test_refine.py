@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 import pytest
 import shapely
@@ -14,12 +12,6 @@ from bsp_triangulate.terrain.refine import CellGrid, cells_inside, locate_cells,
 RULES = ("first", "elevation", "delaunay")
 CELL = 10.0
 SIZE = 48  # cells per side of the synthetic DEM
-
-
-needs_points = pytest.mark.skipif(
-    "points" not in inspect.signature(bsp_triangulate.triangulate_many).parameters,
-    reason="the engine takes no interior points yet",
-)
 
 
 def engine(*args, **kwargs):
@@ -88,7 +80,6 @@ def final_mesh(rings, result, rule):
     return mesh
 
 
-@needs_points
 @pytest.mark.parametrize("rule", RULES)
 def test_bound_holds_at_every_inside_cell(rule):
     grid = hill_grid()
@@ -111,7 +102,6 @@ def test_bound_holds_at_every_inside_cell(rule):
     assert np.array_equal(result.points[:, 2], grid.values[rows.astype(int), cols.astype(int)])
 
 
-@needs_points
 def test_cap_is_respected_and_reported():
     grid = hill_grid()
     rings = with_z(square_with_islands(), grid)
@@ -125,7 +115,6 @@ def test_cap_is_respected_and_reported():
     assert np.abs(z - values).max() == pytest.approx(result.max_error)
 
 
-@needs_points
 def test_groups_share_their_cap():
     grid = hill_grid()
     left = with_z([np.array([[5.0, 5.0], [230.0, 5.0], [230.0, 470.0], [5.0, 470.0]])], grid)
@@ -137,7 +126,6 @@ def test_groups_share_their_cap():
     assert all(r.capped for r in results)
 
 
-@needs_points
 def test_survey_points_are_kept():
     grid = hill_grid()
     rings = with_z(square_with_islands(), grid)
@@ -159,7 +147,6 @@ def test_tiny_polygon_without_cells():
     assert np.array_equal(result.points, fixed)
 
 
-@needs_points
 def test_nodata_cells_are_skipped():
     grid = hill_grid(nodata_patch=True)
     rings = with_z([np.array([[5.0, 5.0], [470.0, 5.0], [470.0, 470.0], [5.0, 470.0]])], grid)
