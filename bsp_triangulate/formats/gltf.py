@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .mesh import _check_face_values, _check_mesh
+from .model_origin import checked_model, origin_record
 
 GLTF_EXTENSIONS = ("glb", "gltf")
 FEATURE_EXTENSION = "EXT_mesh_features"
@@ -56,6 +56,7 @@ _GLB_MAGIC = 0x46546C67
 _JSON_CHUNK = 0x4E4F534A
 _BIN_CHUNK = 0x004E4942
 GENERATOR = "BSP Triangulate"
+AXES = "glTF (X, Y, Z) = map (x, z, -y): Y up, -Z north; node translation = the local origin"
 
 
 def to_y_up(points: np.ndarray) -> np.ndarray:
@@ -68,14 +69,6 @@ def from_y_up(points: np.ndarray) -> np.ndarray:
     """glTF (X, Y, Z) back to the map frame: (X, -Z, Y)."""
     points = np.asarray(points, dtype=np.float64)
     return np.stack([points[..., 0], -points[..., 2], points[..., 1]], axis=-1)
-
-
-def default_origin(vertices: np.ndarray) -> np.ndarray:
-    """The centre of the bounding box, rounded to whole units (0 for an empty mesh)."""
-    vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    if not len(vertices):
-        return np.zeros(3)
-    return np.round((vertices.min(axis=0) + vertices.max(axis=0)) / 2.0)
 
 
 def flat_normals(corners: np.ndarray) -> np.ndarray:
@@ -154,14 +147,7 @@ def gltf_document(
     name: str = "mesh",
 ) -> tuple[dict, GltfBuffer]:
     """The glTF JSON (without ``buffers[0].uri``) and its binary buffer."""
-    vertices, faces = _check_mesh(vertices, faces)
-    properties = {
-        key: _check_face_values(key, values, len(faces))
-        for key, values in (face_properties or {}).items()
-    }
-    origin = default_origin(vertices) if origin is None else np.asarray(origin, np.float64)
-    if origin.shape != (3,) or not np.isfinite(origin).all():
-        raise ValueError("origin must be three finite numbers")
+    vertices, faces, properties, origin = checked_model(vertices, faces, face_properties, origin)
     # float32 positions of the vertices, then of the faces' corners (the same values as
     # rounding each corner, at a third of the memory)
     local = vertices - origin
@@ -195,12 +181,7 @@ def gltf_document(
         "asset": {
             "version": "2.0",
             "generator": GENERATOR,
-            "extras": {
-                "origin_xyz": [float(v) for v in origin],
-                "crs_wkt": crs_wkt or "",
-                "axes": "glTF (X, Y, Z) = map (x, z, -y): Y up, -Z north; node translation "
-                "= the local origin",
-            },
+            "extras": origin_record(origin, crs_wkt, AXES),
         },
         "scene": 0,
         "scenes": [{"nodes": [0]}],

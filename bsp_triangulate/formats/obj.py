@@ -30,11 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .gltf import default_origin
-from .mesh import _check_face_values, _check_mesh, _write_blocks, _xyz_line
+from .mesh import _write_blocks, _xyz_line
+from .model_origin import checked_model, origin_record
 from .number_text import int_field, join_rows
 
 _CHUNK = 100_000
+AXES = "x east, y north, z up; map coordinates = vertex + origin"
 
 
 def _group_tokens(
@@ -66,19 +67,12 @@ def write_obj(
 ) -> list[Path]:
     """Write an OBJ mesh and its ``.origin.json`` (and ``.prj`` with a CRS) sidecars.
     Returns the written paths, the ``.obj`` first."""
-    vertices, faces = _check_mesh(vertices, faces)
-    properties = {
-        key: _check_face_values(key, values, len(faces))
-        for key, values in (face_properties or {}).items()
-    }
+    vertices, faces, properties, origin = checked_model(vertices, faces, face_properties, origin)
     if group_by is None:
         group_by = list(properties)[:1]
     for key in group_by:
         if key not in properties:
             raise ValueError(f"group_by names {key!r}, which is not a face property")
-    origin = default_origin(vertices) if origin is None else np.asarray(origin, np.float64)
-    if origin.shape != (3,) or not np.isfinite(origin).all():
-        raise ValueError("origin must be three finite numbers")
     path = Path(path)
     local = vertices - origin
     origin_text = " ".join(repr(float(v)) for v in origin)
@@ -110,17 +104,7 @@ def write_obj(
         _write_faces(handle, faces, run_starts, columns, names)
     written = [path]
     sidecar = path.with_name(path.stem + ".origin.json")
-    sidecar.write_text(
-        json.dumps(
-            {
-                "origin_xyz": [float(v) for v in origin],
-                "axes": "x east, y north, z up; map coordinates = vertex + origin",
-                "crs_wkt": crs_wkt or "",
-            },
-            indent=1,
-        ),
-        encoding="utf-8",
-    )
+    sidecar.write_text(json.dumps(origin_record(origin, crs_wkt, AXES), indent=1), encoding="utf-8")
     written.append(sidecar)
     if crs_wkt:
         prj = path.with_suffix(".prj")
