@@ -18,6 +18,8 @@ from .spatial_index import PointColumns, SegmentGrid
 
 # relative margin within which float squared distances are re-compared exactly
 _DISTANCE_MARGIN = 1e-9
+# bridge candidates tested together at first (then four times as many each time)
+_FIRST_BLOCK = 8
 
 
 def _ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -292,9 +294,105 @@ class _Bridger:
             return ks
         return []
 
+    def _inside_angle_many(self, nodes: np.ndarray, tx: float, ty: float) -> np.ndarray:
+        """Vectorised :meth:`_inside_angle` (open angle) of the occurrences ``nodes``."""
+        vid, x, y = self.vid, self.x, self.y
+        v, p, n = vid[nodes], vid[self.prv[nodes]], vid[self.nxt[nodes]]
+        vx, vy, px, py, nx, ny = x[v], y[v], x[p], y[p], x[n], y[n]
+        turn = orient_many(px, py, vx, vy, nx, ny)
+        toward_next = orient_many(vx, vy, nx, ny, tx, ty)
+        after_next = toward_next >= 1
+        after_prev = orient_many(px, py, vx, vy, tx, ty) >= 1
+        straight = (nx - vx) * (px - vx) + (ny - vy) * (py - vy) < 0
+        on_ray = (toward_next == 0) & ((tx - vx) * (nx - vx) + (ty - vy) * (ny - vy) > 0)
+        flat = np.where(straight, after_next, ~on_ray)
+        return np.where(
+            turn > 0, after_next & after_prev, np.where(turn < 0, after_next | after_prev, flat)
+        )
+
+    def _segments_clear(self, us: np.ndarray, w: int) -> np.ndarray:
+        """Vectorised :meth:`_segment_clear` of the segments from each vertex of ``us`` to w."""
+        x, y = self.x, self.y
+        wx, wy = float(x[w]), float(y[w])
+        ux, uy = x[us], y[us]
+        clear = np.ones(len(us), dtype=bool)
+        if len(us) == 0:
+            return clear
+        xmin, xmax = min(wx, float(ux.min())), max(wx, float(ux.max()))
+        ymin, ymax = min(wy, float(uy.min())), max(wy, float(uy.max()))
+        found = np.unique(self.edges.query_box(xmin, ymin, xmax, ymax))
+        a, b = self.edge_a[found], self.edge_b[found]
+        if self.bridge_count:
+            extra = self.bridges[: self.bridge_count]
+            a, b = np.concatenate([a, extra[:, 0]]), np.concatenate([b, extra[:, 1]])
+        if len(a) == 0:
+            return clear
+        ax, ay, bx, by = x[a], y[a], x[b], y[b]
+        ex0, ex1 = np.minimum(ax, bx), np.maximum(ax, bx)
+        ey0, ey1 = np.minimum(ay, by), np.maximum(ay, by)
+        sx0, sx1 = np.minimum(ux, wx), np.maximum(ux, wx)
+        sy0, sy1 = np.minimum(uy, wy), np.maximum(uy, wy)
+        rows_per_block = max(1, _PAIR_CHUNK // len(a))
+        for start in range(0, len(us), rows_per_block):
+            part = slice(start, start + rows_per_block)
+            # only edges whose bounding box meets the segment's can meet it (exact)
+            near = (
+                (ex1 >= sx0[part, None])
+                & (ex0 <= sx1[part, None])
+                & (ey1 >= sy0[part, None])
+                & (ey0 <= sy1[part, None])
+            )
+            row, col = np.nonzero(near)
+            if len(row) == 0:
+                continue
+            row += start
+            pux, puy = ux[row], uy[row]
+            pax, pay, pbx, pby = ax[col], ay[col], bx[col], by[col]
+            o1 = orient_many(pux, puy, wx, wy, pax, pay)
+            o2 = orient_many(pux, puy, wx, wy, pbx, pby)
+            on_a = (o1 == 0) & strictly_between(pax, pay, pux, puy, wx, wy)
+            on_b = (o2 == 0) & strictly_between(pbx, pby, pux, puy, wx, wy)
+            blocked = on_a | on_b
+            straddle = np.flatnonzero(~blocked & ((o1.astype(np.int16) * o2) < 0))
+            if len(straddle):
+                qax, qay, qbx, qby = pax[straddle], pay[straddle], pbx[straddle], pby[straddle]
+                o3 = orient_many(qax, qay, qbx, qby, pux[straddle], puy[straddle])
+                o4 = orient_many(qax, qay, qbx, qby, wx, wy)
+                blocked[straddle] = (o3.astype(np.int16) * o4) < 0
+            clear[row[blocked]] = False
+        return clear
+
+    def _valid_many(self, vids: np.ndarray, island: np.ndarray, h_index: int) -> list[list[int]]:
+        """:meth:`_valid_occurrences` of each vertex of ``vids``, the tests vectorised."""
+        x, y = self.x, self.y
+        h = int(island[h_index])
+        hx, hy = float(x[h]), float(y[h])
+        firsts = self.first[vids]
+        inside = self._inside_angle_many(firsts, hx, hy).tolist()
+        result: list[list[int]] = [[k] if ok else [] for k, ok in zip(firsts.tolist(), inside)]
+        same = ((x[vids] == hx) & (y[vids] == hy)).tolist()
+        more = self.more
+        for index, vid in enumerate(vids.tolist()):
+            if same[index]:
+                result[index] = self._valid_occurrences(vid, island, h_index)
+            elif vid in more:
+                result[index] += [k for k in more[vid] if self._inside_angle(k, hx, hy)]
+        picked = np.array(
+            [index for index, ks in enumerate(result) if ks and not same[index]], dtype=np.int64
+        )
+        if len(picked):
+            clear = self._segments_clear(vids[picked], h)
+            for index in picked[~clear].tolist():
+                result[index] = []
+        return result
+
     # -- search ---------------------------------------------------------------------------
     def find_bridge(self, island: np.ndarray, h_index: int) -> tuple[int, int] | None:
-        """(node, vertex id) of the bridge target for the island, or None."""
+        """(node, vertex id) of the bridge target for the island, or None.
+
+        The sequence's vertices near h are tested nearest first, in blocks at once, until
+        the nearest valid one is known and every one within the tie margin of it.
+        """
         x, y = self.x, self.y
         h = int(island[h_index])
         hx, hy = float(x[h]), float(y[h])
@@ -309,19 +407,32 @@ class _Bridger:
             found = found[self.in_seq[found]]
             d2 = (x[found] - hx) ** 2 + (y[found] - hy) ** 2
             order = np.argsort(d2, kind="stable")
+            near, dist = found[order], d2[order]
             limit = radius * radius
+            # beyond the radius only once the box covers everything
+            end = len(near) if radius >= full else int(np.searchsorted(dist, limit, "right"))
             best = None
-            for idx in order.tolist():
-                vid = int(found[idx])
-                dist = float(d2[idx])
-                if best is not None and dist > best * (1 + _DISTANCE_MARGIN):
-                    break
-                if dist > limit and radius < full:
-                    break
-                if vid not in tested:
-                    tested[vid] = self._valid_occurrences(vid, island, h_index)
-                if tested[vid] and best is None:
-                    best = dist
+            position, block = 0, _FIRST_BLOCK
+            while position < end:
+                stop = min(position + block, end)
+                if best is not None:
+                    reach = best * (1 + _DISTANCE_MARGIN)
+                    stop = min(end, int(np.searchsorted(dist, reach, "right")))
+                    if stop <= position:
+                        break
+                block *= 4
+                chunk = near[position:stop]
+                fresh = np.array([vid not in tested for vid in chunk.tolist()], dtype=bool)
+                if fresh.any():
+                    untested = chunk[fresh]
+                    valid = self._valid_many(untested, island, h_index)
+                    tested.update(zip(untested.tolist(), valid))
+                if best is None:
+                    for vid, value in zip(chunk.tolist(), dist[position:stop].tolist()):
+                        if tested[vid]:
+                            best = value
+                            break
+                position = stop
             if best is not None and (best * (1 + _DISTANCE_MARGIN) <= limit or radius >= full):
                 return self._nearest_exact(tested, h, best)
             if radius >= full:

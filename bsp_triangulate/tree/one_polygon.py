@@ -411,8 +411,8 @@ class _Tree:
         error = 8.0 * 2.0**-53 * (2.0 * np.abs(zc) + abs(z1) + abs(z2)) + 1e-300
         widest = float(error.max())
         order = np.argsort(approx, kind="stable")
-        small = self.grid is None or hi - lo <= SMALL_SEQUENCE
-        blockers: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+        if self.boxes is not None and hi - lo > SMALL_SEQUENCE:
+            return self._closest_apex_scalar(lo, hi, v1, v2, candidates, order, approx, error)
         found: list[np.ndarray] = []
         best = np.inf
         start, size = 0, _FIRST_CHUNK
@@ -422,14 +422,8 @@ class _Tree:
             chosen = order[start : start + size]
             start, size = start + size, min(size * 2, _MAX_CHUNK)
             chunk = candidates[chosen]
-            if small:
-                mask = correct_candidates(
-                    sx, sy, lo, hi, chunk, facing=True, exact_inputs=self.exact
-                )
-                good = chosen[mask]
-            else:
-                correct = self._grid_correct(lo, hi, chunk, True, blockers)
-                good = chosen[np.isin(chunk, correct)]
+            mask = correct_candidates(sx, sy, lo, hi, chunk, facing=True, exact_inputs=self.exact)
+            good = chosen[mask]
             if len(good):
                 found.append(good)
                 best = min(best, float((approx[good] + error[good]).min()))
@@ -437,6 +431,47 @@ class _Tree:
             return -1
         # in candidate order, as the rule expects
         return self.rule.choose(candidates[np.sort(np.concatenate(found))], v1, v2, z)
+
+    def _closest_apex_scalar(
+        self,
+        lo: int,
+        hi: int,
+        v1: int,
+        v2: int,
+        candidates: np.ndarray,
+        order: np.ndarray,
+        approx: np.ndarray,
+        error: np.ndarray,
+    ) -> int:
+        """:meth:`_closest_apex` for long sub-polygons: the candidates tested one by one with
+        the scalar exact test over the chain boxes (:meth:`_blocked`), closest elevation
+        first, stopping as soon as no untested one can be as close as a correct one."""
+        widest = float(error.max())
+        approx_list, error_list = approx.tolist(), error.tolist()
+        blockers: list[int] = []
+        found: list[int] = []
+        best = math.inf
+        start, size = 0, 1
+        while start < len(order):
+            chosen = order[start : start + size]
+            start, size = start + size, min(size * 2, _MAX_CHUNK)
+            if found and approx_list[int(chosen[0])] - widest > best:
+                break
+            chunk = candidates[chosen]
+            if len(chunk) > 1 and blockers:
+                # the edges that blocked earlier candidates, against the whole chunk at once
+                kept = self._not_blocked_by(lo, hi, chunk, blockers)
+                chosen = chosen[np.isin(chunk, kept)]
+            for index in chosen.tolist():
+                if found and approx_list[index] - widest > best:
+                    break  # every untested candidate is surely farther than a correct one
+                if not self._blocked(lo, hi, int(candidates[index]), blockers):
+                    found.append(index)
+                    best = min(best, approx_list[index] + error_list[index])
+        if not found:
+            return -1
+        # in candidate order, as the rule expects
+        return self.rule.choose(candidates[np.sort(found)], v1, v2, self.sz)
 
     def _delaunay_apex(self, lo: int, hi: int) -> int:
         """:meth:`_apex` under rule "delaunay" (its ``choose_in_plane``).
