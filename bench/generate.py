@@ -158,6 +158,104 @@ def polygon_with_islands(vertices: int, seed: int = SEED) -> Rings:
     return rings
 
 
+def radial_polygons(count: int, seed: int = SEED) -> list[Rings]:
+    """``count`` random radial polygons of 260 to 600 vertices (every vertex's radius 100 m
+    +-45 %), each with one 8-vertex island, on a 300 m grid."""
+    rng = np.random.default_rng(seed + 1)
+    polygons: list[Rings] = []
+    for index in range(count):
+        row, column = divmod(index, 40)
+        cx, cy = ORIGIN_X + column * 300.0, ORIGIN_Y + row * 300.0
+        vertices = int(rng.integers(260, 601))
+        angles = 2.0 * np.pi * np.arange(vertices) / vertices
+        radii = 100.0 * rng.uniform(0.55, 1.45, vertices)
+        outer = np.column_stack([cx + radii * np.cos(angles), cy + radii * np.sin(angles)])
+        island = star_ring(rng, (cx, cy), 8, 30.0, 20.0, 0.1)
+        polygons.append([outer, island[::-1].copy()])
+    return polygons
+
+
+def wavy_polygon(vertices: int, islands: int, seed: int = SEED) -> Rings:
+    """One wavy polygon of ``vertices`` outer vertices with ``islands`` square islands on a
+    grid inside it (the shell a circle whose radius waves, the squares rotated at random)."""
+    rng = np.random.default_rng(seed + 2)
+    radius = 1000.0 * math.sqrt(islands / 1000)
+    angles = 2.0 * np.pi * np.arange(vertices) / vertices
+    radii = radius * (1.0 + 0.08 * np.sin(50.0 * angles) + 0.02 * np.sin(977.0 * angles))
+    outer = np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
+    spacing = math.sqrt(math.pi * (0.8 * radius) ** 2 / islands) * 0.95
+    steps = np.arange(-radius, radius + spacing, spacing)
+    grid_x, grid_y = np.meshgrid(steps, steps)
+    centres = np.column_stack([grid_x.ravel(), grid_y.ravel()])
+    centres = centres[np.hypot(centres[:, 0], centres[:, 1]) < 0.8 * radius]
+    centres = centres[np.argsort(np.hypot(centres[:, 0], centres[:, 1]), kind="stable")][:islands]
+    if len(centres) < islands:
+        raise RuntimeError("island grid too small")
+    origin = np.array([ORIGIN_X, ORIGIN_Y])
+    rings = [outer + origin]
+    square = np.array([(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)])  # clockwise
+    for (cx, cy), angle in zip(centres, rng.uniform(0, np.pi / 2, len(centres))):
+        turn = np.array([[np.cos(angle), np.sin(angle)], [-np.sin(angle), np.cos(angle)]])
+        half = spacing * rng.uniform(0.1, 0.3)
+        rings.append(square * half @ turn + (cx, cy) + origin)
+    return rings
+
+
+def river_polygon(vertices: int, islands: int, seed: int = SEED) -> Rings:
+    """A long thin shell of ``vertices`` vertices (a meandering band 40 times as long as
+    wide) with ``islands`` islands
+    of varied size (4 to 40 vertices, radii spread over 20x), packed close to each other and
+    to the shell: a stand-in for a real water body with many islands."""
+    rng = np.random.default_rng(seed + 3)
+    half = vertices // 2
+    length = 40_000.0 * math.sqrt(islands / 1000)
+    width = length / 40.0
+    t = np.linspace(0.0, 1.0, half)
+    mid_x = length * t
+    mid_y = 0.1 * length * np.sin(2 * np.pi * 3 * t)
+    # unit normal of the centre line
+    dx, dy = np.gradient(mid_x), np.gradient(mid_y)
+    norm = np.hypot(dx, dy)
+    nx, ny = -dy / norm, dx / norm
+    wiggle = 1.0 + 0.05 * rng.uniform(-1, 1, (2, half))
+    left = np.column_stack([mid_x + nx * width / 2 * wiggle[0], mid_y + ny * width / 2 * wiggle[0]])
+    right = np.column_stack(
+        [mid_x - nx * width / 2 * wiggle[1], mid_y - ny * width / 2 * wiggle[1]]
+    )
+    outer = np.concatenate([right, left[::-1]])  # counter-clockwise
+    placed: list[tuple[float, float, float]] = []
+    cells: dict[tuple[int, int], list[int]] = {}
+    cell = width  # more than twice the largest island radius
+    rings = [outer]
+    tries = 0
+    while len(placed) < islands and tries < islands * 200:
+        tries += 1
+        size = width * 0.02 * 20.0 ** rng.uniform(0, 1) ** 3
+        at = rng.uniform(0.01, 0.99)
+        index = min(int(at * (half - 1)), half - 2)
+        offset = rng.uniform(-1, 1) * (width / 2 * 0.95 - size - width * 0.003)
+        if offset <= -width / 2 or abs(offset) + size > width / 2 * 0.93:
+            continue
+        cx, cy = mid_x[index] + nx[index] * offset, mid_y[index] + ny[index] * offset
+        key = (int(cx // cell), int(cy // cell))
+        near = [
+            placed[k]
+            for i in (-1, 0, 1)
+            for j in (-1, 0, 1)
+            for k in cells.get((key[0] + i, key[1] + j), ())
+        ]
+        gap = width * 0.003
+        if any(math.hypot(cx - px, cy - py) < 1.1 * (size + ps) + gap for px, py, ps in near):
+            continue
+        cells.setdefault(key, []).append(len(placed))
+        placed.append((cx, cy, size))
+        count = int(rng.integers(4, 41))
+        island = star_ring(rng, (cx, cy), count, size, size * 0.8, 0.05, rng.uniform(0, 1))
+        rings.append(island[::-1].copy())
+    origin = np.array([ORIGIN_X, ORIGIN_Y])
+    return [ring + origin for ring in rings]
+
+
 def to_shapely(rings: Rings) -> shapely.Polygon:
     return shapely.Polygon(rings[0], rings[1:])
 

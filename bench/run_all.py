@@ -1,6 +1,6 @@
 """Run every benchmark and print one Markdown report (also written to build/bench/results.md).
 
-Usage: python bench/run_all.py [--quick] [--only core,end_to_end,fidelity,buildings,dask]
+Usage: python bench/run_all.py [--quick] [--only core,large,end_to_end,fidelity,buildings,dask]
 """
 
 from __future__ import annotations
@@ -15,10 +15,12 @@ import bench_core
 import bench_dask
 import bench_end_to_end
 import bench_fidelity
+import bench_large
 from common import BUILD, Row, machine_info, markdown_table, rows_table
 
 BENCHMARKS: dict[str, tuple[str, Callable[[bool, float, int | None], list[Row]]]] = {
     "core": ("Core triangulation speed (in one process)", bench_core.run),
+    "large": ("Large polygons with many islands, every rule, against earcut", bench_large.run),
     "end_to_end": ("End to end through qgis_process", bench_end_to_end.run),
     "fidelity": ("Terrain fidelity (surface - DEM at DEM cell centres)", bench_fidelity.run),
     "buildings": (
