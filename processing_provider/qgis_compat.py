@@ -11,6 +11,9 @@ or a stand-in class with the new member names (only those the plugin uses).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 from qgis.core import (
     Qgis,
     QgsCoordinateReferenceSystem,
@@ -61,77 +64,59 @@ else:
         kind: getattr(QVariant, kind) for kind in ("Int", "LongLong", "Double", "String")
     }
 
-# Before 3.30: QgsWkbTypes.Type, with the same member names.
-WkbType = Qgis.WkbType if hasattr(Qgis, "WkbType") else QgsWkbTypes.Type
 
-if hasattr(Qgis, "GeometryType"):
-    GeometryType = Qgis.GeometryType
-else:
-
-    class GeometryType:
-        Polygon = QgsWkbTypes.GeometryType.PolygonGeometry
-        Unknown = QgsWkbTypes.GeometryType.UnknownGeometry
-
-
-if hasattr(Qgis, "DistanceUnit"):
-    DistanceUnit = Qgis.DistanceUnit
-else:
-
-    class DistanceUnit:
-        Meters = QgsUnitTypes.DistanceUnit.DistanceMeters
+def _scoped_enum(name: str, older: Callable[[], Any], **renamed: str) -> Any:
+    """``Qgis.<name>`` where the running QGIS has it; else the older enum ``older()``, as it is
+    (its members have the new names) or, given ``renamed`` (new member name: older one), as a
+    stand-in class of that name. ``older`` is called only then: newer QGIS drops older enums."""
+    if hasattr(Qgis, name):
+        return getattr(Qgis, name)
+    enum = older()
+    if not renamed:
+        return enum
+    return type(name, (), {new: getattr(enum, old) for new, old in renamed.items()})
 
 
-# Before 3.36: QgsFeatureRequest.Flag, with the same member names.
-FeatureRequestFlag = (
-    Qgis.FeatureRequestFlag if hasattr(Qgis, "FeatureRequestFlag") else QgsFeatureRequest.Flag
+# From 3.30 on: WkbType, GeometryType, DistanceUnit; from 3.36 on, the others.
+WkbType = _scoped_enum("WkbType", lambda: QgsWkbTypes.Type)
+GeometryType = _scoped_enum(
+    "GeometryType",
+    lambda: QgsWkbTypes.GeometryType,
+    Polygon="PolygonGeometry",
+    Unknown="UnknownGeometry",
 )
-
-if hasattr(Qgis, "CrsWktVariant"):
-    CrsWktVariant = Qgis.CrsWktVariant
-else:
-
-    class CrsWktVariant:
-        Preferred = QgsCoordinateReferenceSystem.WktVariant.WKT_PREFERRED
-
-
-if hasattr(Qgis, "ProcessingSourceType"):
-    ProcessingSourceType = Qgis.ProcessingSourceType
-else:
-
-    class ProcessingSourceType:
-        VectorPolygon = QgsProcessing.SourceType.TypeVectorPolygon
-        VectorLine = QgsProcessing.SourceType.TypeVectorLine
-        VectorPoint = QgsProcessing.SourceType.TypeVectorPoint
-
-
-if hasattr(Qgis, "ProcessingNumberParameterType"):
-    ProcessingNumberParameterType = Qgis.ProcessingNumberParameterType
-else:
-
-    class ProcessingNumberParameterType:
-        Integer = QgsProcessingParameterNumber.Type.Integer
-        Double = QgsProcessingParameterNumber.Type.Double
-
-
-if hasattr(Qgis, "ProcessingFieldParameterDataType"):
-    ProcessingFieldParameterDataType = Qgis.ProcessingFieldParameterDataType
-else:
-
-    class ProcessingFieldParameterDataType:
-        Numeric = QgsProcessingParameterField.DataType.Numeric
-
-
-if hasattr(Qgis, "ProcessingParameterFlag"):
-    ProcessingParameterFlag = Qgis.ProcessingParameterFlag
-else:
-
-    class ProcessingParameterFlag:
-        Advanced = QgsProcessingParameterDefinition.Flag.FlagAdvanced
-
-
-if hasattr(Qgis, "ProcessingFeatureSourceFlag"):
-    ProcessingFeatureSourceFlag = Qgis.ProcessingFeatureSourceFlag
-else:
-
-    class ProcessingFeatureSourceFlag:
-        SkipGeometryValidityChecks = QgsProcessingFeatureSource.Flag.FlagSkipGeometryValidityChecks
+DistanceUnit = _scoped_enum(
+    "DistanceUnit", lambda: QgsUnitTypes.DistanceUnit, Meters="DistanceMeters"
+)
+FeatureRequestFlag = _scoped_enum("FeatureRequestFlag", lambda: QgsFeatureRequest.Flag)
+CrsWktVariant = _scoped_enum(
+    "CrsWktVariant", lambda: QgsCoordinateReferenceSystem.WktVariant, Preferred="WKT_PREFERRED"
+)
+ProcessingSourceType = _scoped_enum(
+    "ProcessingSourceType",
+    lambda: QgsProcessing.SourceType,
+    VectorPolygon="TypeVectorPolygon",
+    VectorLine="TypeVectorLine",
+    VectorPoint="TypeVectorPoint",
+)
+ProcessingNumberParameterType = _scoped_enum(
+    "ProcessingNumberParameterType",
+    lambda: QgsProcessingParameterNumber.Type,
+    Integer="Integer",
+    Double="Double",
+)
+ProcessingFieldParameterDataType = _scoped_enum(
+    "ProcessingFieldParameterDataType",
+    lambda: QgsProcessingParameterField.DataType,
+    Numeric="Numeric",
+)
+ProcessingParameterFlag = _scoped_enum(
+    "ProcessingParameterFlag",
+    lambda: QgsProcessingParameterDefinition.Flag,
+    Advanced="FlagAdvanced",
+)
+ProcessingFeatureSourceFlag = _scoped_enum(
+    "ProcessingFeatureSourceFlag",
+    lambda: QgsProcessingFeatureSource.Flag,
+    SkipGeometryValidityChecks="FlagSkipGeometryValidityChecks",
+)
