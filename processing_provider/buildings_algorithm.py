@@ -30,16 +30,10 @@ from qgis.core import (
     QgsProcessingFeatureSource,
     QgsProcessingFeedback,
     QgsProcessingOutputLayerDefinition,
-    QgsProcessingOutputNumber,
-    QgsProcessingParameterBand,
     QgsProcessingParameterCrs,
     QgsProcessingParameterEnum,
     QgsProcessingParameterExpression,
-    QgsProcessingParameterFeatureSink,
-    QgsProcessingParameterFeatureSource,
-    QgsProcessingParameterFileDestination,
     QgsProcessingParameterNumber,
-    QgsProcessingParameterRasterLayer,
     QgsRasterLayer,
 )
 from qgis.PyQt.QtCore import QCoreApplication
@@ -55,12 +49,21 @@ from ..bsp_triangulate.terrain.raster_sampling import fill_along_ring
 from . import elevation
 from .geometry_io import INVALID_AS_GIVEN, FeatureRings, feature_batches
 from .outputs import SinkCleanup, add_features
+from .parameters import (
+    advanced,
+    apex_rule,
+    count_outputs,
+    dem_and_band,
+    file_destination,
+    invalid_polygons,
+    non_negative_double,
+    polygon_sink,
+    polygon_source,
+)
 from .qgis_compat import (
     FIELD_TYPES,
     ProcessingFeatureSourceFlag,
     ProcessingNumberParameterType,
-    ProcessingParameterFlag,
-    ProcessingSourceType,
     WkbType,
 )
 
@@ -237,12 +240,8 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
         )
 
     def initAlgorithm(self, config: dict[str, Any] | None = None) -> None:  # noqa: N802
-        self.addParameter(
-            QgsProcessingParameterFeatureSource(
-                self.INPUT, self.tr("Footprints"), [ProcessingSourceType.VectorPolygon]
-            )
-        )
-        self.addParameter(
+        declared = [
+            polygon_source(self.INPUT, self.tr("Footprints")),
             QgsProcessingParameterEnum(
                 self.HEIGHT_SOURCE,
                 self.tr("Height from"),
@@ -251,18 +250,14 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
                     self.tr("Roof Z of the geometry"),
                 ],
                 defaultValue=HEIGHT_EXPRESSION,
-            )
-        )
-        self.addParameter(
+            ),
             QgsProcessingParameterExpression(
                 self.HEIGHT,
                 self.tr("Height (metres above ground)"),
                 defaultValue="10",
                 parentLayerParameterName=self.INPUT,
                 optional=True,
-            )
-        )
-        self.addParameter(
+            ),
             QgsProcessingParameterEnum(
                 self.GROUND,
                 self.tr("Ground"),
@@ -273,110 +268,62 @@ class BuildingsAlgorithm(QgsProcessingAlgorithm):
                     self.tr("Expression"),
                 ],
                 defaultValue=GROUND_CONSTANT,
-            )
-        )
-        self.addParameter(
+            ),
             QgsProcessingParameterNumber(
                 self.GROUND_VALUE,
                 self.tr("Ground value"),
                 ProcessingNumberParameterType.Double,
                 defaultValue=0.0,
-            )
-        )
-        self.addParameter(
+            ),
             QgsProcessingParameterExpression(
                 self.GROUND_EXPRESSION,
                 self.tr("Ground expression"),
                 parentLayerParameterName=self.INPUT,
                 optional=True,
-            )
-        )
-        self.addParameter(
-            QgsProcessingParameterRasterLayer(self.DEM, self.tr("DEM"), optional=True)
-        )
-        self.addParameter(
-            QgsProcessingParameterBand(
-                self.DEM_BAND,
-                self.tr("DEM band"),
-                defaultValue=1,
-                parentLayerParameterName=self.DEM,
-                optional=True,
-            )
-        )
-        advanced = [
-            QgsProcessingParameterNumber(
-                self.ROOF_PLANAR_TOLERANCE,
-                self.tr("Roof planar tolerance (0 = off)"),
-                ProcessingNumberParameterType.Double,
-                defaultValue=0.0,
-                minValue=0.0,
             ),
-            QgsProcessingParameterEnum(
-                self.APEX_RULE,
-                self.tr("Apex rule"),
+            *dem_and_band(self.DEM, self.DEM_BAND, self.tr),
+            *advanced(
                 [
-                    self.tr("First correct apex (planar)"),
-                    self.tr("Closest elevation"),
-                    self.tr("Constrained Delaunay (largest angle)"),
-                ],
-                defaultValue=0,
+                    non_negative_double(
+                        self.ROOF_PLANAR_TOLERANCE, self.tr("Roof planar tolerance (0 = off)")
+                    ),
+                    apex_rule(self.APEX_RULE, self.tr),
+                    invalid_polygons(
+                        self.INVALID_POLYGONS, self.tr("Repair (make valid), then build"), self.tr
+                    ),
+                    QgsProcessingParameterCrs(
+                        self.TARGET_CRS, self.tr("Target CRS for a geographic layer"), optional=True
+                    ),
+                ]
             ),
-            QgsProcessingParameterEnum(
-                self.INVALID_POLYGONS,
-                self.tr("Invalid polygons"),
-                [
-                    self.tr("Repair (make valid), then build"),
-                    self.tr("Fail the feature"),
-                    self.tr("Triangulate the rings as given"),
-                ],
-                defaultValue=0,
-            ),
-            QgsProcessingParameterCrs(
-                self.TARGET_CRS,
-                self.tr("Target CRS for a geographic layer"),
-                optional=True,
-            ),
-        ]
-        for parameter in advanced:
-            parameter.setFlags(parameter.flags() | ProcessingParameterFlag.Advanced)
-            self.addParameter(parameter)
-        self.addParameter(
-            QgsProcessingParameterFileDestination(
+            file_destination(
                 self.OUTPUT_MESH,
                 self.tr("3D model"),
                 self.tr(
                     "Binary glTF (*.glb);;glTF (*.gltf);;Wavefront OBJ (*.obj);;PLY mesh (*.ply)"
                 ),
-                optional=True,
-                createByDefault=True,
-            )
-        )
-        self.addParameter(
-            QgsProcessingParameterFeatureSink(
-                self.OUTPUT_TRIANGLES,
-                self.tr("Triangles"),
-                ProcessingSourceType.VectorPolygon,
-                optional=True,
-                createByDefault=False,
-            )
-        )
-        self.addParameter(
-            QgsProcessingParameterFileDestination(
+                create_by_default=True,
+            ),
+            polygon_sink(self.OUTPUT_TRIANGLES, self.tr("Triangles"), create_by_default=False),
+            file_destination(
                 self.OUTPUT_CITYJSON,
                 self.tr("CityJSON"),
                 self.tr("CityJSON (*.city.json *.json)"),
-                optional=True,
-                createByDefault=False,
-            )
-        )
-        for name, label in (
-            (self.FEATURE_COUNT, self.tr("Features read")),
-            (self.BUILT_COUNT, self.tr("Buildings built")),
-            (self.FAILED_COUNT, self.tr("Failed features")),
-            (self.EMPTY_COUNT, self.tr("Empty features")),
-            (self.TRIANGLE_COUNT, self.tr("Triangles")),
+                create_by_default=False,
+            ),
+        ]
+        for parameter in declared:
+            self.addParameter(parameter)
+        for output in count_outputs(
+            [
+                (self.FEATURE_COUNT, self.tr("Features read")),
+                (self.BUILT_COUNT, self.tr("Buildings built")),
+                (self.FAILED_COUNT, self.tr("Failed features")),
+                (self.EMPTY_COUNT, self.tr("Empty features")),
+                (self.TRIANGLE_COUNT, self.tr("Triangles")),
+            ]
         ):
-            self.addOutput(QgsProcessingOutputNumber(name, label))
+            self.addOutput(output)
 
     # -- checks -------------------------------------------------------------------------
 
