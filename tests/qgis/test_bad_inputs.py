@@ -25,7 +25,7 @@ from qgis.core import (
     QgsVectorLayer,
 )
 
-from tests.qgis.test_algorithm import (
+from tests.qgis.helpers import (
     CELL,
     COLS,
     DEM_POLYGON,

@@ -20,7 +20,7 @@ from qgis.core import (
 
 from tests import model_checks
 from tests.conftest import SHARED_DATA
-from tests.qgis.test_algorithm import (
+from tests.qgis.helpers import (
     DEM_POLYGON,
     RecordingFeedback,
     corners,
