@@ -2,17 +2,28 @@
 
 Every polygon vertex gets its z from the DEM (bilinear). Each triangulation's surface is then
 compared with the DEM at the centres of the DEM cells inside the polygon: the point's
-containing triangle is found and its z interpolated barycentrically. Reported: RMS and maximum
-of |surface - DEM| for rule "first", rule "elevation", mapbox_earcut and GEOS constrained
-Delaunay, all on the same vertices; then the same after densifying the boundaries (segments of
-at most 100 m, new points' z from the DEM).
+containing triangle is found and its z interpolated barycentrically. One table per layer, a
+row per method: rules "first", "elevation" and "delaunay", mapbox_earcut and GEOS constrained
+Delaunay on the boundary vertices alone; rule "delaunay" with DEM cell centres added inside by
+``terrain/refine.py`` until every cell is within 10, 5 and 2 m; pydelatin's greedy mesh of the
+whole DEM at the same tolerances (its vertices inside the polygons counted, its surface
+measured inside them). Columns: RMS and max |surface - DEM|, points added, triangles, median
+of the triangles' smallest angles, share of triangles under 5 degrees, time. A refined mesh
+over its tolerance prints a FAIL line. Then, for the farms' final 5 m rings and points, our
+engine against the compiled triangulator ``triangle`` (``bench_cdt.py``).
 
-Usage: python bench/bench_fidelity.py [--quick]
+pydelatin and triangle are benchmark-only (``pip install pydelatin triangle``); their rows are
+skipped, saying so, when they are missing.
+
+Usage: python bench/bench_fidelity.py [--quick] [--densify 100] [--no-compiled]
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,22 +31,29 @@ from pathlib import Path
 import mapbox_earcut
 import numpy as np
 import shapely
-from common import SHARED_DATA, BudgetExceededError, Row, markdown_table, within
+import bench_cdt
+from common import SHARED_DATA, BudgetExceededError, Row, markdown_table, timed, within
 from osgeo import gdal, ogr, osr
 
 from bsp_triangulate import triangulate_many
 from bsp_triangulate.terrain.densify import densify_rings
 from bsp_triangulate.terrain.raster_sampling import fill_along_ring, sample_grid
+from bsp_triangulate.terrain.refine import CellGrid, locate_cells, refine_many
 
 SWELLENDAM = SHARED_DATA / "swellendam"
 DEM_PATH = SWELLENDAM / "srtm_41_19.tif"
 FARMS = SWELLENDAM / "farms_33S.shp"
 RIVERS = SWELLENDAM / "rivers.shp"
 RIVER_BUFFER = 50.0
-DENSIFY = 100.0
 QUICK_FARMS = 300
-DEFAULT_BUDGET = 1_800.0  # seconds per triangulation run before it is abandoned
-CHUNK = 2_000_000  # candidate (triangle, cell) pairs per numpy batch
+DEFAULT_BUDGET = 1_800.0  # seconds per method and layer before it is abandoned
+TOLERANCES = (10.0, 5.0, 2.0)  # metres, the refinements' and pydelatin's
+MAX_POINTS = 1_000_000  # per polygon: no cap in practice, so every cell can be met
+SLIVER_DEGREES = 5.0
+TOLERANCE_SLACK = 1e-6  # metres of rounding allowed over a tolerance
+REPEAT = 3  # calls of the boundary-only methods and pydelatin: the best time
+CDT_METHOD = 'rule "delaunay" + DEM points, 5 m'
+CDT_CASE = "farms, final rings and points of the 5 m refinement: ours against triangle"
 
 gdal.UseExceptions()
 ogr.UseExceptions()
@@ -58,6 +76,10 @@ class Dem:
         if geotransform[2] or geotransform[4]:
             raise ValueError("only north-up DEMs are supported")
         return cls(dataset.GetRasterBand(1).ReadAsArray().astype(np.float64), geotransform)
+
+    @property
+    def grid(self) -> CellGrid:
+        return CellGrid.from_array(self.values, self.geotransform)
 
     def z(self, xy: np.ndarray) -> np.ndarray:
         """Bilinear heights along a ring; vertices just off the DEM take their neighbours'."""
@@ -144,17 +166,6 @@ def polygon_rings(polygon: shapely.Polygon, dem: Dem, densify: float | None) -> 
     return [np.column_stack([ring[:, :2], dem.z(ring)]) for ring in rings]
 
 
-def meshes_ours(polygons: list[Rings], rule: str) -> list[Mesh]:
-    # a polygon the engine rejects gets an empty mesh: its cells count as uncovered
-    results = triangulate_many(polygons, rule=rule, on_error="return")
-    return [
-        (result.vertices, result.triangles)
-        if hasattr(result, "triangles")
-        else (np.zeros((0, 3)), np.zeros((0, 3), np.int64))
-        for result in results
-    ]
-
-
 def meshes_earcut(polygons: list[Rings]) -> list[Mesh]:
     meshes = []
     for rings in polygons:
@@ -207,12 +218,8 @@ def evaluation_cells(polygons: list[shapely.Polygon], dem: Dem) -> np.ndarray:
 
 
 def surface_at_cells(meshes: list[Mesh], dem: Dem) -> tuple[np.ndarray, np.ndarray]:
-    """(cell keys, surface z) of every DEM cell centre covered by a triangle of each mesh.
-
-    Each triangle enumerates the cell centres of its bounding box; barycentric coordinates
-    decide containment (with a tiny tolerance, so shared edges count for both triangles and the
-    first hit is kept) and give the interpolated z.
-    """
+    """(cell keys, surface z) of every DEM cell centre covered by a triangle of each mesh
+    (``terrain.refine.locate_cells``; a centre on a shared edge keeps its first hit)."""
     columns = dem.values.shape[1]
     cells = dem.values.size
     corners, owners = [], []
@@ -222,42 +229,9 @@ def surface_at_cells(meshes: list[Mesh], dem: Dem) -> tuple[np.ndarray, np.ndarr
             owners.append(np.full(len(triangles), number, np.int64))
     if not corners:
         return np.zeros(0, np.int64), np.zeros(0)
-    xyz = np.concatenate(corners)  # (t, 3, 3)
     owner = np.concatenate(owners)
-    c0, c1 = dem.column_range(xyz[:, :, 0].min(1), xyz[:, :, 0].max(1))
-    r0, r1 = dem.row_range(xyz[:, :, 1].min(1), xyz[:, :, 1].max(1))
-    width = np.maximum(c1 - c0 + 1, 0)
-    height = np.maximum(r1 - r0 + 1, 0)
-    counts = width * height
-    all_keys, all_z = [], []
-    starts = np.concatenate([[0], np.cumsum(counts)])
-    batch_start = 0
-    while batch_start < len(counts):
-        batch_end = int(np.searchsorted(starts, starts[batch_start] + CHUNK, side="right")) - 1
-        batch_end = max(batch_end, batch_start + 1)
-        batch = np.arange(batch_start, min(batch_end, len(counts)))
-        triangle = np.repeat(batch, counts[batch])
-        offset = np.arange(len(triangle)) - np.repeat(
-            starts[batch] - starts[batch[0]], counts[batch]
-        )
-        col = c0[triangle] + offset % width[triangle]
-        row = r0[triangle] + offset // np.maximum(width[triangle], 1)
-        px, py = dem.centre_x(col), dem.centre_y(row)
-        a, b, c = xyz[triangle, 0], xyz[triangle, 1], xyz[triangle, 2]
-        det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-        with np.errstate(invalid="ignore", divide="ignore"):
-            wb = ((px - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (py - a[:, 1])) / det
-            wc = ((b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (px - a[:, 0]) * (b[:, 1] - a[:, 1])) / det
-            wa = 1.0 - wb - wc
-            z = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
-        tolerance = -1e-9
-        hit = (det != 0) & (wa >= tolerance) & (wb >= tolerance) & (wc >= tolerance)
-        all_keys.append(owner[triangle[hit]] * cells + row[hit] * columns + col[hit])
-        all_z.append(z[hit])
-        batch_start = batch_end
-    keys = np.concatenate(all_keys)
-    z = np.concatenate(all_z)
-    keys, first = np.unique(keys, return_index=True)
+    triangle, row, col, z = locate_cells(np.concatenate(corners), [dem.grid])
+    keys, first = np.unique(owner[triangle] * cells + row * columns + col, return_index=True)
     return keys, z[first]
 
 
@@ -274,6 +248,13 @@ class Fidelity:
 
 def fidelity(meshes: list[Mesh], cells: np.ndarray, dem: Dem) -> Fidelity:
     keys, surface = surface_at_cells(meshes, dem)
+    return fidelity_at(keys, surface, cells, dem, sum(len(triangles) for _, triangles in meshes))
+
+
+def fidelity_at(
+    keys: np.ndarray, surface: np.ndarray, cells: np.ndarray, dem: Dem, triangles: int
+) -> Fidelity:
+    """Fidelity at ``cells`` given the surface's sorted cell ``keys`` and heights."""
     position = np.searchsorted(keys, cells)
     position = np.minimum(position, max(len(keys) - 1, 0))
     covered = (keys[position] == cells) if len(keys) else np.zeros(len(cells), bool)
@@ -284,87 +265,371 @@ def fidelity(meshes: list[Mesh], cells: np.ndarray, dem: Dem) -> Fidelity:
         float(np.abs(difference).max()) if len(difference) else float("nan"),
         int(covered.sum()),
         int((~covered).sum()),
-        sum(len(triangles) for _, triangles in meshes),
+        triangles,
     )
 
 
-METHODS: dict[str, Callable[[list[Rings]], list[Mesh]]] = {
-    'bsp_triangulate rule "first"': lambda polygons: meshes_ours(polygons, "first"),
-    'bsp_triangulate rule "elevation"': lambda polygons: meshes_ours(polygons, "elevation"),
-    "mapbox_earcut": meshes_earcut,
-    "GEOS constrained Delaunay": meshes_geos,
-}
+def minimum_angles(corners: np.ndarray) -> np.ndarray:
+    """The smallest angle (degrees, in XY) of each triangle of ``corners`` (t, 3, >=2)."""
+    xy = np.asarray(corners, dtype=np.float64)[:, :, :2]
+    sides = np.roll(xy, -1, axis=1) - xy  # side i runs from corner i to corner i + 1
+    lengths = np.linalg.norm(sides, axis=2)
+    angles = []
+    for i in range(3):
+        u, v = sides[:, i], -sides[:, i - 1]  # both leave corner i
+        cross = np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])
+        dot = (u * v).sum(1)
+        angles.append(np.degrees(np.arctan2(cross, dot)))
+    smallest = np.min(angles, axis=0)
+    return np.where(lengths.min(1) > 0, smallest, 0.0)
 
 
-def layer_results(
-    name: str, shapes: list[shapely.Polygon], dem: Dem, budget: float | None
-) -> list[tuple[str, str, Fidelity | str]]:
-    cells = evaluation_cells(shapes, dem)
-    results = []
-    for densify in (None, DENSIFY):
-        polygons = [polygon_rings(shape, dem, densify) for shape in shapes]
-        vertices = sum(len(ring) for rings in polygons for ring in rings)
-        label = f"{name}, {len(shapes):,} polygons, {vertices:,} vertices"
-        label += f", densified to {DENSIFY:.0f} m" if densify else ""
-        for method, build in METHODS.items():
-            try:
-                meshes = within(lambda build=build, polygons=polygons: build(polygons), budget)
-            except BudgetExceededError:
-                results.append((label, method, f"> {budget:.0f} s (stopped)"))
-                continue
-            except RuntimeError as error:
-                results.append((label, method, f"failed: {error}"))
-                continue
-            results.append((label, method, fidelity(meshes, cells, dem)))
-    return results
+def mesh_angles(meshes: list[Mesh]) -> np.ndarray:
+    corners = [vertices[triangles] for vertices, triangles in meshes if len(triangles)]
+    return minimum_angles(np.concatenate(corners)) if corners else np.zeros(0)
 
 
-def run_table(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> tuple[str, list[Row]]:
-    """The Markdown table of fidelity figures and the same as rows for run_all."""
-    dem = Dem.read(DEM_PATH)
-    layers = {
+@dataclass
+class Outcome:
+    """One method on one layer: its fidelity, the points it added, the smallest angle of each
+    triangle, its time (s) and, for the refinements, what the refinement itself reported."""
+
+    fidelity: Fidelity
+    added: int
+    angles: np.ndarray
+    seconds: float
+    note: str = ""
+    points: list[np.ndarray] | None = None  # the refinements' interior points per polygon
+
+    @property
+    def median_angle(self) -> float:
+        return float(np.median(self.angles)) if len(self.angles) else float("nan")
+
+    @property
+    def slivers(self) -> float:
+        """Share of the triangles whose smallest angle is under SLIVER_DEGREES."""
+        return float((self.angles < SLIVER_DEGREES).mean()) if len(self.angles) else float("nan")
+
+
+@dataclass
+class Layer:
+    """A data set: its polygons, their rings with z from the DEM, the cells inside them."""
+
+    name: str
+    shapes: list[shapely.Polygon]
+    polygons: list[Rings]
+    cells: np.ndarray
+
+    @property
+    def label(self) -> str:
+        vertices = sum(len(ring) for rings in self.polygons for ring in rings)
+        return (
+            f"{self.name}: {len(self.shapes):,} polygons, {vertices:,} vertices, "
+            f"{len(self.cells):,} DEM cells inside"
+        )
+
+
+def rebuilt(polygons: list[Rings], rule: str, points: list[np.ndarray] | None = None) -> list[Mesh]:
+    """The meshes of ``triangulate_many``; a polygon the engine rejects gets an empty mesh
+    (its cells then count as uncovered)."""
+    results = triangulate_many(polygons, rule=rule, points=points, plane="xy", on_error="return")
+    empty = (np.zeros((0, 3)), np.zeros((0, 3), np.int64))
+    return [
+        (result.vertices, result.triangles) if hasattr(result, "triangles") else empty
+        for result in results
+    ]
+
+
+def meshes_ours(polygons: list[Rings], rule: str) -> list[Mesh]:
+    return rebuilt(polygons, rule)
+
+
+def boundary_method(build: Callable[[list[Rings]], list[Mesh]]) -> Callable[..., Outcome]:
+    """A method on the boundary vertices alone: best of ``REPEAT`` calls."""
+
+    def measure(layer: Layer, dem: Dem) -> Outcome:
+        seconds, meshes = timed(lambda: build(layer.polygons), REPEAT)
+        return Outcome(fidelity(meshes, layer.cells, dem), 0, mesh_angles(meshes), seconds)
+
+    return measure
+
+
+def refined(tolerance: float) -> Callable[..., Outcome]:
+    """Rule "delaunay" with DEM points added by ``refine_many`` until within ``tolerance``.
+
+    The time is ``refine_many``'s (its rounds of triangulation and error measurement, the
+    last round triangulating with every point); the mesh is then built again to measure it.
+    """
+
+    def measure(layer: Layer, dem: Dem) -> Outcome:
+        grid = dem.grid
+        start = time.perf_counter()
+        results = refine_many(
+            layer.polygons,
+            [grid] * len(layer.polygons),
+            tolerance,
+            MAX_POINTS,
+            engine=triangulate_many,
+            rule="delaunay",
+            plane="xy",
+        )
+        seconds = time.perf_counter() - start
+        points = [result.points for result in results]
+        meshes = rebuilt(layer.polygons, "delaunay", points)
+        capped = sum(result.capped for result in results)
+        failed = sum(result.error is not None for result in results)
+        outside = sum(not result.within for result in results)
+        note = f"{max(result.rounds for result in results)} rounds, reported max "
+        note += f"{max(result.max_error for result in results):.2f} m"
+        note += f", {outside} not within" if outside else ""
+        note += f", {capped} capped" if capped else ""
+        note += f", {failed} failed" if failed else ""
+        return Outcome(
+            fidelity(meshes, layer.cells, dem),
+            sum(result.added for result in results),
+            mesh_angles(meshes),
+            seconds,
+            note,
+            points,
+        )
+
+    return measure
+
+
+def pydelatin_method(tolerance: float) -> Callable[..., Outcome]:
+    """pydelatin's greedy mesh of the whole DEM at ``tolerance``, seen inside the polygons.
+
+    Points: its vertices strictly inside a polygon; fidelity: its surface at the cells inside
+    the polygons; angles: its triangles whose centroid is inside one; time: the whole DEM.
+    """
+
+    def measure(layer: Layer, dem: Dem) -> Outcome:
+        from pydelatin import Delatin
+
+        rows, columns = dem.values.shape
+        heights = dem.values.astype(np.float32)
+        seconds, tin = timed(
+            lambda: Delatin(heights, height=rows, width=columns, max_error=tolerance), REPEAT
+        )
+        # its vertices are (column, rows up from the last row): the cells' centres
+        column = tin.vertices[:, 0].astype(np.int64)
+        row = rows - 1 - tin.vertices[:, 1].astype(np.int64)
+        vertices = np.column_stack([dem.centre_x(column), dem.centre_y(row), tin.vertices[:, 2]])
+        triangles = np.asarray(tin.triangles, np.int64)
+        keys, surface = surface_at_cells([(vertices, triangles)], dem)
+        whole = fidelity_at(keys, surface, np.arange(dem.values.size), dem, len(triangles))
+        measured = fidelity_at(keys, surface, layer.cells % dem.values.size, dem, 0)
+        tree = shapely.STRtree(layer.shapes)
+        inside = tree.query(shapely.points(vertices[:, :2]), predicate="within")[0]
+        centroids = shapely.points(vertices[triangles, :2].mean(1))
+        kept = np.unique(tree.query(centroids, predicate="within")[0])
+        measured.triangles = len(kept)
+        note = f"{len(vertices):,} vertices and max {whole.maximum:.2f} m over the whole DEM"
+        return Outcome(
+            measured,
+            len(np.unique(inside)),
+            minimum_angles(vertices[triangles[kept]]),
+            seconds,
+            note,
+        )
+
+    return measure
+
+
+def methods(densify: float | None) -> dict[str, Callable[[Layer, Dem], Outcome]]:
+    """The compared methods by label; the refinements and pydelatin only without densify."""
+    chosen: dict[str, Callable[[Layer, Dem], Outcome]] = {
+        f'rule "{rule}"': boundary_method(lambda polygons, rule=rule: meshes_ours(polygons, rule))
+        for rule in ("first", "elevation", "delaunay")
+    }
+    chosen["mapbox_earcut"] = boundary_method(meshes_earcut)
+    chosen["GEOS constrained Delaunay"] = boundary_method(meshes_geos)
+    if densify:
+        return chosen
+    for tolerance in TOLERANCES:
+        chosen[f'rule "delaunay" + DEM points, {tolerance:g} m'] = refined(tolerance)
+    if importlib.util.find_spec("pydelatin") is None:
+        print("pydelatin is not installed (pip install pydelatin): its rows are skipped")
+    else:
+        for tolerance in TOLERANCES:
+            chosen[f"pydelatin (whole DEM), {tolerance:g} m"] = pydelatin_method(tolerance)
+    return chosen
+
+
+def tolerance_of(method: str) -> float | None:
+    """The tolerance a refined method must meet (None for the others)."""
+    if "+ DEM points" not in method and not method.startswith("pydelatin"):
+        return None
+    return float(method.rsplit(", ", 1)[1].removesuffix(" m"))
+
+
+def load_layers(dem: Dem, quick: bool, densify: float | None) -> list[Layer]:
+    shapes = {
         "farms": read_polygons(FARMS, limit=QUICK_FARMS if quick else None),
         f"rivers buffered {RIVER_BUFFER:.0f} m": read_polygons(
             RIVERS, buffer=RIVER_BUFFER, clip=dem.box()
         ),
     }
-    results = []
-    for name, shapes in layers.items():
-        results += layer_results(name, shapes, dem, budget)
-    table = markdown_table(
-        ["data", "triangulation", "RMS (m)", "max (m)", "cells", "uncovered", "triangles"],
-        [
-            (label, method, f, "", "", "", "")
-            if isinstance(f, str)
-            else (label, method, f.rms, f.maximum, f.evaluated, f.uncovered, f.triangles)
-            for label, method, f in results
-        ],
-    )
-    rows = []
-    for label, method, f in results:
-        if isinstance(f, str):
-            rows.append(Row(label, f"{method}: RMS of surface - DEM", f))
+    layers = []
+    for name, polygons in shapes.items():
+        name += f", boundaries densified to {densify:g} m" if densify else ""
+        rings = [polygon_rings(shape, dem, densify) for shape in polygons]
+        layers.append(Layer(name, polygons, rings, evaluation_cells(polygons, dem)))
+    return layers
+
+
+def layer_results(
+    layer: Layer, dem: Dem, budget: float | None, densify: float | None = None
+) -> list[tuple[str, Outcome | str]]:
+    """(method, outcome or why it has none) of every method on one layer, each method in a
+    forked child stopped after ``budget`` seconds."""
+    results: list[tuple[str, Outcome | str]] = []
+    for method, measure in methods(densify).items():
+        try:
+            outcome = within(lambda measure=measure: measure(layer, dem), budget)
+        except BudgetExceededError:
+            outcome = f"> {budget:.0f} s (stopped)"
+        except RuntimeError as error:
+            outcome = f"failed: {error}"
+        print(f"  {layer.name}: {method} done", file=sys.stderr, flush=True)
+        results.append((method, outcome))
+    return results
+
+
+def failures(layer: Layer, results: list[tuple[str, Outcome | str]]) -> list[str]:
+    """FAIL lines: a refined mesh or pydelatin's over its tolerance, or cells uncovered."""
+    lines = []
+    for method, outcome in results:
+        tolerance = tolerance_of(method)
+        if tolerance is None:
             continue
-        note = f"max {f.maximum:.1f} m over {f.evaluated:,} DEM cells, {f.uncovered:,} uncovered"
-        rows.append(Row(label, f"{method}: RMS of surface - DEM", f.rms, "m", note))
-    return table, rows
+        if isinstance(outcome, str):
+            lines.append(f"FAIL: {layer.name}, {method}: {outcome}")
+            continue
+        f = outcome.fidelity
+        if not f.maximum <= tolerance + TOLERANCE_SLACK:
+            lines.append(f"FAIL: {layer.name}, {method}: max {f.maximum:.3f} m > {tolerance:g} m")
+        if f.uncovered:
+            lines.append(f"FAIL: {layer.name}, {method}: {f.uncovered:,} cells uncovered")
+    return lines
+
+
+HEADERS = (
+    "triangulation",
+    "RMS (m)",
+    "max (m)",
+    "points added",
+    "triangles",
+    "median min angle (°)",
+    "under 5°",
+    "time (s)",
+)
+
+
+def layer_table(results: list[tuple[str, Outcome | str]]) -> str:
+    rows = []
+    for method, outcome in results:
+        if isinstance(outcome, str):
+            rows.append((method, outcome, "", "", "", "", "", ""))
+            continue
+        f = outcome.fidelity
+        maximum = f"{f.maximum:.2f}" + (f" ({f.uncovered:,} uncovered)" if f.uncovered else "")
+        rows.append(
+            (
+                method,
+                f"{f.rms:.2f}",
+                maximum,
+                f"{outcome.added:,}",
+                f"{f.triangles:,}",
+                f"{outcome.median_angle:.1f}",
+                f"{outcome.slivers:.1%}",
+                outcome.seconds,
+            )
+        )
+    return markdown_table(HEADERS, rows)
+
+
+def result_rows(layer: Layer, results: list[tuple[str, Outcome | str]]) -> list[Row]:
+    rows = []
+    for method, outcome in results:
+        if isinstance(outcome, str):
+            rows.append(Row(layer.label, f"{method}: RMS of surface - DEM", outcome))
+            continue
+        f = outcome.fidelity
+        note = (
+            f"max {f.maximum:.2f} m, {outcome.added:,} points added, {f.triangles:,} triangles, "
+            f"median min angle {outcome.median_angle:.1f}°, {outcome.slivers:.1%} under 5°, "
+            f"{outcome.seconds:.2f} s"
+        )
+        note += f", {f.uncovered:,} cells uncovered" if f.uncovered else ""
+        note += f"; {outcome.note}" if outcome.note else ""
+        rows.append(Row(layer.label, f"{method}: RMS of surface - DEM", f.rms, "m", note))
+    return rows
+
+
+def run_tables(
+    quick: bool = False,
+    budget: float | None = DEFAULT_BUDGET,
+    densify: float | None = None,
+    compiled: bool = True,
+) -> tuple[str, list[Row]]:
+    """The Markdown tables (one per layer, then the FAIL lines and the compiled-CDT ratio)
+    and the same as rows for run_all."""
+    dem = Dem.read(DEM_PATH)
+    text, rows, failed = [], [], []
+    cdt_input = None
+    for layer in load_layers(dem, quick, densify):
+        results = layer_results(layer, dem, budget, densify)
+        text += [f"**{layer.label}**", "", layer_table(results), ""]
+        rows += result_rows(layer, results)
+        failed += failures(layer, results)
+        outcome = dict(results).get(CDT_METHOD)
+        if layer.name == "farms" and isinstance(outcome, Outcome):
+            cdt_input = (layer.polygons, outcome.points)
+    text += failed or ["All refined meshes are within their tolerance."]
+    rows += [Row("fidelity check", "FAIL", line) for line in failed]
+    if compiled and cdt_input is not None:
+        table, cdt_rows = bench_cdt.compare(*cdt_input, budget, rounds=1 if quick else 3)
+        text += ["", f"**{CDT_CASE}**", "", table]
+        rows += [Row(CDT_CASE, row.measure, row.value, row.unit, row.note) for row in cdt_rows]
+    return "\n".join(text), rows
+
+
+def run_table(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> tuple[str, list[Row]]:
+    """The Markdown tables and the rows (as ``run_tables`` with its defaults)."""
+    return run_tables(quick, budget)
 
 
 def run(
     quick: bool = False, budget: float | None = DEFAULT_BUDGET, count: int | None = None
 ) -> list[Row]:
     """Fidelity rows (``count`` is not used: the data set is fixed)."""
-    return run_table(quick, budget)[1]
+    tables, rows = run_tables(quick, budget)
+    print(tables, flush=True)
+    return rows
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help=f"first {QUICK_FARMS} farms only")
     parser.add_argument(
-        "--budget", type=float, default=DEFAULT_BUDGET, help="seconds per triangulation at most"
+        "--budget", type=float, default=DEFAULT_BUDGET, help="seconds per method at most"
+    )
+    parser.add_argument(
+        "--densify",
+        type=float,
+        help="densify the boundaries to segments of at most this length (m) first "
+        "(boundary-only methods then)",
+    )
+    parser.add_argument(
+        "--no-compiled", action="store_true", help="skip the compiled constrained-Delaunay ratio"
     )
     arguments = parser.parse_args()
-    print(run_table(arguments.quick, arguments.budget)[0])
+    print(
+        run_tables(arguments.quick, arguments.budget, arguments.densify, not arguments.no_compiled)[
+            0
+        ]
+    )
 
 
 if __name__ == "__main__":

@@ -255,11 +255,20 @@ def refine(
     engine: Callable[..., list],
     fixed: np.ndarray | None = None,
     share: float = 0.0,
+    finish_share: float = 0.0,
     **options: object,
 ) -> Refinement:
     """:func:`refine_many` of one polygon."""
     return refine_many(
-        [rings], [grid], tolerance, max_points, engine=engine, fixed=[fixed], share=share, **options
+        [rings],
+        [grid],
+        tolerance,
+        max_points,
+        engine=engine,
+        fixed=[fixed],
+        share=share,
+        finish_share=finish_share,
+        **options,
     )[0]
 
 
@@ -273,6 +282,7 @@ def refine_many(
     fixed: Sequence[np.ndarray | None] | None = None,
     groups: Sequence[int] | None = None,
     share: float = 0.0,
+    finish_share: float = 0.0,
     progress: Callable[[int, int], None] | None = None,
     **options: object,
 ) -> list[Refinement]:
@@ -283,7 +293,9 @@ def refine_many(
     always in the mesh (survey points); ``groups``: per polygon, the group whose
     ``max_points`` added points it shares (a feature's parts; each polygon its own by
     default). ``share``: a round adds only the cells off by at least this share of the
-    polygon's largest error (0: every triangle's worst cell). ``progress(round, active)``
+    polygon's largest error (0: every triangle's worst cell); a polygon whose cells beyond
+    the tolerance are at most ``finish_share`` times the DEM points it has takes them all
+    at once (fewer rounds for a few more points). ``progress(round, active)``
     is called before each round. ``engine``: ``bsp_triangulate.triangulate_many`` (passed
     in, as ``terrain`` imports nothing of the engine), called once per round over all the
     polygons still refined, with ``options`` (rule, plane...).
@@ -356,13 +368,20 @@ def refine_many(
         np.maximum.at(worst, owner[cand], error)
         missing = np.bincount(owner[in_round & ~located], minlength=count)
         # each triangle's worst cell beyond the tolerance, if not given already
-        want = (error > limit) & ~taken[cand]
-        if share > 0:
-            want &= error >= share * worst[owner[cand]]
-        tri, cand, error = tri[want], cand[want], error[want]
-        order = np.lexsort((-error, tri))
-        first = order[np.r_[True, tri[order][1:] != tri[order][:-1]]] if len(order) else order
-        pick, pick_error = cand[first], error[first]
+        over = (error > limit) & ~taken[cand]
+        want = over & (error >= share * worst[owner[cand]]) if share > 0 else over
+        wanted_tri, wanted_cand, wanted_error = tri[want], cand[want], error[want]
+        order = np.lexsort((-wanted_error, wanted_tri))
+        sorted_tri = wanted_tri[order]
+        first = order[np.r_[True, sorted_tri[1:] != sorted_tri[:-1]]] if len(order) else order
+        pick, pick_error = wanted_cand[first], wanted_error[first]
+        # a polygon with few cells left over takes them all: its last rounds cost the most
+        over_cells, over_at = np.unique(cand[over], return_index=True)
+        over_count = np.bincount(owner[over_cells], minlength=count)
+        finishing = over_count <= finish_share * np.maximum(used_cells, 1)
+        rest = finishing[owner[over_cells]]
+        pick = np.concatenate([pick, over_cells[rest]])
+        pick_error = np.concatenate([pick_error, error[over][over_at][rest]])
         pick, unique_at = np.unique(pick, return_index=True)
         pick_error = pick_error[unique_at]
         # the cap: each group's remaining points go to its worst cells first
