@@ -18,8 +18,9 @@ from .spatial_index import PointColumns, SegmentGrid
 
 # relative margin within which float squared distances are re-compared exactly
 _DISTANCE_MARGIN = 1e-9
-# bridge candidates tested together at first (then four times as many each time)
+# bridge candidates tested together: doubling from the first block size up to the last
 _FIRST_BLOCK = 8
+_LAST_BLOCK = 64
 
 
 def _ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -318,48 +319,37 @@ class _Bridger:
         clear = np.ones(len(us), dtype=bool)
         if len(us) == 0:
             return clear
-        xmin, xmax = min(wx, float(ux.min())), max(wx, float(ux.max()))
-        ymin, ymax = min(wy, float(uy.min())), max(wy, float(uy.max()))
-        found = np.unique(self.edges.query_box(xmin, ymin, xmax, ymax))
+        row, found = self.edges.query_segments(ux, uy, np.full(len(us), wx), np.full(len(us), wy))
         a, b = self.edge_a[found], self.edge_b[found]
         if self.bridge_count:
             extra = self.bridges[: self.bridge_count]
-            a, b = np.concatenate([a, extra[:, 0]]), np.concatenate([b, extra[:, 1]])
-        if len(a) == 0:
-            return clear
-        ax, ay, bx, by = x[a], y[a], x[b], y[b]
-        ex0, ex1 = np.minimum(ax, bx), np.maximum(ax, bx)
-        ey0, ey1 = np.minimum(ay, by), np.maximum(ay, by)
-        sx0, sx1 = np.minimum(ux, wx), np.maximum(ux, wx)
-        sy0, sy1 = np.minimum(uy, wy), np.maximum(uy, wy)
-        rows_per_block = max(1, _PAIR_CHUNK // len(a))
-        for start in range(0, len(us), rows_per_block):
-            part = slice(start, start + rows_per_block)
-            # only edges whose bounding box meets the segment's can meet it (exact)
-            near = (
-                (ex1 >= sx0[part, None])
-                & (ex0 <= sx1[part, None])
-                & (ey1 >= sy0[part, None])
-                & (ey0 <= sy1[part, None])
-            )
-            row, col = np.nonzero(near)
-            if len(row) == 0:
-                continue
-            row += start
-            pux, puy = ux[row], uy[row]
-            pax, pay, pbx, pby = ax[col], ay[col], bx[col], by[col]
-            o1 = orient_many(pux, puy, wx, wy, pax, pay)
-            o2 = orient_many(pux, puy, wx, wy, pbx, pby)
-            on_a = (o1 == 0) & strictly_between(pax, pay, pux, puy, wx, wy)
-            on_b = (o2 == 0) & strictly_between(pbx, pby, pux, puy, wx, wy)
-            blocked = on_a | on_b
-            straddle = np.flatnonzero(~blocked & ((o1.astype(np.int16) * o2) < 0))
-            if len(straddle):
-                qax, qay, qbx, qby = pax[straddle], pay[straddle], pbx[straddle], pby[straddle]
-                o3 = orient_many(qax, qay, qbx, qby, pux[straddle], puy[straddle])
-                o4 = orient_many(qax, qay, qbx, qby, wx, wy)
-                blocked[straddle] = (o3.astype(np.int16) * o4) < 0
-            clear[row[blocked]] = False
+            row = np.concatenate([row, np.repeat(np.arange(len(us)), len(extra))])
+            a = np.concatenate([a, np.tile(extra[:, 0], len(us))])
+            b = np.concatenate([b, np.tile(extra[:, 1], len(us))])
+        pax, pay, pbx, pby = x[a], y[a], x[b], y[b]
+        pux, puy = ux[row], uy[row]
+        # only edges whose bounding box meets the segment's can meet it (exact)
+        near = (
+            (np.maximum(pax, pbx) >= np.minimum(pux, wx))
+            & (np.minimum(pax, pbx) <= np.maximum(pux, wx))
+            & (np.maximum(pay, pby) >= np.minimum(puy, wy))
+            & (np.minimum(pay, pby) <= np.maximum(puy, wy))
+        )
+        pick = np.flatnonzero(near)
+        row, pux, puy = row[pick], pux[pick], puy[pick]
+        pax, pay, pbx, pby = pax[pick], pay[pick], pbx[pick], pby[pick]
+        o1 = orient_many(pux, puy, wx, wy, pax, pay)
+        o2 = orient_many(pux, puy, wx, wy, pbx, pby)
+        on_a = (o1 == 0) & strictly_between(pax, pay, pux, puy, wx, wy)
+        on_b = (o2 == 0) & strictly_between(pbx, pby, pux, puy, wx, wy)
+        blocked = on_a | on_b
+        straddle = np.flatnonzero(~blocked & ((o1.astype(np.int16) * o2) < 0))
+        if len(straddle):
+            qax, qay, qbx, qby = pax[straddle], pay[straddle], pbx[straddle], pby[straddle]
+            o3 = orient_many(qax, qay, qbx, qby, pux[straddle], puy[straddle])
+            o4 = orient_many(qax, qay, qbx, qby, wx, wy)
+            blocked[straddle] = (o3.astype(np.int16) * o4) < 0
+        clear[row[blocked]] = False
         return clear
 
     def _valid_many(self, vids: np.ndarray, island: np.ndarray, h_index: int) -> list[list[int]]:
@@ -420,7 +410,7 @@ class _Bridger:
                     stop = min(end, int(np.searchsorted(dist, reach, "right")))
                     if stop <= position:
                         break
-                block *= 4
+                block = min(2 * block, _LAST_BLOCK)
                 chunk = near[position:stop]
                 fresh = np.array([vid not in tested for vid in chunk.tolist()], dtype=bool)
                 if fresh.any():

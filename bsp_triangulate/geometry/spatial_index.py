@@ -139,6 +139,42 @@ class SegmentGrid:
         rows = np.arange(r0, r1 + 1)
         return self._gather(rows, np.full(len(rows), c0), np.full(len(rows), c1))
 
+    def query_segments(
+        self, ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(query, item) pairs: the segments in the cells that each query segment
+        ``(ax[k], ay[k]) - (bx[k], by[k])`` passes through (may repeat pairs), for many
+        query segments at once."""
+        pad = self.pad
+        xmin, xmax = np.minimum(ax, bx), np.maximum(ax, bx)
+        ymin, ymax = np.minimum(ay, by), np.maximum(ay, by)
+        r0, r1 = self._row(ymin, -pad), self._row(ymax, pad)
+        spans = r1 - r0 + 1
+        query = np.repeat(np.arange(len(ax), dtype=np.int64), spans)
+        row = np.repeat(r0, spans) + (
+            np.arange(len(query), dtype=np.int64) - np.repeat(np.cumsum(spans) - spans, spans)
+        )
+        # the query's x-range within each row's band (its whole x-range within one row)
+        band_lo = np.maximum(self.y0 + row * self.size_y - pad, ymin[query])
+        band_hi = np.minimum(self.y0 + (row + 1) * self.size_y + pad, ymax[query])
+        qax, qay, qbx, qby = ax[query], ay[query], bx[query], by[query]
+        dy = qby - qay
+        whole = (spans[query] == 1) | (dy == 0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            slope = (qbx - qax) / np.where(whole, 1.0, dy)
+            xl = qax + (band_lo - qay) * slope
+            xh = qax + (band_hi - qay) * slope
+        whole |= ~(np.isfinite(xl) & np.isfinite(xh))
+        lo_x = np.where(whole, xmin[query], np.maximum(np.minimum(xl, xh), xmin[query]))
+        hi_x = np.where(whole, xmax[query], np.minimum(np.maximum(xl, xh), xmax[query]))
+        base = row * self.nx
+        first = self.starts[base + self._col(lo_x, -pad)]
+        last = self.starts[base + self._col(hi_x, pad) + 1]
+        counts = last - first
+        total = int(counts.sum())
+        offsets = np.arange(total, dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
+        return np.repeat(query, counts), self.items[np.repeat(first, counts) + offsets]
+
     def query_triangle(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
         """Ids of segments in the cells that meet the closed triangle (or segment) with the
         corners ``(px[k], py[k])`` (may repeat ids)."""
