@@ -283,6 +283,7 @@ def refine_many(
     groups: Sequence[int] | None = None,
     share: float = 0.0,
     finish_share: float = 0.0,
+    spacing: int = 1,
     progress: Callable[[int, int], None] | None = None,
     **options: object,
 ) -> list[Refinement]:
@@ -295,7 +296,9 @@ def refine_many(
     default). ``share``: a round adds only the cells off by at least this share of the
     polygon's largest error (0: every triangle's worst cell); a polygon whose cells beyond
     the tolerance are at most ``finish_share`` times the DEM points it has takes them all
-    at once (fewer rounds for a few more points). ``progress(round, active)``
+    at once (fewer rounds for a few more points). ``spacing``: a round leaves out a cell
+    when another of its polygon's picks, farther off, lies within this many cells in rows
+    and columns (default 1; 0: none left out). ``progress(round, active)``
     is called before each round. ``engine``: ``bsp_triangulate.triangulate_many`` (passed
     in, as ``terrain`` imports nothing of the engine), called once per round over all the
     polygons still refined, with ``options`` (rule, plane...).
@@ -384,6 +387,9 @@ def refine_many(
         pick_error = np.concatenate([pick_error, error[over][over_at][rest]])
         pick, unique_at = np.unique(pick, return_index=True)
         pick_error = pick_error[unique_at]
+        if spacing:
+            keep_pick = _local_maxima(pick, pick_error, owner, cell_row, cell_col, spacing)
+            pick, pick_error = pick[keep_pick], pick_error[keep_pick]
         # the cap: each group's remaining points go to its worst cells first
         pick_group = group[owner[pick]]
         order = np.lexsort((-pick_error, pick_group))
@@ -467,3 +473,39 @@ def _lookup(
     table = np.full(int(sizes.sum()), -1, np.int64)
     table[base[owner] + rows * _cols(windows)[owner] + cols] = np.arange(len(owner))
     return table, base
+
+
+def _local_maxima(
+    pick: np.ndarray,
+    error: np.ndarray,
+    owner: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    spacing: int,
+) -> np.ndarray:
+    """Per pick: no other pick of its polygon within ``spacing`` cells (rows and columns)
+    has a larger error (ties: the smaller candidate index stays)."""
+    if len(pick) < 2:
+        return np.ones(len(pick), bool)
+    height = int(rows[pick].max()) + 2 * spacing + 1
+    width = int(cols[pick].max()) + 2 * spacing + 1
+
+    def key(row_shift: int, col_shift: int) -> np.ndarray:
+        row = rows[pick] + spacing + row_shift
+        col = cols[pick] + spacing + col_shift
+        return (owner[pick] * height + row) * width + col
+
+    own = key(0, 0)
+    order = np.argsort(own)
+    sorted_keys = own[order]
+    keep = np.ones(len(pick), bool)
+    for dr in range(-spacing, spacing + 1):
+        for dc in range(-spacing, spacing + 1):
+            if dr or dc:
+                wanted = key(dr, dc)
+                at = np.minimum(np.searchsorted(sorted_keys, wanted), len(pick) - 1)
+                other = order[at]
+                found = sorted_keys[at] == wanted
+                stronger = (error[other] > error) | ((error[other] == error) & (pick[other] < pick))
+                keep &= ~(found & stronger)
+    return keep
