@@ -8,13 +8,24 @@ the final meshes built again), and pydelatin's vertices inside the farms at the 
 error over the whole DEM (its greedy Delaunay refinement of a height grid), with the ratio.
 pydelatin is for this measurement only (``pip install pydelatin``).
 
+With ``--qgis-process``: the whole layer through ``qgis_process`` (rule delaunay) without
+points and with MAX_VERTICAL_ERROR, best of ``--repeat``; the time ratio, POINTS_ADDED against
+pydelatin, and the largest |surface - DEM| over every cell centre inside a farm, measured on
+the written PLY mesh.
+
 Usage: python bench/bench_refine.py [--tolerances 5 10 2] [--rules delaunay first] [--quick]
+       python bench/bench_refine.py --qgis-process [--tolerances 5] [--repeat 1]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 import shapely
@@ -22,7 +33,10 @@ from bench_fidelity import DEM_PATH, FARMS, QUICK_FARMS, Dem, fidelity, polygon_
 from bench_fidelity import evaluation_cells as inside_cells
 
 import bsp_triangulate
-from bsp_triangulate.terrain.refine import CellGrid, refine_many
+from bsp_triangulate.terrain.refine import CellGrid, locate_cells, refine_many
+
+_PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "<i2", "ushort": "<u2", "int": "<i4",
+              "uint": "<u4", "float": "<f4", "double": "<f8"}  # fmt: skip
 
 
 def pydelatin_inside(dem: Dem, farms: list[shapely.Polygon], tolerance: float) -> tuple[int, float]:
@@ -77,12 +91,94 @@ def run(tolerance: float, rule: str, farms: list, dem: Dem, grid: CellGrid) -> d
     }
 
 
+def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of a binary PLY as ``formats.mesh.write_ply`` writes it."""
+    data = path.read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    lines = data[:end].decode("utf-8").splitlines()
+    vertex_count = face_count = 0
+    face_fields = [("count", "u1"), ("indices", "<i4", (3,))]
+    element = ""
+    for line in lines:
+        words = line.split()
+        if words[:1] == ["element"]:
+            element = words[1]
+            if element == "vertex":
+                vertex_count = int(words[2])
+            else:
+                face_count = int(words[2])
+        elif words[:1] == ["property"] and element == "face" and words[1] != "list":
+            face_fields.append((words[2], _PLY_TYPES[words[1]]))
+    vertices = np.frombuffer(data, "<f8", vertex_count * 3, end).reshape(-1, 3)
+    faces = np.frombuffer(data, np.dtype(face_fields), face_count, end + vertex_count * 24)
+    return vertices, faces["indices"].astype(np.int64)
+
+
+def mesh_error(path: Path, farms: list, dem: Dem) -> float:
+    """max |surface - DEM| of the mesh at every cell centre strictly inside a farm."""
+    vertices, faces = read_ply(path)
+    inside = np.zeros(dem.values.size, bool)
+    inside[inside_cells(farms, dem) % dem.values.size] = True
+    _triangle, row, col, z = locate_cells(vertices[faces], [dem.grid])
+    key = row * dem.values.shape[1] + col
+    hit = inside[key]
+    covered = np.zeros(dem.values.size, bool)
+    covered[key[hit]] = True
+    if (inside & ~covered).any():
+        raise RuntimeError(f"{int((inside & ~covered).sum())} cells inside a farm are not meshed")
+    return float(np.abs(z[hit] - dem.values.ravel()[key[hit]]).max())
+
+
+def qgis_process_run(tolerance: float, mesh: Path) -> tuple[float, dict]:
+    """Seconds and JSON results of one qgis_process run on the farms (rule delaunay)."""
+    binary = "qgis_process.bin" if Path("/usr/bin/qgis_process.bin").exists() else "qgis_process"
+    arguments = [binary, "--json", "run", "bsptriangulate:triangulate", "--",
+                 f"INPUT={FARMS}", f"DEM={DEM_PATH}", "APEX_RULE=2", f"OUTPUT_MESH={mesh}",
+                 f"MAX_VERTICAL_ERROR={tolerance}"]  # fmt: skip
+    start = time.perf_counter()
+    answer = subprocess.run(arguments, capture_output=True, text=True, check=True)
+    seconds = time.perf_counter() - start
+    return seconds, json.loads(answer.stdout[answer.stdout.index("{") :])["results"]
+
+
+def qgis_process_table(tolerances: list[float], repeat: int) -> None:
+    """The farms through qgis_process, without points and with each tolerance."""
+    if "QGIS_PLUGINPATH" not in os.environ:
+        raise SystemExit("set QGIS_PLUGINPATH to a folder holding this tree as bsptriangulate")
+    dem = Dem.read(DEM_PATH)
+    farms = read_polygons(FARMS)
+    folder = Path(tempfile.mkdtemp(prefix="bench-refine-"))
+    base = min(qgis_process_run(0.0, folder / "base.ply")[0] for _ in range(repeat))
+    print(f"no points: {base:.1f} s")
+    print("| tolerance (m) | time (s) | ratio to no points | POINTS_ADDED | pydelatin inside "
+          "| ratio | max error on the mesh (m) | features | failed |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for tolerance in tolerances:
+        mesh = folder / f"farms_{tolerance:g}.ply"
+        runs = [qgis_process_run(tolerance, mesh) for _ in range(repeat)]
+        seconds = min(run_[0] for run_ in runs)
+        results = runs[-1][1]
+        theirs, _ = pydelatin_inside(dem, farms, tolerance)
+        added = int(results["POINTS_ADDED"])
+        print(
+            f"| {tolerance:g} | {seconds:.1f} | {seconds / base:.1f} | {added:,} | {theirs:,} | "
+            f"{added / theirs:.2f} | {mesh_error(mesh, farms, dem):.3f} | "
+            f"{results['FEATURE_COUNT']} | {results['FAILED_COUNT']} |",
+            flush=True,
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tolerances", type=float, nargs="+", default=[5.0, 10.0, 2.0])
     parser.add_argument("--rules", nargs="+", default=["delaunay", "first", "elevation"])
     parser.add_argument("--quick", action="store_true", help=f"first {QUICK_FARMS} farms only")
+    parser.add_argument("--qgis-process", action="store_true", help="the farms via qgis_process")
+    parser.add_argument("--repeat", type=int, default=1, help="qgis_process runs, best taken")
     arguments = parser.parse_args()
+    if arguments.qgis_process:
+        qgis_process_table(arguments.tolerances, arguments.repeat)
+        return
     dem = Dem.read(DEM_PATH)
     grid = CellGrid.from_array(dem.values, dem.geotransform)
     farms = read_polygons(FARMS, limit=QUICK_FARMS if arguments.quick else None)

@@ -259,3 +259,22 @@ def test_swellendam_farms_within_the_tolerance():
     ids = [c.id() for c in layer.getFeatures()]
     owner = np.searchsorted(ids, owner)
     assert largest_error(FARM_DEM, polygons, vertices, triangles, owner) <= 5.0
+
+
+def test_input_points_in_another_crs_are_reprojected():
+    utm = QgsCoordinateReferenceSystem("EPSG:32733")
+    wgs84 = QgsCoordinateReferenceSystem("EPSG:4326")
+    to_wgs84 = QgsCoordinateTransform(utm, wgs84, QgsProject.instance())
+    layer = QgsVectorLayer("PointZ?crs=EPSG:4326", "points", "memory")
+    feature = QgsFeature()
+    geometry = QgsGeometry.fromWkt(f"POINT Z ({X0 + 1000.0} {Y0 - 1000.0} 512.5)")
+    geometry.transform(to_wgs84)
+    feature.setGeometry(geometry)
+    assert layer.dataProvider().addFeatures([feature])
+    result = run(
+        {"INPUT": polygon_layer([wkt([HILL])]), "ELEVATION_SOURCE": 0, "INPUT_POINTS": layer}
+    )
+    vertices, _triangles, _owner = mesh_of(result)
+    near = np.hypot(vertices[:, 0] - (X0 + 1000.0), vertices[:, 1] - (Y0 - 1000.0)) < 1e-3
+    assert near.any() and (vertices[near, 2] == 512.5).all()
+    assert result["TRIANGLE_COUNT"] == 5 - 2 + 2
