@@ -25,8 +25,9 @@ from ..geometry.predicates import (
 )
 from ..geometry.rings import PreparedRings, normalise_rings, prepare, ring_label
 from ..geometry.spatial_index import ChainBoxes, SegmentGrid
-from ..rules import ApexRule, ElevationRule, get_rule
+from ..rules import ApexRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
+from .subtrees import MAX_POSITIONS, build_subtrees
 
 INVALID_MODES = ("fail", "as_given")
 # Sub-polygons up to this many vertices test their candidates against all their edges at once;
@@ -314,6 +315,17 @@ def _remember(blockers: list[int], edge: int) -> None:
         blockers.remove(edge)
     blockers.insert(0, edge)
     del blockers[_MAX_RECENT_BLOCKERS:]
+
+
+class _Rows:
+    """Output rows of a tree being built: triangles, parent, depth, side; ``count`` used."""
+
+    def __init__(self, capacity: int) -> None:
+        self.triangles = np.empty((capacity, 3), dtype=np.int64)
+        self.parent = np.empty(capacity, dtype=np.int64)
+        self.depth = np.empty(capacity, dtype=np.int64)
+        self.side = np.empty(capacity, dtype=np.int8)
+        self.count = 0
 
 
 class _Tree:
@@ -744,23 +756,68 @@ class _Tree:
         return correct if exhaustive else correct[:1]
 
     def build(self) -> Triangulation:
-        m = self.m
+        name = self._lockstep_rule()
+        rows = None
+        if name is not None:
+            rows = _Rows(max(self.m - 2, 0))
+            deferred: list[tuple[int, int, int, bool, int, int, int]] = []
+            try:
+                self._grow([(1, self.m, True, -1, 0, 0)], rows, deferred)
+                rows = self._with_subtrees(rows, deferred, name) if deferred else rows
+            except TriangulationError:
+                rows = None
+        if rows is None:  # one step at a time throughout (and the errors in pre-order)
+            rows = _Rows(max(self.m - 2, 0))
+            self._grow([(1, self.m, True, -1, 0, 0)], rows, None)
+        count = rows.count
+        return Triangulation(
+            vertices=self.prepared.vertices,
+            triangles=rows.triangles[:count],
+            parent=rows.parent[:count],
+            depth=rows.depth[:count],
+            side=rows.side[:count],
+        )
+
+    def _lockstep_rule(self) -> str | None:
+        """The rule's name where the small sub-polygons go to the lock-step builder: a long
+        sequence under rule first or elevation in which no two vertices share a point (no
+        touching rings); else None."""
+        if self.m <= MAX_POSITIONS:
+            return None
+        if type(self.rule) is FirstRule:
+            name = "first"
+        elif type(self.rule) is ElevationRule:
+            name = "elevation"
+        else:
+            return None
+        distinct = np.unique(self.ids[:-1])
+        x, y = self.prepared.x[distinct], self.prepared.y[distinct]
+        points = np.unique(np.column_stack([x, y]), axis=0)
+        return name if len(points) == len(distinct) else None
+
+    def _grow(
+        self,
+        work: list[tuple[int, int, bool, int, int, int]],
+        rows: _Rows,
+        deferred: list[tuple[int, int, int, bool, int, int, int]] | None,
+    ) -> None:
+        """Build the subtrees of the work items into ``rows``, in pre-order. With
+        ``deferred``, a sub-polygon of at most ``MAX_POSITIONS`` positions is not built but
+        listed there as (row it goes before, lo, hi, v1_at_hi, parent, depth, side)."""
         ids = self.ids
-        triangles = np.empty((max(m - 2, 0), 3), dtype=np.int64)
-        parent = np.empty(max(m - 2, 0), dtype=np.int64)
-        depth = np.empty(max(m - 2, 0), dtype=np.int64)
-        side = np.empty(max(m - 2, 0), dtype=np.int8)
-        # work item: (lo, hi, v1_at_hi, parent, depth, side); popped in pre-order
-        work = [(1, m, True, -1, 0, 0)]
+        triangles, parent, depth, side = rows.triangles, rows.parent, rows.depth, rows.side
         # as given: loops cut off at a repeated vertex, each triangulated as a tree of its own
         loops: list[tuple[int, int, bool, int, int, int]] = []
-        count = 0
+        count = rows.count
         mirrored = self.prepared.mirrored
         tick = self.tick
         while work or loops:
             if not work:
                 work.append(loops.pop(0))
             lo, hi, v1_at_hi, par, dep, sd = work.pop()
+            if deferred is not None and hi - lo < MAX_POSITIONS:
+                deferred.append((count, lo, hi, v1_at_hi, par, dep, sd))
+                continue
             if tick is not None and count & 63 == 0:
                 tick(count / len(triangles))
             if count >= len(triangles):
@@ -803,13 +860,65 @@ class _Tree:
             for (clo, chi, flag), child_side in ((right, 2), (left, 1)):
                 if chi - clo > 1:
                     work.append((clo, chi, flag, node, dep + 1, child_side))
-        return Triangulation(
-            vertices=self.prepared.vertices,
-            triangles=triangles[:count],
-            parent=parent[:count],
-            depth=depth[:count],
-            side=side[:count],
+        rows.count = count
+
+    def _with_subtrees(
+        self, rows: _Rows, deferred: list[tuple[int, int, int, bool, int, int, int]], rule: str
+    ) -> _Rows | None:
+        """``rows`` with the subtrees of the ``deferred`` sub-polygons (built by the lock-step
+        builder) in their places; None if one of them has no tree."""
+        table = np.array(deferred, dtype=np.int64)
+        at, spans, at_hi = table[:, 0], table[:, 1:3], table[:, 3].astype(bool)
+        above, dep, sd = table[:, 4], table[:, 5], table[:, 6]
+        sub = build_subtrees(
+            self.ids, self.sx, self.sy, self.sz, spans, self.prepared.mirrored, rule
         )
+        if not sub.ok.all():
+            return None
+        count = rows.count
+        sizes = sub.count
+        before = np.concatenate([[0], np.cumsum(sizes)])
+        total = count + int(before[-1])
+        # where each row of the one-step part and each subtree go
+        mine = np.arange(count, dtype=np.int64)
+        moved_rows = mine + before[np.searchsorted(at, mine, side="right")]
+        block = at + before[:-1]
+        owner = np.repeat(np.arange(len(table), dtype=np.int64), sizes)
+        local = np.arange(len(owner), dtype=np.int64) - np.repeat(sub.start, sizes)
+        # the subtrees were built with V1 at s_hi (the upper sub-range the left child): where
+        # V1 is at s_lo, the root's two children trade sides and their subtrees trade places
+        swap = ~at_hi[owner]
+        length = sizes[owner]
+        second = sizes.copy()  # local row of the root's right child (its lower sub-range)
+        right = np.flatnonzero((sub.parent == 0) & (sub.side == 2))
+        second[owner[right]] = local[right]
+        split = second[owner]
+
+        def reordered(index: np.ndarray) -> np.ndarray:
+            moved = np.where(index < split, index + length - split, index - split + 1)
+            return np.where(swap & (index > 0), moved, index)
+
+        place = block[owner] + reordered(local)
+        out = _Rows(total)
+        out.count = total
+        out.triangles[moved_rows] = rows.triangles[:count]
+        out.parent[moved_rows] = np.where(
+            rows.parent[:count] < 0, -1, moved_rows[np.maximum(rows.parent[:count], 0)]
+        )
+        out.depth[moved_rows] = rows.depth[:count]
+        out.side[moved_rows] = rows.side[:count]
+        root = sub.parent < 0
+        top = above[owner]
+        out.triangles[place] = sub.triangles
+        out.parent[place] = np.where(
+            root,
+            np.where(top < 0, -1, moved_rows[np.maximum(top, 0)]),
+            block[owner] + reordered(np.maximum(sub.parent, 0)),
+        )
+        out.depth[place] = sub.depth + dep[owner]
+        flip = (sub.parent == 0) & swap
+        out.side[place] = np.where(root, sd[owner], np.where(flip, 3 - sub.side, sub.side))
+        return out
 
     def _fallback_apex(self, lo: int, hi: int) -> int:
         """Apex for a base of an invalid polygon that has no correct triangle (``as_given``).

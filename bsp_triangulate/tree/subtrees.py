@@ -1,0 +1,101 @@
+"""The small sub-polygons of one large polygon's BSP tree, built all at once by the lock-step
+builder.
+
+A node of the tree on the base (s_hi, s_lo) owns the sub-polygon s_lo ... s_hi; its subtree
+depends on those positions alone. Laid out as the sequence (s_hi, s_lo, s_lo+1, ..., s_hi-1),
+whose root has the same base and the same candidates in the same order, it is one more
+polygon for :func:`.lockstep.build_trees`, which decides thousands of them in one pass of
+numpy rounds instead of one Python step per triangle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .lockstep import build_trees
+
+# largest sub-polygon (positions, both base corners included) handed to the lock-step builder
+# (its tests are quadratic in the sub-polygon's size)
+MAX_POSITIONS = 256
+
+
+@dataclass
+class Subtrees:
+    """Triangles (output vertex ids), local parent (-1 at the root), depth from the root and
+    side of the subtrees, those of span k at rows ``start[k]:start[k] + count[k]``; ``ok[k]``
+    False where the lock-step builder found no tree (to be built one step at a time)."""
+
+    triangles: np.ndarray
+    parent: np.ndarray
+    depth: np.ndarray
+    side: np.ndarray
+    start: np.ndarray
+    count: np.ndarray
+    ok: np.ndarray
+
+
+def _twins(ext: np.ndarray, owner: np.ndarray, ext_start: np.ndarray) -> np.ndarray:
+    """Per position: the other position of the same vertex in its sequence, or -1 (position
+    0 of each sequence and vertices seen three times or more are left out)."""
+    key = owner * (int(ext.max(initial=0)) + 1) + ext
+    key[ext_start] = -1
+    valid = np.flatnonzero(key >= 0)
+    order = valid[np.argsort(key[valid], kind="stable")]
+    keys = key[order]
+    fresh = np.concatenate([[True], keys[1:] != keys[:-1]])
+    group = np.cumsum(fresh) - 1
+    sizes = np.bincount(group)
+    paired = order[sizes[group] == 2]
+    twin = np.full(len(ext), -1, dtype=np.int64)
+    twin[paired[0::2]] = paired[1::2]
+    twin[paired[1::2]] = paired[0::2]
+    return twin
+
+
+def build_subtrees(
+    ids: np.ndarray,
+    sx: np.ndarray,
+    sy: np.ndarray,
+    sz: np.ndarray,
+    spans: np.ndarray,
+    mirrored: bool,
+    rule: str,
+) -> Subtrees:
+    """The subtrees of the sub-polygons ``spans`` (rows (lo, hi) of positions) of one bridged
+    sequence: ``ids`` its output vertex ids per position, ``sx``, ``sy``, ``sz`` its working
+    coordinates and elevations (position m repeating position 0), the root of each subtree
+    with V1 at s_hi; ``rule`` "first" or "elevation"."""
+    lo, hi = spans[:, 0], spans[:, 1]
+    length = hi - lo + 1  # positions of the sub-polygon
+    ext_len = length + 1  # with the closing repeat of s_hi
+    ext_start = np.cumsum(ext_len) - ext_len
+    owner = np.repeat(np.arange(len(spans), dtype=np.int64), ext_len)
+    step = np.arange(int(ext_len.sum()), dtype=np.int64) - np.repeat(ext_start, ext_len)
+    # s_hi, then s_lo ... s_hi-1, then s_hi again
+    position = lo[owner] + step - 1
+    position[ext_start] = hi
+    position[ext_start + length] = hi
+    ext = ids[position]
+    trees = build_trees(
+        ext,
+        _twins(ext, owner, ext_start),
+        sx[position],
+        sy[position],
+        sz[position],
+        ext_start,
+        length,
+        np.full(len(spans), mirrored),
+        rule,
+        None,
+    )
+    return Subtrees(
+        trees.triangles,
+        trees.parent,
+        trees.depth,
+        trees.side,
+        trees.start,
+        trees.count,
+        trees.ok,
+    )
