@@ -779,21 +779,30 @@ class _Tree:
         )
 
     def _lockstep_rule(self) -> str | None:
-        """The rule's name where the small sub-polygons go to the lock-step builder: a long
-        sequence under rule first or elevation in which no two vertices share a point (no
-        touching rings); else None."""
+        """The rule's name where the small sub-polygons go to the lock-step builder (a long
+        sequence under rule first or elevation), else None."""
         if self.m <= MAX_POSITIONS:
             return None
         if type(self.rule) is FirstRule:
-            name = "first"
-        elif type(self.rule) is ElevationRule:
-            name = "elevation"
-        else:
-            return None
-        distinct = np.unique(self.ids[:-1])
-        x, y = self.prepared.x[distinct], self.prepared.y[distinct]
-        points = np.unique(np.column_stack([x, y]), axis=0)
-        return name if len(points) == len(distinct) else None
+            return "first"
+        if type(self.rule) is ElevationRule:
+            return "elevation"
+        return None
+
+    def _touching_before(self) -> np.ndarray:
+        """Per position p: how many positions before p hold a vertex that shares its point
+        with another vertex (touching rings: left to the one-step builder)."""
+        ids = self.ids
+        distinct, first = np.unique(ids[:-1], return_index=True)
+        _, group, size = np.unique(
+            np.column_stack([self.sx[first], self.sy[first]]),
+            axis=0,
+            return_inverse=True,
+            return_counts=True,
+        )
+        shared = np.zeros(int(ids.max()) + 1, dtype=bool)
+        shared[distinct] = size[group.reshape(-1)] > 1
+        return np.concatenate([[0], np.cumsum(shared[ids])])
 
     def _grow(
         self,
@@ -811,11 +820,16 @@ class _Tree:
         count = rows.count
         mirrored = self.prepared.mirrored
         tick = self.tick
+        touching = self._touching_before() if deferred is not None else None
         while work or loops:
             if not work:
                 work.append(loops.pop(0))
             lo, hi, v1_at_hi, par, dep, sd = work.pop()
-            if deferred is not None and hi - lo < MAX_POSITIONS:
+            if (
+                deferred is not None
+                and hi - lo < MAX_POSITIONS
+                and touching[hi + 1] == touching[lo]
+            ):
                 deferred.append((count, lo, hi, v1_at_hi, par, dep, sd))
                 continue
             if tick is not None and count & 63 == 0:

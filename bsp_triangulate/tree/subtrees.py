@@ -19,6 +19,8 @@ from .lockstep import build_trees
 # largest sub-polygon (positions, both base corners included) handed to the lock-step builder
 # (its tests are quadratic in the sub-polygon's size)
 MAX_POSITIONS = 256
+# positions per lock-step call
+GROUP_POSITIONS = 200_000
 
 
 @dataclass
@@ -66,7 +68,38 @@ def build_subtrees(
     """The subtrees of the sub-polygons ``spans`` (rows (lo, hi) of positions) of one bridged
     sequence: ``ids`` its output vertex ids per position, ``sx``, ``sy``, ``sz`` its working
     coordinates and elevations (position m repeating position 0), the root of each subtree
-    with V1 at s_hi; ``rule`` "first" or "elevation"."""
+    with V1 at s_hi; ``rule`` "first" or "elevation". Built in groups of about
+    ``GROUP_POSITIONS`` positions, which bounds the lock-step builder's memory."""
+    length = spans[:, 1] - spans[:, 0] + 1
+    group = np.cumsum(length) // GROUP_POSITIONS
+    cuts = np.flatnonzero(np.diff(group)) + 1
+    parts = [
+        _build_group(ids, sx, sy, sz, part, mirrored, rule)
+        for part in np.split(spans, cuts)
+        if len(part)
+    ]
+    count = np.concatenate([part.count for part in parts])
+    return Subtrees(
+        np.concatenate([part.triangles for part in parts]),
+        np.concatenate([part.parent for part in parts]),
+        np.concatenate([part.depth for part in parts]),
+        np.concatenate([part.side for part in parts]),
+        np.cumsum(count) - count,
+        count,
+        np.concatenate([part.ok for part in parts]),
+    )
+
+
+def _build_group(
+    ids: np.ndarray,
+    sx: np.ndarray,
+    sy: np.ndarray,
+    sz: np.ndarray,
+    spans: np.ndarray,
+    mirrored: bool,
+    rule: str,
+) -> Subtrees:
+    """:func:`build_subtrees` of one group of spans, in one lock-step call."""
     lo, hi = spans[:, 0], spans[:, 1]
     length = hi - lo + 1  # positions of the sub-polygon
     ext_len = length + 1  # with the closing repeat of s_hi

@@ -1,0 +1,109 @@
+"""Large polygons with many islands: the faster methods give exactly the results of the plain
+ones.
+
+- The small sub-polygons of a long sequence, built all at once by the lock-step builder
+  (``tree/subtrees.py``), give the same triangles, parents, depths and sides as the one-step
+  builder, under rules first and elevation, with the mirrored working plane, with touching
+  rings (left to the one-step builder), and with the lock-step calls split into groups.
+- The bridge search that tests blocks of candidates at once (``_Bridger.find_bridge``) picks
+  the bridge that testing one candidate at a time picks.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+
+import numpy as np
+import pytest
+
+from bsp_triangulate import triangulate
+from bsp_triangulate.geometry import bridges
+from bsp_triangulate.tree import one_polygon, subtrees
+
+from .checks import check_triangulation
+
+FIELDS = ("vertices", "triangles", "parent", "depth", "side")
+
+
+def _wavy(vertices: int, islands: int, seed: int) -> list[np.ndarray]:
+    """A wavy shell with small rotated squares on a grid inside (clockwise islands)."""
+    rnd = random.Random(seed)
+    angles = 2 * np.pi * np.arange(vertices) / vertices
+    radii = 100.0 * (1 + 0.08 * np.sin(13 * angles) + 0.02 * np.sin(97 * angles))
+    rings = [np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])]
+    side = math.ceil(math.sqrt(islands)) + 1
+    spacing = 110.0 / side
+    for row in range(side):
+        for column in range(side):
+            cx, cy = -55 + (column + 0.5) * spacing, -55 + (row + 0.5) * spacing
+            if len(rings) > islands or math.hypot(cx, cy) > 70:
+                continue
+            turn, half = rnd.uniform(0, 1.5), spacing * rnd.uniform(0.1, 0.3)
+            square = [(-1, -1), (-1, 1), (1, 1), (1, -1)]
+            rings.append(
+                np.array(
+                    [
+                        (
+                            cx + half * (x * math.cos(turn) - y * math.sin(turn)),
+                            cy + half * (x * math.sin(turn) + y * math.cos(turn)),
+                        )
+                        for x, y in square
+                    ]
+                )
+            )
+    return rings
+
+
+def _lifted(rings: list[np.ndarray]) -> list[np.ndarray]:
+    return [np.column_stack([r, np.sin(r[:, 0] / 7) * 10 + np.cos(r[:, 1] / 5) * 5]) for r in rings]
+
+
+def _one_step(monkeypatch: pytest.MonkeyPatch, rings: list, **options) -> object:
+    with monkeypatch.context() as patch:
+        patch.setattr(one_polygon._Tree, "_lockstep_rule", lambda self: None)
+        return triangulate(rings, **options)
+
+
+def _same(first: object, second: object) -> None:
+    for field in FIELDS:
+        a, b = getattr(first, field), getattr(second, field)
+        assert a.dtype == b.dtype and np.array_equal(a, b), field
+
+
+CASES = [
+    ("wavy", _wavy(1200, 30, 1)),
+    ("wavy mirrored", [r[:, ::-1].copy() for r in _wavy(900, 20, 2)]),
+    ("wavy touching", [*_wavy(800, 16, 3), np.array([(100.0 * 1.0, 0.0), (90, -3), (90, 3)])]),
+]
+
+
+@pytest.mark.parametrize("rule", ["first", "elevation"])
+@pytest.mark.parametrize(("name", "rings"), CASES, ids=[c[0] for c in CASES])
+def test_subtrees_of_the_lockstep_builder_match_one_step(
+    monkeypatch: pytest.MonkeyPatch, name: str, rings: list, rule: str
+) -> None:
+    rings = _lifted(rings) if rule == "elevation" else rings
+    for invalid in ("fail", "as_given"):
+        plain = _one_step(monkeypatch, rings, rule=rule, invalid=invalid)
+        fast = triangulate(rings, rule=rule, invalid=invalid)
+        _same(plain, fast)
+    if name != "wavy touching":
+        check_triangulation(rings, fast)
+
+
+def test_subtrees_in_several_lockstep_calls(monkeypatch: pytest.MonkeyPatch) -> None:
+    rings = _wavy(1500, 40, 4)
+    plain = _one_step(monkeypatch, rings)
+    monkeypatch.setattr(subtrees, "GROUP_POSITIONS", 300)
+    _same(plain, triangulate(rings))
+
+
+def test_blocked_bridge_search_matches_one_at_a_time(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Blocks of one candidate test candidates exactly as the plain search does."""
+    rings = _wavy(600, 60, 5)
+    fast = triangulate(rings, rule="delaunay")
+    monkeypatch.setattr(bridges, "_FIRST_BLOCK", 1)
+    monkeypatch.setattr(bridges, "_LAST_BLOCK", 1)
+    _same(fast, triangulate(rings, rule="delaunay"))
+    _same(triangulate(rings), _one_step(monkeypatch, rings))
