@@ -207,28 +207,34 @@ def check_vertices(
     used = np.unique(triangles.ravel())
     bad = [tuple(vertices[i]) for i in used if tuple(float(c) for c in vertices[i]) not in allowed]
     if crossings and bad:
-        bad = [p for p in bad if _edges_through(rings, p[:2]) < 2]
+        edges = _edges(rings)
+        bad = [p for p in bad if _edges_through(edges, p[:2]) < 2]
     assert not bad, f"{len(bad)} triangle corners are not input vertices, e.g. {bad[:3]}"
 
 
-def _edges_through(rings: Sequence[Ring], point: tuple[float, float]) -> int:
-    """How many input edges pass within 1e-9 of their length of ``point``."""
-    count = 0
-    px, py = point
+def _edges(rings: Sequence[Ring]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every edge of the rings of 2 points or more, built once for all the points tested: starts
+    (k, 2), vectors to the next point (k, 2) and squared lengths (k,)."""
+    starts, vectors = [np.zeros((0, 2))], [np.zeros((0, 2))]
     for ring in rings:
         pts = np.asarray([(float(q[0]), float(q[1])) for q in ring])
         if len(pts) < 2:
             continue
-        a, b = pts, np.roll(pts, -1, axis=0)
-        ab = b - a
-        length2 = (ab**2).sum(axis=1)
-        ok = length2 > 0
-        t = np.clip(
-            ((px - a[:, 0]) * ab[:, 0] + (py - a[:, 1]) * ab[:, 1]) / np.where(ok, length2, 1), 0, 1
-        )
-        dist = np.hypot(a[:, 0] + t * ab[:, 0] - px, a[:, 1] + t * ab[:, 1] - py)
-        count += int(np.sum(ok & (dist <= 1e-9 * np.sqrt(np.where(ok, length2, 1)))))
-    return count
+        starts.append(pts)
+        vectors.append(np.roll(pts, -1, axis=0) - pts)
+    a, ab = np.concatenate(starts), np.concatenate(vectors)
+    return a, ab, (ab**2).sum(axis=1)
+
+
+def _edges_through(edges: tuple[np.ndarray, np.ndarray, np.ndarray], point: XY) -> int:
+    """How many of ``edges`` (from ``_edges``) pass within 1e-9 of their length of ``point``."""
+    a, ab, length2 = edges
+    px, py = point
+    ok = length2 > 0
+    safe = np.where(ok, length2, 1)
+    t = np.clip(((px - a[:, 0]) * ab[:, 0] + (py - a[:, 1]) * ab[:, 1]) / safe, 0, 1)
+    dist = np.hypot(a[:, 0] + t * ab[:, 0] - px, a[:, 1] + t * ab[:, 1] - py)
+    return int(np.sum(ok & (dist <= 1e-9 * np.sqrt(safe))))
 
 
 def check_ccw(vertices: np.ndarray, triangles: np.ndarray, allow_zero_area: bool = False) -> None:
