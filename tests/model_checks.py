@@ -163,7 +163,8 @@ def cityjson_errors(document: dict, whole_up_to: int = 200, sample: int = 20) ->
     """Schema errors of a CityJSON document. Up to ``whole_up_to`` city objects the whole
     document is validated as it is; a larger one (the schema tries every city object against
     all 40-odd object types: 11 minutes for Swellendam's 4,708 buildings) is validated with
-    its first ``sample`` objects, and every object against the schema of its own type."""
+    its first ``sample`` objects, and every object against the schema of its own type, once
+    per ``_schema_shape`` (objects of the same shape get the same errors)."""
     validator = cityjson_validator()
     objects = document["CityObjects"]
     if len(objects) <= whole_up_to:
@@ -172,6 +173,8 @@ def cityjson_errors(document: dict, whole_up_to: int = 200, sample: int = 20) ->
     head["CityObjects"] = dict(list(objects.items())[:sample])
     errors = [str(error) for error in validator.iter_errors(head)]
     by_type = {}
+    shapes_valid: dict[str, bool] = {}
+    assert _shapes_validate_alike(), "the CityJSON schemas now tell objects of one shape apart"
     base = validator.schema["$id"].rsplit("/", 1)[0]
     for name, city_object in objects.items():
         kind = city_object.get("type", "")
@@ -179,5 +182,68 @@ def cityjson_errors(document: dict, whole_up_to: int = 200, sample: int = 20) ->
             by_type[kind] = type(validator)(
                 {"$ref": f"{base}/cityobjects.schema.json#/{kind}"}, resolver=validator.resolver
             )
-        errors += [f"{name}: {error}" for error in by_type[kind].iter_errors(city_object)]
+        shape = _schema_shape(city_object)
+        key = json.dumps(shape, sort_keys=True)
+        if key not in shapes_valid:
+            shapes_valid[key] = by_type[kind].is_valid(shape)
+        if not shapes_valid[key]:
+            errors += [f"{name}: {error}" for error in by_type[kind].iter_errors(city_object)]
     return errors
+
+
+def _shapes_validate_alike() -> bool:
+    """Whether the CityJSON schemas constrain numbers by JSON type only (no bounds, no number
+    in an enum or const, no uniqueItems), and a city object's attributes (``"type": "object"``),
+    parents and children (strings) by type only: then an object and its ``_schema_shape`` get
+    the same verdict."""
+    found = []
+
+    def walk(node: object) -> None:
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if key in _VALUE_KEYWORDS:
+                    found.append(key)
+                elif key in ("enum", "const"):
+                    values = value if key == "enum" and isinstance(value, list) else [value]
+                    found.extend(key for v in values if not isinstance(v, str))
+                walk(value)
+        elif isinstance(node, list):
+            for item in node:
+                walk(item)
+
+    for path in CITYJSON_SCHEMAS.glob("*.schema.json"):
+        if ".min." not in path.name:
+            walk(json.loads(path.read_text(encoding="utf-8")))
+    common = json.loads((CITYJSON_SCHEMAS / "cityobjects.schema.json").read_text(encoding="utf-8"))
+    common = common["_AbstractCityObject"]["properties"]
+    return (
+        not found
+        and common["attributes"] == {"type": "object"}
+        and all(common[k]["items"] == {"type": "string"} for k in ("parents", "children"))
+    )
+
+
+_VALUE_KEYWORDS = ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum", "multipleOf")
+_VALUE_KEYWORDS += ("uniqueItems", "patternProperties", "propertyNames", "dependencies")
+
+
+def _schema_shape(value: object, key: str = "") -> object:
+    """``value`` with what the CityJSON schemas cannot tell apart made equal: every integer 0,
+    every float 0.0 when integral (an integer to JSON Schema) else 0.5, ``attributes`` an
+    empty object when an object, the ids in ``parents`` and ``children`` empty strings.
+    Arrays keep their lengths and nesting, other strings (types, LoDs, keys) stay."""
+    if isinstance(value, bool) or value is None:
+        return value
+    if isinstance(value, int):
+        return 0
+    if isinstance(value, float):
+        return 0.0 if value.is_integer() else 0.5
+    if isinstance(value, str):
+        return "" if key in ("parents", "children") else value
+    if isinstance(value, list):
+        return [_schema_shape(item, key) for item in value]
+    if isinstance(value, dict):
+        if key == "attributes":
+            return {}
+        return {k: _schema_shape(v, k) for k, v in value.items()}
+    return value
