@@ -95,9 +95,27 @@ def run_farms(path: Path, workers: int, feedback: RecordingFeedback, **parameter
     return counts, mesh.read_bytes(), rows
 
 
+@pytest.fixture(scope="module")
+def one_process(tmp_path_factory: pytest.TempPathFactory):
+    """``run(invalid)``: the outputs (as ``run_farms``) and feedback of the farms in QGIS's own
+    process (``WORKERS`` 1), run once per ``invalid`` and module, in the first test that asks,
+    under its ``small_calls`` (a run in one process starts no pool, so the 2DM's lines written
+    in parts never apply to it)."""
+    runs: dict[int, tuple] = {}
+
+    def run(invalid: int) -> tuple:
+        if invalid not in runs:
+            feedback = RecordingFeedback()
+            path = tmp_path_factory.mktemp("one-process")
+            runs[invalid] = (run_farms(path, 1, feedback, INVALID_POLYGONS=invalid), feedback)
+        return runs[invalid]
+
+    return run
+
+
 @pytest.mark.parametrize("invalid", [0, 2], ids=["repaired", "as_given"])
 def test_workers_write_what_one_process_writes(
-    tmp_path: Path, small_calls: list, invalid, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, small_calls: list, invalid, monkeypatch: pytest.MonkeyPatch, one_process
 ):
     """The same outputs; the workers also write the 2DM's lines in parts (every mesh is
     large enough for that here)."""
@@ -105,8 +123,8 @@ def test_workers_write_what_one_process_writes(
 
     monkeypatch.setattr(mesh, "PARALLEL_LINES", 0)
     monkeypatch.setattr(mesh, "_KERNEL_COPY", True)  # joined by copying where not
-    alone, apart = RecordingFeedback(), RecordingFeedback()
-    expected = run_farms(tmp_path, 1, alone, INVALID_POLYGONS=invalid)
+    apart = RecordingFeedback()
+    expected, alone = one_process(invalid)
     assert small_calls == []
     got = run_farms(tmp_path, 2, apart, INVALID_POLYGONS=invalid)
     (pool,) = small_calls
@@ -123,11 +141,11 @@ def test_workers_write_what_one_process_writes(
 
 
 def test_without_a_python_for_the_workers_the_run_warns_and_writes_the_same(
-    tmp_path: Path, small_calls: list, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, small_calls: list, monkeypatch: pytest.MonkeyPatch, one_process
 ):
     from bsptriangulate.bsp_triangulate import workers
 
-    expected = run_farms(tmp_path, 1, RecordingFeedback())
+    expected, _ = one_process(0)  # the default: repaired
     monkeypatch.setattr(workers, "python_interpreter", lambda: None)
     feedback = RecordingFeedback()
     counts, mesh, rows = run_farms(tmp_path, 2, feedback)
