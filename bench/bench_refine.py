@@ -129,11 +129,27 @@ def mesh_error(path: Path, farms: list, dem: Dem) -> float:
     return float(np.abs(z[hit] - dem.values.ravel()[key[hit]]).max())
 
 
-def qgis_process_run(tolerance: float, mesh: Path) -> tuple[float, dict]:
+def write_layer(polygons: list, path: Path) -> Path:
+    """The polygons as a GeoPackage layer in EPSG:32733."""
+    from osgeo import ogr, osr
+
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(32733)
+    dataset = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
+    layer = dataset.CreateLayer("farms", srs, ogr.wkbPolygon)
+    for polygon in polygons:
+        feature = ogr.Feature(layer.GetLayerDefn())
+        feature.SetGeometry(ogr.CreateGeometryFromWkb(shapely.to_wkb(polygon)))
+        layer.CreateFeature(feature)
+    dataset = None
+    return path
+
+
+def qgis_process_run(layer: Path, tolerance: float, mesh: Path) -> tuple[float, dict]:
     """Seconds and JSON results of one qgis_process run on the farms (rule delaunay)."""
     binary = "qgis_process.bin" if Path("/usr/bin/qgis_process.bin").exists() else "qgis_process"
     arguments = [binary, "--json", "run", "bsptriangulate:triangulate", "--",
-                 f"INPUT={FARMS}", f"DEM={DEM_PATH}", "APEX_RULE=2", f"OUTPUT_MESH={mesh}",
+                 f"INPUT={layer}", f"DEM={DEM_PATH}", "APEX_RULE=2", f"OUTPUT_MESH={mesh}",
                  f"MAX_VERTICAL_ERROR={tolerance}"]  # fmt: skip
     start = time.perf_counter()
     answer = subprocess.run(arguments, capture_output=True, text=True, check=True)
@@ -141,21 +157,24 @@ def qgis_process_run(tolerance: float, mesh: Path) -> tuple[float, dict]:
     return seconds, json.loads(answer.stdout[answer.stdout.index("{") :])["results"]
 
 
-def qgis_process_table(tolerances: list[float], repeat: int) -> None:
-    """The farms through qgis_process, without points and with each tolerance."""
+def qgis_process_table(tolerances: list[float], repeat: int, limit: int | None) -> None:
+    """The farms (the first ``limit`` parts) through qgis_process, without points and with
+    each tolerance."""
     if "QGIS_PLUGINPATH" not in os.environ:
         raise SystemExit("set QGIS_PLUGINPATH to a folder holding this tree as bsptriangulate")
     dem = Dem.read(DEM_PATH)
-    farms = read_polygons(FARMS)
+    farms = read_polygons(FARMS, limit=limit)
     folder = Path(tempfile.mkdtemp(prefix="bench-refine-"))
-    base = min(qgis_process_run(0.0, folder / "base.ply")[0] for _ in range(repeat))
+    layer = FARMS if limit is None else write_layer(farms, folder / "farms.gpkg")
+    print(f"{len(farms)} farms")
+    base = min(qgis_process_run(layer, 0.0, folder / "base.ply")[0] for _ in range(repeat))
     print(f"no points: {base:.1f} s")
     print("| tolerance (m) | time (s) | ratio to no points | POINTS_ADDED | pydelatin inside "
           "| ratio | max error on the mesh (m) | features | failed |")  # fmt: skip
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for tolerance in tolerances:
         mesh = folder / f"farms_{tolerance:g}.ply"
-        runs = [qgis_process_run(tolerance, mesh) for _ in range(repeat)]
+        runs = [qgis_process_run(layer, tolerance, mesh) for _ in range(repeat)]
         seconds = min(run_[0] for run_ in runs)
         results = runs[-1][1]
         theirs, _ = pydelatin_inside(dem, farms, tolerance)
@@ -175,9 +194,10 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help=f"first {QUICK_FARMS} farms only")
     parser.add_argument("--qgis-process", action="store_true", help="the farms via qgis_process")
     parser.add_argument("--repeat", type=int, default=1, help="qgis_process runs, best taken")
+    parser.add_argument("--limit", type=int, default=None, help="qgis_process: first N farms")
     arguments = parser.parse_args()
     if arguments.qgis_process:
-        qgis_process_table(arguments.tolerances, arguments.repeat)
+        qgis_process_table(arguments.tolerances, arguments.repeat, arguments.limit)
         return
     dem = Dem.read(DEM_PATH)
     grid = CellGrid.from_array(dem.values, dem.geotransform)
