@@ -1,16 +1,20 @@
 """The demo: triangulate generated sample data with bsptriangulate:triangulate and render it.
 
 1. writes a terrain GeoTIFF and a polygon GeoPackage (river with islands, lake, roofs);
-2. runs ``bsptriangulate:triangulate`` through qgis_process with elevation from the DEM and the
-   "elevation" apex rule, writing a 2DM mesh and the per-triangle GeoPackage;
-3. runs it again on the river and the lake alone, writing their draped surface as a GLB;
+2. runs ``bsptriangulate:triangulate`` through qgis_process with elevation from the DEM, the
+   "delaunay" apex rule and a maximum vertical error (DEM cell centres inside the polygons are
+   added as interior points until the mesh is within it of the DEM: the river and the lake lie
+   on the terrain), writing a 2DM mesh and the per-triangle GeoPackage;
+3. runs it again on the river and the lake alone, writing their surface as a GLB;
 4. runs ``bsptriangulate:buildings`` on the roofs (roof Z of the geometry, ground from the DEM
    per vertex), writing the closed solids as a GLB and their triangles as a GeoPackage;
-5. renders the triangles (the algorithm's default style) over the shaded terrain to a PNG,
-   with a legend;
+5. renders the triangles (the algorithm's default style) over the shaded terrain to a PNG:
+   the whole area, the river close up with the DEM points added as dots, and the village, with
+   a legend;
 6. renders the terrain, the draped mesh and the solids in QGIS's 3D renderer to a second PNG
    (scripts/render_3d.py), when an X display or Xvfb is available;
-7. prints the counts, the output paths and the time.
+7. prints the counts, the points added, the largest |mesh - DEM| at the cell centres inside the
+   river and the lake (measured again on the triangles written), the output paths and the time.
 
 Usage: python scripts/demo.py [--output-dir build/demo] [--update-docs] [--no-3d]
 """
@@ -25,10 +29,16 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import make_sample_data as sample
+import numpy as np
+import shapely
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from bsp_triangulate.terrain.refine import CellGrid, cells_inside, locate_cells
 
 if TYPE_CHECKING:
     from qgis.core import QgsRectangle
@@ -39,10 +49,19 @@ DOCS_PNG = ROOT / "docs" / "demo.png"
 DOCS_3D_PNG = ROOT / "docs" / "demo-3d.png"
 ALGORITHM = "bsptriangulate:triangulate"
 BUILDINGS = "bsptriangulate:buildings"
-COUNTS = ("FEATURE_COUNT", "TRIANGLE_COUNT", "FAILED_COUNT", "EMPTY_COUNT")
+COUNTS = ("FEATURE_COUNT", "TRIANGLE_COUNT", "FAILED_COUNT", "EMPTY_COUNT", "POINTS_ADDED")
 BUILDING_COUNTS = ("FEATURE_COUNT", "BUILT_COUNT", "TRIANGLE_COUNT", "FAILED_COUNT", "EMPTY_COUNT")
 DOCS_PNG_LIMIT = 300_000  # bytes
 DOCS_3D_PNG_LIMIT = 400_000  # bytes
+APEX_DELAUNAY = 2
+# metres: the surface within this of the DEM at every cell centre inside a polygon. The demo
+# DEM's valley rises a few metres from the river's middle to its banks and falls 48 m along it;
+# 1 m keeps the mesh small (a few hundred points) and the water on the terrain in 3D.
+MAX_VERTICAL_ERROR = 1.0
+WATER_KINDS = ("river", "lake")
+# the 2D picture's river close-up: centred on the middle island (local x, m), half-side (m)
+RIVER_VIEW_X = 1850.0
+RIVER_VIEW_HALF = 200.0
 
 
 def qgis_process_binary() -> str:
@@ -103,7 +122,8 @@ def subset(polygons: Path, condition: str) -> str:
 def triangulate(
     polygons: Path, terrain: Path, output_dir: Path, environment: dict[str, str]
 ) -> tuple[dict, Path, Path]:
-    """Run the algorithm with DEM elevation and the elevation rule; return its results."""
+    """Run the algorithm with DEM elevation, the delaunay rule and the maximum vertical error;
+    return its results."""
     mesh = output_dir / "mesh.2dm"
     triangles = output_dir / "triangles.gpkg"
     remove_stale(mesh, triangles)
@@ -112,7 +132,8 @@ def triangulate(
         "ELEVATION_SOURCE": 3,
         "DEM": terrain,
         "DEM_BAND": 1,
-        "APEX_RULE": 1,
+        "APEX_RULE": APEX_DELAUNAY,
+        "MAX_VERTICAL_ERROR": MAX_VERTICAL_ERROR,
         "OUTPUT_MESH": mesh,
         "OUTPUT_TRIANGLES": triangles,
     }
@@ -123,7 +144,8 @@ def triangulate(
 def water_model(
     polygons: Path, terrain: Path, output_dir: Path, environment: dict[str, str]
 ) -> tuple[dict, Path]:
-    """The river and the lake draped on the DEM, as a binary glTF model."""
+    """The river and the lake on the DEM (within the maximum vertical error), as a binary glTF
+    model."""
     model = output_dir / "water.glb"
     remove_stale(model)
     parameters = {
@@ -131,7 +153,8 @@ def water_model(
         "ELEVATION_SOURCE": 3,
         "DEM": terrain,
         "DEM_BAND": 1,
-        "APEX_RULE": 1,
+        "APEX_RULE": APEX_DELAUNAY,
+        "MAX_VERTICAL_ERROR": MAX_VERTICAL_ERROR,
         "OUTPUT_MESH": model,
     }
     return run_algorithm(ALGORITHM, parameters, environment), model
@@ -157,6 +180,64 @@ def building_solids(
     return run_algorithm(BUILDINGS, parameters, environment), model, triangles
 
 
+@dataclass
+class WaterCheck:
+    """One water kind's mesh against the DEM: ``cells`` whose centres lie strictly inside its
+    polygons, ``max_error`` the largest |mesh - DEM| over them (the written triangles,
+    interpolated at the centres), ``added`` (k, 2) the mesh's vertices off the polygons' rings:
+    the DEM points added."""
+
+    cells: int
+    max_error: float
+    added: np.ndarray
+
+
+def read_geometries(path: Path, layer_name: str, kind: str) -> list[shapely.Geometry]:
+    """The geometries (with z) of one kind of a GeoPackage layer."""
+    from osgeo import ogr
+
+    source = ogr.Open(str(path))
+    layer = source.GetLayer(layer_name)
+    layer.SetAttributeFilter(f"kind = '{kind}'")
+    return [shapely.from_wkb(bytes(item.GetGeometryRef().ExportToIsoWkb())) for item in layer]
+
+
+def check_water(triangles: Path, polygons: Path, terrain: Path) -> dict[str, WaterCheck]:
+    """The river's and the lake's meshes measured again against the DEM (WaterCheck)."""
+    from osgeo import gdal
+
+    dataset = gdal.Open(str(terrain))
+    grid = CellGrid.from_array(dataset.ReadAsArray().astype(np.float64), dataset.GetGeoTransform())
+    checks: dict[str, WaterCheck] = {}
+    for kind in WATER_KINDS:
+        inside = np.zeros(grid.values.size, bool)
+        ring_vertices: set[tuple[float, float]] = set()
+        for polygon in read_geometries(polygons, "features", kind):
+            rings = [np.asarray(polygon.exterior.coords)]
+            rings += [np.asarray(ring.coords) for ring in polygon.interiors]
+            rows, cols = cells_inside(rings, grid)
+            inside[rows * grid.shape[1] + cols] = True
+            ring_vertices.update(map(tuple, np.concatenate(rings)[:, :2].tolist()))
+        corners = np.array(
+            [
+                shapely.get_coordinates(triangle, include_z=True)[:3]
+                for triangle in read_geometries(triangles, "triangles", kind)
+            ]
+        ).reshape(-1, 3, 3)
+        _triangle, rows, cols, z = locate_cells(corners, [grid])
+        key = rows * grid.shape[1] + cols
+        hit = inside[key]
+        difference = np.abs(z[hit] - grid.values.ravel()[key[hit]])
+        vertices = np.unique(corners.reshape(-1, 3)[:, :2], axis=0)
+        added = np.array([xy for xy in vertices.tolist() if tuple(xy) not in ring_vertices])
+        checks[kind] = WaterCheck(
+            int(inside.sum()),
+            float(difference.max()) if hit.any() else 0.0,
+            added.reshape(-1, 2),
+        )
+    return checks
+
+
 def square_around(extent: QgsRectangle, margin: float) -> QgsRectangle:
     """A square rectangle centred on the extent, covering it plus the margin."""
     from render import QgsRectangle  # imports QGIS: only after the qgis_process run
@@ -164,6 +245,15 @@ def square_around(extent: QgsRectangle, margin: float) -> QgsRectangle:
     half = max(extent.width(), extent.height()) / 2 + margin
     centre = extent.center()
     return QgsRectangle(centre.x() - half, centre.y() - half, centre.x() + half, centre.y() + half)
+
+
+def river_window(x: float, half: float) -> QgsRectangle:
+    """A square of half-side ``half`` centred on the river's centre line at local ``x``."""
+    from render import QgsRectangle
+
+    centre_x = sample.ORIGIN_X + x
+    centre_y = sample.ORIGIN_Y + float(sample.valley_centre(np.array([x]))[0])
+    return QgsRectangle(centre_x - half, centre_y - half, centre_x + half, centre_y + half)
 
 
 def feature_extent(polygons: Path, kind: str) -> QgsRectangle:
@@ -175,9 +265,12 @@ def feature_extent(polygons: Path, kind: str) -> QgsRectangle:
     return layer.extent()
 
 
-def render_views(terrain: Path, polygons: Path, triangles: Path, output: Path) -> Path:
-    """The whole area, the lake and the village, side by side, with the default style, and a
-    legend below them. The whole area has no labels: its triangles are too small for them."""
+def render_views(
+    terrain: Path, polygons: Path, triangles: Path, added: np.ndarray, output: Path
+) -> Path:
+    """The whole area, a close-up of the river with the DEM points ``added`` (x, y) as dots and
+    the village, side by side, with the default style, and a legend below them. The whole area
+    has no labels: its triangles are too small for them."""
     import render
 
     render.start_qgis()
@@ -188,13 +281,19 @@ def render_views(terrain: Path, polygons: Path, triangles: Path, output: Path) -
     labelled = render.vector_layer(str(triangles), style)
     unlabelled = render.vector_layer(str(triangles), style)
     unlabelled.setLabelsEnabled(False)
+    dots = render.point_layer(added.tolist(), labelled.crs().authid(), "DEM points added")
     whole = [unlabelled, *terrain_layers]
     views = [
-        ("Whole area, 4 x 3 km", whole, render.parse_extent(None, whole), (720, 540)),
         (
-            "Lake with an island",
-            [labelled, *terrain_layers],
-            square_around(feature_extent(polygons, "lake"), 30),
+            f"Whole area, 4 x 3 km; water within {MAX_VERTICAL_ERROR:g} m of the DEM",
+            whole,
+            render.parse_extent(None, whole),
+            (720, 540),
+        ),
+        (
+            "River around its middle island: DEM points added",
+            [dots, labelled, *terrain_layers],
+            river_window(RIVER_VIEW_X, RIVER_VIEW_HALF),
             (540, 540),
         ),
         (
@@ -210,13 +309,16 @@ def render_views(terrain: Path, polygons: Path, triangles: Path, output: Path) -
         for number, (title, layers, extent, size) in enumerate(views)
     ]
     width = sum(size[0] for *_rest, size in views) + 6 * (len(views) - 1)
+    classes = render.graduated_classes(labelled)
     legend = render.legend_strip(
         width,
         "Colour: depth in the BSP tree",
-        render.graduated_classes(labelled),
-        "Numbers: the triangle's order (pre-order index in the BSP tree)",
+        classes,
+        "Numbers: the triangle's order (pre-order index in the BSP tree).  "
+        "Red dots: DEM points added",
     )
-    return render.side_by_side(panels, output, palette=True, legend=legend)
+    keep = [*(colour for _label, colour in classes), render.QColor(render.POINT_COLOUR)]
+    return render.side_by_side(panels, output, palette=True, legend=legend, keep=keep)
 
 
 def render_3d(output_dir: Path, picture: Path) -> Path | None:
@@ -273,7 +375,9 @@ def main() -> None:
         polygons, terrain, output_dir, environment
     )
     triangulated = time.perf_counter()
-    picture = render_views(terrain, polygons, triangles, output_dir / "triangles.png")
+    checks = check_water(triangles, polygons, terrain)
+    added = np.concatenate([check.added for check in checks.values()])
+    picture = render_views(terrain, polygons, triangles, added, output_dir / "triangles.png")
     picture_3d = None
     if not arguments.no_3d:
         picture_3d = render_3d(output_dir, output_dir / "demo-3d.png")
@@ -282,6 +386,12 @@ def main() -> None:
     print("BSP Triangulate demo")
     for key in COUNTS:
         print(f"  {key.lower().replace('_', ' '):15} {results.get(key, 'n/a')}")
+    print(f"  largest |mesh - DEM| at the cell centres inside (bound {MAX_VERTICAL_ERROR:g} m):")
+    for kind, check in checks.items():
+        print(
+            f"    {kind:13} {check.max_error:.2f} m over {check.cells} cells, "
+            f"{len(check.added)} points added"
+        )
     print("  buildings:")
     for key in BUILDING_COUNTS:
         print(f"    {key.lower().replace('_', ' '):13} {solids.get(key, 'n/a')}")

@@ -19,14 +19,19 @@ from qgis.core import (
     QgsBilinearRasterResampler,
     QgsColorRampShader,
     QgsContrastEnhancement,
+    QgsFeature,
+    QgsGeometry,
     QgsMapLayer,
     QgsMapRendererParallelJob,
     QgsMapSettings,
+    QgsMarkerSymbol,
+    QgsPointXY,
     QgsRasterLayer,
     QgsRasterShader,
     QgsRectangle,
     QgsSingleBandGrayRenderer,
     QgsSingleBandPseudoColorRenderer,
+    QgsSingleSymbolRenderer,
     QgsVectorLayer,
 )
 from qgis.PyQt.QtCore import QSize, Qt
@@ -34,6 +39,7 @@ from qgis.PyQt.QtGui import QColor, QFont, QImage, QPainter
 
 # hypsometric tints: green valleys to brown and pale hill tops
 TERRAIN_COLOURS = ("#3d7a3d", "#8fb55e", "#e3d98f", "#c49a6c", "#f2eee6")
+POINT_COLOUR = "#c0392b"  # point_layer's dots
 
 _application: QgsApplication | None = None
 
@@ -105,6 +111,36 @@ def vector_layer(path: str, style: Path | None = None) -> QgsVectorLayer:
     return layer
 
 
+def point_layer(
+    points: Sequence[Sequence[float]],
+    crs: str,
+    name: str,
+    colour: str = POINT_COLOUR,
+    size: float = 2.0,
+) -> QgsVectorLayer:
+    """A memory layer of (x, y) points in ``crs`` (an authority id), drawn as dots of ``size``
+    millimetres with a white outline."""
+    layer = QgsVectorLayer(f"Point?crs={crs}", name, "memory")
+    features = []
+    for x, y in points:
+        feature = QgsFeature()
+        feature.setGeometry(QgsGeometry.fromPointXY(QgsPointXY(float(x), float(y))))
+        features.append(feature)
+    layer.dataProvider().addFeatures(features)
+    layer.updateExtents()
+    symbol = QgsMarkerSymbol.createSimple(
+        {
+            "name": "circle",
+            "color": colour,
+            "outline_color": "white",
+            "outline_width": "0.3",
+            "size": str(size),
+        }
+    )
+    layer.setRenderer(QgsSingleSymbolRenderer(symbol))
+    return layer
+
+
 def render(
     layers: Sequence[QgsMapLayer],
     output: Path,
@@ -154,9 +190,10 @@ def side_by_side(
     gap: int = 6,
     palette: bool = False,
     legend: QImage | None = None,
+    keep: Sequence[QColor] = (),
 ) -> Path:
     """Join PNG images horizontally (top-aligned) into one PNG, with ``legend`` below them;
-    ``palette``: 256 colours."""
+    ``palette``: 256 colours, ``keep`` among them exactly (the style's class colours)."""
     loaded = [QImage(str(path)) for path in images]
     width = sum(image.width() for image in loaded) + gap * (len(loaded) - 1)
     height = max(image.height() for image in loaded)
@@ -173,7 +210,7 @@ def side_by_side(
     if not joined.save(str(output), "PNG"):
         raise RuntimeError(f"cannot write {output}")
     if palette:
-        to_palette(output)
+        to_palette(output, keep)
     return output
 
 
@@ -218,18 +255,27 @@ def legend_strip(
     return image
 
 
-def to_palette(path: Path) -> bool:
+def to_palette(path: Path, keep: Sequence[QColor] = ()) -> bool:
     """Rewrite a PNG with 256 colours (a third of the size) when Pillow is available.
 
     Qt's own 8-bit conversion uses a fixed palette that bands the terrain, so Pillow's median cut
-    is used instead; without Pillow the picture stays in full colour.
+    is used instead; without Pillow the picture stays in full colour. ``keep``: colours in the
+    palette as they are (median cut alone shifts the few small areas of a class colour, such as
+    the depth classes, towards the terrain's colours), the median cut's colours for the rest.
     """
     try:
         from PIL import Image
     except ImportError:
         return False
     with Image.open(path) as image:
-        quantized = image.convert("RGB").quantize(256, method=Image.Quantize.MEDIANCUT)
+        rgb = image.convert("RGB")
+    kept = list(dict.fromkeys((colour.red(), colour.green(), colour.blue()) for colour in keep))
+    quantized = rgb.quantize(256 - len(kept), method=Image.Quantize.MEDIANCUT)
+    if kept:
+        median = quantized.getpalette()[: 3 * (256 - len(kept))]
+        palette = Image.new("P", (1, 1))
+        palette.putpalette([value for colour in kept for value in colour] + median)
+        quantized = rgb.quantize(palette=palette, dither=Image.Dither.NONE)
     quantized.save(path, optimize=True)
     return True
 

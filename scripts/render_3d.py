@@ -2,7 +2,8 @@
 
 The terrain is the demo's DEM (QGIS's DEM terrain, textured with the 2D picture's hypsometric
 colours and hillshade); on it the triangulate run's triangles of the river and the lake
-(triangles.gpkg: z from the DEM, coloured by BSP depth as in the 2D picture, with their edges)
+(triangles.gpkg: DEM points added inside until the surface is within the demo's maximum vertical
+error of the DEM, coloured by BSP depth as in the 2D picture, with their edges)
 and the buildings run's solids (buildings.gpkg: roofs, walls and floors as 3D triangles). QGIS
 3.22 cannot open the GLB models, and its 3D mesh renderer drew nothing of the 2DM mesh in a
 script, so the GeoPackages the same runs wrote are drawn. The picture is a print layout's 3D
@@ -74,6 +75,11 @@ VIEWS = (
     (397, (302_500.0, 6_202_480.0, 260.0, 55.0, 30.0)),
 )
 VERTICAL_SCALE = 1.0  # the terrain's exaggeration (the mesh and the solids keep their z)
+# metres: the water drawn this far up. QGIS's terrain tiles approximate the DEM (within
+# TERRAIN_SCREEN_ERROR px), and the water is within the demo's 1 m of it: without the lift the
+# terrain shows through the water in specks, farther off.
+WATER_LIFT = 1.5
+TERRAIN_SCREEN_ERROR = 0.5
 
 
 def depth_classes(style: Path) -> list[tuple[float, float, str]]:
@@ -90,14 +96,14 @@ def depth_classes(style: Path) -> list[tuple[float, float, str]]:
 
 
 def water_layer(path: Path) -> render.QgsVectorLayer:
-    """The triangulate run's triangles of the river and the lake (their z from the DEM),
-    coloured by BSP depth as in the 2D picture, with white edges."""
+    """The triangulate run's triangles of the river and the lake (on the DEM, with the points
+    added), coloured by BSP depth as in the 2D picture, with white edges."""
     layer = render.vector_layer(f"{path}|layername=triangles")
     layer.setSubsetString("\"kind\" <> 'roof'")  # the roofs are the solids
     root = QgsRuleBased3DRenderer.Rule(None)
     for low, high, colour in depth_classes(TRIANGLE_STYLE):
         symbol = surface_symbol(colour)
-        symbol.setHeight(0.8)  # above the terrain's own triangles where they cut through
+        symbol.setHeight(WATER_LIFT)
         if hasattr(symbol, "setEdgesEnabled"):
             symbol.setEdgesEnabled(True)
             symbol.setEdgeColor(QColor("white"))
@@ -147,7 +153,7 @@ def dem_terrain(settings: Qgs3DMapSettings, dem_id: str, project: QgsProject) ->
     for name, value in (
         ("exaggeration", VERTICAL_SCALE),
         ("texture-size", 1024),
-        ("max-terrain-error", 1),
+        ("max-terrain-error", TERRAIN_SCREEN_ERROR),
         ("max-ground-error", 0.5),
         ("shading-enabled", 0),
     ):
