@@ -38,10 +38,12 @@ test-host: pytest lint
 test-340 test-344: test-%: | qgis
 	scripts/chroot_qgis.sh $* make VENV=/opt/bsptriangulate-venv pytest PYTEST_ARGS="$(PYTEST_ARGS)"
 
-# pytest's exit code 5 (no test collected) fails here too, as any non-zero code does.
+# pytest's exit code 5 (no test collected) fails here too, as any non-zero code does. Bash's
+# `time` reports the suite's wall and CPU time (its worker processes and qgis_process runs
+# included): three suites share this machine's cores, so their CPU time sets `make test`'s.
 pytest: venv
 	@$(PY) -c 'import qgis.core, sys; print("QGIS", qgis.core.Qgis.version(), "Python", sys.version.split()[0])'
-	$(PY) -m pytest -q $(PYTEST_ARGS)
+	TIMEFORMAT='pytest: %0R s wall, %0U s user, %0S s sys'; time $(PY) -m pytest -q $(PYTEST_ARGS)
 
 lint: venv
 	$(PY) -m ruff check .
