@@ -88,8 +88,9 @@ def run_farms(path: Path, workers: int, feedback: RecordingFeedback, **parameter
         context=context,
     )
     rows = [
-        (row.attributes()[:-METRICS], row.attributes()[-METRICS:], row.geometry().asWkb().data())
+        (values[:-METRICS], values[-METRICS:], row.geometry().asWkb().data())
         for row in result["OUTPUT_TRIANGLES"].getFeatures()
+        for values in [row.attributes()]  # once per row: a copy of every value each time
     ]
     counts = {key: result[key] for key in ("FEATURE_COUNT", "TRIANGLE_COUNT", "FAILED_COUNT")}
     return counts, mesh.read_bytes(), rows
