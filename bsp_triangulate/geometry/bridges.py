@@ -323,6 +323,14 @@ class _Bridger:
         a, b = self.edge_a[found], self.edge_b[found]
         if self.bridge_count:
             extra = self.bridges[: self.bridge_count]
+            # only bridges whose bounding box meets the block's can meet one of its segments
+            bxa, bya, bxb, byb = x[extra[:, 0]], y[extra[:, 0]], x[extra[:, 1]], y[extra[:, 1]]
+            extra = extra[
+                (np.maximum(bxa, bxb) >= min(wx, float(ux.min())))
+                & (np.minimum(bxa, bxb) <= max(wx, float(ux.max())))
+                & (np.maximum(bya, byb) >= min(wy, float(uy.min())))
+                & (np.minimum(bya, byb) <= max(wy, float(uy.max())))
+            ]
             row = np.concatenate([row, np.repeat(np.arange(len(us)), len(extra))])
             a = np.concatenate([a, np.tile(extra[:, 0], len(us))])
             b = np.concatenate([b, np.tile(extra[:, 1], len(us))])
