@@ -146,6 +146,13 @@ def qgis_process(tmp_path_factory: pytest.TempPathFactory) -> QgisProcess:
     return make_qgis_process(tmp_path_factory.mktemp("qgis-process"), ROOT)
 
 
+@pytest.fixture(scope="session")
+def qgis_process_list(qgis_process: QgisProcess) -> dict:
+    """``qgis_process --json list`` with the work tree's plugin, run once for the tests that
+    read it (each run starts QGIS and loads every provider)."""
+    return qgis_process.run_json("list")
+
+
 def read_mesh(path: Path) -> tuple[list[tuple[float, float, float]], list[list[int]]]:
     """Vertices (x, y, z) and faces (vertex indices) of a mesh file, as QGIS's MDAL reads it."""
     from qgis.core import QgsMesh, QgsMeshLayer

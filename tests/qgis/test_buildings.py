@@ -356,8 +356,10 @@ def test_swellendam_buildings_with_dem_ground_lose_no_feature(
     assert all(ring_edges_closed(rings) for _name, rings in shells)
 
 
-def test_qgis_process_lists_and_runs_buildings(qgis_process: QgisProcess, tmp_path: Path) -> None:
-    algorithms = qgis_process.run_json("list")["providers"]["bsptriangulate"]["algorithms"]
+def test_qgis_process_lists_and_runs_buildings(
+    qgis_process: QgisProcess, qgis_process_list: dict, tmp_path: Path
+) -> None:
+    algorithms = qgis_process_list["providers"]["bsptriangulate"]["algorithms"]
     assert ALG in algorithms
     ring = [(X0, Y0), (X0 + 10, Y0), (X0 + 10, Y0 + 6), (X0, Y0 + 6), (X0, Y0)]
     source = write_geojson(tmp_path / "f.geojson", [[ring]], 32733)

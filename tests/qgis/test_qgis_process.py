@@ -41,9 +41,9 @@ def test_qgis_process_binary_is_the_working_one_of_debian_12() -> None:
 
 
 def test_enabled_plugin_lists_provider_bsptriangulate_with_triangulate(
-    qgis_process: QgisProcess,
+    qgis_process_list: dict,
 ) -> None:
-    providers = qgis_process.run_json("list")["providers"]
+    providers = qgis_process_list["providers"]
     assert "bsptriangulate" in providers
     assert "bsptriangulate:triangulate" in providers["bsptriangulate"]["algorithms"]
 
