@@ -18,7 +18,8 @@ from .spatial_index import PointColumns, SegmentGrid
 
 # relative margin within which float squared distances are re-compared exactly
 _DISTANCE_MARGIN = 1e-9
-# bridge candidates tested together: doubling from the first block size up to the last
+# bridge candidates tested together after the nearest: doubling from the first block size up to
+# the last
 _FIRST_BLOCK = 8
 _LAST_BLOCK = 64
 
@@ -362,6 +363,8 @@ class _Bridger:
 
     def _valid_many(self, vids: np.ndarray, island: np.ndarray, h_index: int) -> list[list[int]]:
         """:meth:`_valid_occurrences` of each vertex of ``vids``, the tests vectorised."""
+        if len(vids) == 1:
+            return [self._valid_occurrences(int(vids[0]), island, h_index)]
         x, y = self.x, self.y
         h = int(island[h_index])
         hx, hy = float(x[h]), float(y[h])
@@ -410,7 +413,7 @@ class _Bridger:
             # beyond the radius only once the box covers everything
             end = len(near) if radius >= full else int(np.searchsorted(dist, limit, "right"))
             best = None
-            position, block = 0, _FIRST_BLOCK
+            position, block = 0, 1  # the nearest alone: it is valid most of the time
             while position < end:
                 stop = min(position + block, end)
                 if best is not None:
@@ -418,7 +421,7 @@ class _Bridger:
                     stop = min(end, int(np.searchsorted(dist, reach, "right")))
                     if stop <= position:
                         break
-                block = min(2 * block, _LAST_BLOCK)
+                block = _FIRST_BLOCK if block == 1 else min(2 * block, _LAST_BLOCK)
                 chunk = near[position:stop]
                 fresh = np.array([vid not in tested for vid in chunk.tolist()], dtype=bool)
                 if fresh.any():
