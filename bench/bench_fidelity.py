@@ -28,10 +28,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import bench_cdt
 import mapbox_earcut
 import numpy as np
 import shapely
-import bench_cdt
 from common import SHARED_DATA, BudgetExceededError, Row, markdown_table, timed, within
 from osgeo import gdal, ogr, osr
 
@@ -463,9 +463,12 @@ def tolerance_of(method: str) -> float | None:
     return float(method.rsplit(", ", 1)[1].removesuffix(" m"))
 
 
-def load_layers(dem: Dem, quick: bool, densify: float | None) -> list[Layer]:
+def load_layers(
+    dem: Dem, quick: bool, densify: float | None, farms: int | None = None
+) -> list[Layer]:
+    """The farms (the first ``farms``, or QUICK_FARMS with ``quick``) and the buffered rivers."""
     shapes = {
-        "farms": read_polygons(FARMS, limit=QUICK_FARMS if quick else None),
+        "farms": read_polygons(FARMS, limit=farms or (QUICK_FARMS if quick else None)),
         f"rivers buffered {RIVER_BUFFER:.0f} m": read_polygons(
             RIVERS, buffer=RIVER_BUFFER, clip=dem.box()
         ),
@@ -572,13 +575,14 @@ def run_tables(
     budget: float | None = DEFAULT_BUDGET,
     densify: float | None = None,
     compiled: bool = True,
+    farms: int | None = None,
 ) -> tuple[str, list[Row]]:
     """The Markdown tables (one per layer, then the FAIL lines and the compiled-CDT ratio)
     and the same as rows for run_all."""
     dem = Dem.read(DEM_PATH)
     text, rows, failed = [], [], []
     cdt_input = None
-    for layer in load_layers(dem, quick, densify):
+    for layer in load_layers(dem, quick, densify, farms):
         results = layer_results(layer, dem, budget, densify)
         text += [f"**{layer.label}**", "", layer_table(results), ""]
         rows += result_rows(layer, results)
@@ -621,15 +625,19 @@ def main() -> None:
         help="densify the boundaries to segments of at most this length (m) first "
         "(boundary-only methods then)",
     )
+    parser.add_argument("--farms", type=int, help="the first N farms only (overrides --quick)")
     parser.add_argument(
         "--no-compiled", action="store_true", help="skip the compiled constrained-Delaunay ratio"
     )
     arguments = parser.parse_args()
-    print(
-        run_tables(arguments.quick, arguments.budget, arguments.densify, not arguments.no_compiled)[
-            0
-        ]
+    tables, _rows = run_tables(
+        arguments.quick,
+        arguments.budget,
+        arguments.densify,
+        not arguments.no_compiled,
+        arguments.farms,
     )
+    print(tables)
 
 
 if __name__ == "__main__":

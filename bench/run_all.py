@@ -1,6 +1,7 @@
 """Run every benchmark and print one Markdown report (also written to build/bench/results.md).
 
-Usage: python bench/run_all.py [--quick] [--only core,large,end_to_end,fidelity,buildings,dask]
+Usage: python bench/run_all.py [--quick]
+       [--only core,large,end_to_end,fidelity,terrain_run,buildings,dask]
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import bench_dask
 import bench_end_to_end
 import bench_fidelity
 import bench_large
+import bench_terrain_run
 from common import BUILD, Row, machine_info, markdown_table, rows_table
 
 BENCHMARKS: dict[str, tuple[str, Callable[[bool, float, int | None], list[Row]]]] = {
@@ -23,6 +25,10 @@ BENCHMARKS: dict[str, tuple[str, Callable[[bool, float, int | None], list[Row]]]
     "large": ("Large polygons with many islands, every rule, against earcut", bench_large.run),
     "end_to_end": ("End to end through qgis_process", bench_end_to_end.run),
     "fidelity": ("Terrain fidelity (surface - DEM at DEM cell centres)", bench_fidelity.run),
+    "terrain_run": (
+        "The farms with DEM points to 5 m through qgis_process, against without",
+        bench_terrain_run.run,
+    ),
     "buildings": (
         "Buildings to a GLB against the mesh-only triangulate run",
         lambda quick, budget, count: bench_buildings.run(
