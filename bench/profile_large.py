@@ -2,7 +2,9 @@
 
 Cases: ``water``; ``islands_<vertices>`` (bench/generate.py, cached as a GeoPackage);
 ``coast_<vertices>`` (the same polygon generated in memory, for sizes not worth caching);
-``star_<vertices>`` (the scale run's star ring).
+``star_<vertices>`` (the scale run's star ring); ``wavy_<vertices>`` (a wavy shell with one
+square island per 100 vertices) and ``river_<islands>`` (a thin shell of 8 vertices per
+island).
 
 Times the engine on each case and, with ``--profile``, runs it under cProfile (bridging and
 tree building then show up separately). ``--save`` stores the triangulations and ``--check``
@@ -24,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from bench_core import WATER_HUGE3, earcut_fixture
 from common import BUILD
-from generate import ensure_islands, polygon_with_islands, read_rings
+from generate import ensure_islands, polygon_with_islands, read_rings, river_polygon, wavy_polygon
 from scale_run import star_ring
 
 from bsp_triangulate import Triangulation, triangulate
@@ -33,7 +35,7 @@ FIELDS = ("vertices", "triangles", "parent", "depth", "side")
 
 
 def load_case(name: str) -> list[np.ndarray]:
-    """Rings of one named case: ``water``, ``islands_<n>``, ``coast_<n>`` or ``star_<n>``."""
+    """Rings of one named case (see the module docstring)."""
     if name == "water":
         return earcut_fixture(WATER_HUGE3)
     kind, _, size = name.partition("_")
@@ -43,6 +45,10 @@ def load_case(name: str) -> list[np.ndarray]:
         return polygon_with_islands(int(size))
     if kind == "star":
         return [star_ring(int(size))]
+    if kind == "wavy":
+        return wavy_polygon(int(size), int(size) // 100)
+    if kind == "river":
+        return river_polygon(8 * int(size), int(size))
     raise ValueError(f"unknown case {name!r}")
 
 
@@ -89,6 +95,7 @@ def main() -> None:
             print(f"  same as {reference}: {same(result, reference)}")
         if profiler:
             output = BUILD / f"profile_large_{name}.prof"
+            output.parent.mkdir(parents=True, exist_ok=True)
             profiler.dump_stats(str(output))
             statistics = pstats.Stats(profiler).strip_dirs()
             statistics.sort_stats("tottime").print_stats(arguments.top)
