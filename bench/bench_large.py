@@ -8,7 +8,8 @@ polygon of 100,000 vertices with 1,000 square islands, and a long thin "river" s
 the wavy polygon of 10,000 vertices and 100 islands to the one of 100,000 and 1,000.
 
 Ours is ``triangulate_many`` on lists of rings (``invalid="as_given"``, as earcut; z from the
-benchmark DEM's height function, so that rule elevation has something to choose by), earcut
+benchmark DEM's height function, so that rule elevation has something to choose by, draped:
+``plane="xy"``, as the plugin does for DEM z), earcut
 ``triangulate_float64`` per polygon; each in its own forked process, best of 2 calls.
 
 Usage: python bench/bench_large.py [--quick] [--rules first,elevation,delaunay]
@@ -76,7 +77,9 @@ def cases(quick: bool) -> list[tuple[str, list[Rings]]]:
 def time_ours(polygons: list[Rings], rule: str, repeat: int) -> tuple[float, int, int]:
     """(seconds, triangles, failed polygons) of ``triangulate_many``."""
     seconds, results = timed(
-        lambda: triangulate_many(polygons, rule=rule, invalid="as_given", on_error="return"),
+        lambda: triangulate_many(
+            polygons, rule=rule, invalid="as_given", plane="xy", on_error="return"
+        ),
         repeat,
     )
     good = [r for r in results if isinstance(r, Triangulation)]
