@@ -605,10 +605,14 @@ def run_table(quick: bool = False, budget: float | None = DEFAULT_BUDGET) -> tup
 
 
 def run(
-    quick: bool = False, budget: float | None = DEFAULT_BUDGET, count: int | None = None
+    quick: bool = False,
+    budget: float | None = DEFAULT_BUDGET,
+    count: int | None = None,
+    farms: int | None = None,
 ) -> list[Row]:
-    """Fidelity rows (``count`` is not used: the data set is fixed)."""
-    tables, rows = run_tables(quick, budget)
+    """Fidelity rows (``count`` is not used: the data set is fixed; ``farms``: the first
+    farms only)."""
+    tables, rows = run_tables(quick, budget, farms=farms)
     print(tables, flush=True)
     return rows
 
