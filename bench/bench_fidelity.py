@@ -436,15 +436,18 @@ def pydelatin_method(tolerance: float) -> Callable[..., Outcome]:
     return measure
 
 
-def methods(densify: float | None) -> dict[str, Callable[[Layer, Dem], Outcome]]:
-    """The compared methods by label; the refinements and pydelatin only without densify."""
+def methods(
+    densify: float | None, boundary_only: bool = False
+) -> dict[str, Callable[[Layer, Dem], Outcome]]:
+    """The compared methods by label; the refinements and pydelatin only without densify
+    and without ``boundary_only``."""
     chosen: dict[str, Callable[[Layer, Dem], Outcome]] = {
         f'rule "{rule}"': boundary_method(lambda polygons, rule=rule: meshes_ours(polygons, rule))
         for rule in ("first", "elevation", "delaunay")
     }
     chosen["mapbox_earcut"] = boundary_method(meshes_earcut)
     chosen["GEOS constrained Delaunay"] = boundary_method(meshes_geos)
-    if densify:
+    if densify or boundary_only:
         return chosen
     for tolerance in TOLERANCES:
         chosen[f'rule "delaunay" + DEM points, {tolerance:g} m'] = refined(tolerance)
@@ -482,12 +485,16 @@ def load_layers(
 
 
 def layer_results(
-    layer: Layer, dem: Dem, budget: float | None, densify: float | None = None
+    layer: Layer,
+    dem: Dem,
+    budget: float | None,
+    densify: float | None = None,
+    boundary_only: bool = False,
 ) -> list[tuple[str, Outcome | str]]:
     """(method, outcome or why it has none) of every method on one layer, each method in a
     forked child stopped after ``budget`` seconds."""
     results: list[tuple[str, Outcome | str]] = []
-    for method, measure in methods(densify).items():
+    for method, measure in methods(densify, boundary_only).items():
         try:
             outcome = within(lambda measure=measure: measure(layer, dem), budget)
         except BudgetExceededError:
@@ -576,6 +583,7 @@ def run_tables(
     densify: float | None = None,
     compiled: bool = True,
     farms: int | None = None,
+    boundary_only: bool = False,
 ) -> tuple[str, list[Row]]:
     """The Markdown tables (one per layer, then the FAIL lines and the compiled-CDT ratio)
     and the same as rows for run_all."""
@@ -583,7 +591,7 @@ def run_tables(
     text, rows, failed = [], [], []
     cdt_input = None
     for layer in load_layers(dem, quick, densify, farms):
-        results = layer_results(layer, dem, budget, densify)
+        results = layer_results(layer, dem, budget, densify, boundary_only)
         text += [f"**{layer.label}**", "", layer_table(results), ""]
         rows += result_rows(layer, results)
         failed += failures(layer, results)
@@ -633,6 +641,11 @@ def main() -> None:
     parser.add_argument(
         "--no-compiled", action="store_true", help="skip the compiled constrained-Delaunay ratio"
     )
+    parser.add_argument(
+        "--boundary-only",
+        action="store_true",
+        help="the boundary-only methods (no DEM points, no pydelatin): the whole layers in minutes",
+    )
     arguments = parser.parse_args()
     tables, _rows = run_tables(
         arguments.quick,
@@ -640,6 +653,7 @@ def main() -> None:
         arguments.densify,
         not arguments.no_compiled,
         arguments.farms,
+        arguments.boundary_only,
     )
     print(tables)
 
