@@ -6,12 +6,13 @@ See docs/algorithm.md section 2 for the exact rules implemented here.
 from __future__ import annotations
 
 import heapq
+from collections import deque
 from fractions import Fraction
 
 import numpy as np
 
 from ..triangulation import TriangulationError
-from .points import delaunay_point_bridge
+from .points import delaunay_point_bridge, nearest_point_bridge, point_order
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
 from .spatial_index import PointColumns, SegmentGrid
@@ -567,6 +568,9 @@ def bridge_islands(
                     heapq.heappush(touching, (rank[slot], slot))
 
     mark_touching(rings[0])
+    # delaunay: a point is tried as soon as a vertex linked to it is in (points.PointOrder)
+    order = point_order(bridger, rings) if delaunay else None
+    ready = deque(order.ready(rings[0].tolist()) if order else ())
     pending = iter(leftmost)
     waiting: list[tuple[float, float, int, int]] = []  # delaunay: islands with no bridge yet
     progress = False
@@ -577,6 +581,16 @@ def bridge_islands(
                 continue
             h_index = _touch_index(x, y, rings[slot], bridger)
             target = bridger.find_bridge(rings[slot], h_index)
+        elif ready and order:
+            (slot, near), h_index = ready.popleft(), 0
+            if joined[slot]:
+                continue
+            h = int(rings[slot][0])
+            target = nearest_point_bridge(bridger, h, near)
+            target = target or delaunay_point_bridge(bridger, h)
+            if target is None:  # it waits in pending or waiting
+                continue
+            progress = True
         else:
             item = next((i for i in pending if not joined[i[2]]), None)
             if item is None and waiting:
@@ -613,6 +627,8 @@ def bridge_islands(
         bridger.splice(target[0], rings[slot], h_index)
         joined[slot] = True
         mark_touching(rings[slot])
+        if order:
+            ready.extend(order.ready(rings[slot].tolist()))
     return bridger.seq
 
 

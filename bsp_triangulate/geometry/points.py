@@ -13,7 +13,7 @@ from typing import Protocol
 import numpy as np
 
 from ..triangulation import TriangulationError
-from .predicates import orient_many
+from .predicates import exact_sq_distance, orient_many
 from .spatial_index import SegmentGrid
 
 # (edge, point) pairs tested at once: bounds the memory of the vectorised tests
@@ -215,3 +215,146 @@ def _crossed(bridger: Bridging, u: int, w: int) -> bool:
     o3 = orient_many(x[a], y[a], x[b], y[b], ux, uy)
     o4 = orient_many(x[a], y[a], x[b], y[b], wx, wy)
     return bool(((o3.astype(np.int16) * o4) < 0).any())
+
+
+# relative margin within which float squared distances are re-compared exactly (the float
+# values are within a few units in the last place of the exact ones)
+_TIE_MARGIN = 1e-9
+
+
+def nearest_vertices(
+    x: np.ndarray, y: np.ndarray, ids: np.ndarray, queries: np.ndarray
+) -> np.ndarray:
+    """For each vertex id of ``queries``, the nearest other vertex among ``ids`` (exact
+    squared distance, ties to the smallest id; -1 when there is none).
+
+    A uniform grid over ``ids``: each query scans the block of cells around its own, the
+    block doubling until it holds the nearest vertex's whole circle.
+    """
+    result = np.full(len(queries), -1, dtype=np.int64)
+    if len(queries) == 0 or len(ids) < 2:
+        return result
+    ids = np.sort(ids)
+    vx, vy = x[ids], y[ids]
+    x0, y0 = float(vx.min()), float(vy.min())
+    width, height = float(vx.max()) - x0, float(vy.max()) - y0
+    extent = max(width, height)
+    if not extent > 0:
+        return result
+    cell = max(np.sqrt(width * height / len(ids)), extent / len(ids), extent / 4096)
+    nx = int(width // cell) + 1
+    ny = int(height // cell) + 1
+    col = np.minimum((vx - x0) // cell, nx - 1).astype(np.int64)
+    row = np.minimum((vy - y0) // cell, ny - 1).astype(np.int64)
+    key = row * nx + col
+    order = np.argsort(key, kind="stable")
+    sorted_ids = ids[order]
+    starts = np.searchsorted(key[order], np.arange(nx * ny + 1))
+    qx, qy = x[queries], y[queries]
+    qcol = np.clip((qx - x0) // cell, 0, nx - 1).astype(np.int64)
+    qrow = np.clip((qy - y0) // cell, 0, ny - 1).astype(np.int64)
+    pad = 1e-12 * max(abs(x0), abs(y0), abs(x0 + width), abs(y0 + height))
+    todo = np.arange(len(queries), dtype=np.int64)
+    reach = 1
+    while len(todo):
+        covers = reach >= max(nx, ny)
+        lo_col = np.maximum(qcol[todo] - reach, 0)
+        hi_col = np.minimum(qcol[todo] + reach, nx - 1)
+        lo_row = np.maximum(qrow[todo] - reach, 0)
+        rows = np.minimum(qrow[todo] + reach, ny - 1) - lo_row + 1
+        # one contiguous run of the sorted vertices per (query, row of the block)
+        query = np.repeat(np.arange(len(todo), dtype=np.int64), rows)
+        row_of = np.repeat(lo_row, rows) + (
+            np.arange(len(query), dtype=np.int64) - np.repeat(np.cumsum(rows) - rows, rows)
+        )
+        first = starts[row_of * nx + lo_col[query]]
+        spans = starts[row_of * nx + hi_col[query] + 1] - first
+        total = int(spans.sum())
+        pair_query = np.repeat(query, spans)
+        vertex = sorted_ids[
+            np.repeat(first, spans)
+            + np.arange(total, dtype=np.int64)
+            - np.repeat(np.cumsum(spans) - spans, spans)
+        ]
+        own = queries[todo][pair_query]
+        keep = vertex != own
+        pair_query, vertex, own = pair_query[keep], vertex[keep], own[keep]
+        d2 = (x[vertex] - x[own]) ** 2 + (y[vertex] - y[own]) ** 2
+        best = np.full(len(todo), np.inf)
+        np.minimum.at(best, pair_query, d2)
+        # the block holds every vertex within reach cells of the query, less a slack for the
+        # rounding of the cell arithmetic
+        safe = max(reach * cell * (1 - 1e-6) - pad, 0.0) ** 2
+        done = best * (1 + _TIE_MARGIN) <= safe if not covers else np.isfinite(best)
+        near = done[pair_query] & (d2 <= best[pair_query] * (1 + _TIE_MARGIN))
+        pair_query, vertex = pair_query[near], vertex[near]
+        # one candidate per query unless float distances come within the margin of a tie
+        ties = np.bincount(pair_query, minlength=len(todo))
+        single = ties[pair_query] == 1
+        result[todo[pair_query[single]]] = vertex[single]
+        tied: dict[int, list[int]] = {}
+        for q, v in zip(pair_query[~single].tolist(), vertex[~single].tolist()):
+            tied.setdefault(q, []).append(v)
+        for q, candidates in tied.items():
+            h = int(queries[todo[q]])
+            hx, hy = float(x[h]), float(y[h])
+            result[todo[q]] = min(
+                candidates,
+                key=lambda v: (exact_sq_distance(float(x[v]), float(y[v]), hx, hy), v),
+            )
+        if covers:
+            break
+        todo = todo[~done]
+        reach *= 2
+    return result
+
+
+class PointOrder:
+    """The order of the one-point islands under rule delaunay: a breadth-first walk, from the
+    vertices in the sequence, of the forest that links each point to its nearest vertex
+    (:func:`nearest_vertices` over every vertex). Either end of a link may be joined first:
+    the circle with the link as diameter holds no vertex strictly inside."""
+
+    def __init__(self, bridger: Bridging, slots: list[int], point_vids: list[int]) -> None:
+        vids = np.asarray(point_vids, dtype=np.int64)
+        nearest = nearest_vertices(bridger.x, bridger.y, bridger.point_ids, vids).tolist()
+        slot_of = dict(zip(point_vids, slots))
+        # vertex id -> (slot, vertex id): the linked points and where they are bridged to
+        self.links: dict[int, list[tuple[int, int]]] = {}
+        for slot, vid, near in zip(slots, point_vids, nearest):
+            if near < 0:
+                continue
+            self.links.setdefault(near, []).append((slot, near))
+            if near in slot_of:
+                self.links.setdefault(vid, []).append((slot_of[near], vid))
+
+    def ready(self, vids: list[int]) -> list[tuple[int, int]]:
+        """(slot, target vertex id) of the points linked to one of ``vids`` (once each)."""
+        found: list[tuple[int, int]] = []
+        for vid in vids:
+            found.extend(self.links.pop(vid, ()))
+        return found
+
+
+def point_order(bridger: Bridging, rings: list[np.ndarray]) -> PointOrder | None:
+    """The :class:`PointOrder` of the one-point islands among ``rings[1:]``, None if none."""
+    slots = [slot for slot in range(1, len(rings)) if len(rings[slot]) == 1]
+    if not slots:
+        return None
+    return PointOrder(bridger, slots, [int(rings[slot][0]) for slot in slots])
+
+
+def nearest_point_bridge(bridger: Bridging, h: int, v: int) -> tuple[int, int] | None:
+    """(node, vertex id) of the bridge from the one-point island ``h`` to its nearest vertex
+    ``v``, or None (``v`` not in the sequence yet, or the bridge not valid).
+
+    No vertex lies strictly inside the circle with diameter h-v (it would be nearer to
+    ``h``), so a valid h-v is a constrained Delaunay edge without the disk test of
+    :func:`delaunay_point_bridge`.
+    """
+    if not bridger.in_seq[v]:
+        return None
+    ks = bridger._valid_occurrences(v, np.array([h], dtype=np.int64), 0)
+    if not ks:
+        return None
+    return min(ks, key=lambda k: int(bridger.label[k])), v

@@ -28,6 +28,8 @@ from bsp_triangulate import (
     triangulate_many,
     triangulate_packed,
 )
+from bsp_triangulate.geometry.points import nearest_vertices
+from bsp_triangulate.geometry.predicates import exact_sq_distance
 
 from ..conftest import SHARED_DATA
 from .checks import (
@@ -277,3 +279,33 @@ def test_packed_point_counts_are_checked() -> None:
         triangulate_packed(polygons, points=(np.zeros((2, 3)), np.array([1])))
     with pytest.raises(ValueError, match="counts for"):
         triangulate_packed(polygons, points=(np.zeros((2, 3)), np.array([1, 1])))
+
+
+def test_nearest_vertices_match_a_brute_force_search() -> None:
+    rnd = random.Random(5)
+    grid = [(float(i), float(j)) for i in range(12) for j in range(12)]
+    scattered = [(rnd.uniform(-1, 12), rnd.uniform(-1, 12)) for _ in range(150)]
+    far = [(1e6, 1e6), (-3e5, 2.5)]
+    xy = np.array(grid + scattered + far + grid[:5])  # repeats: exact ties at distance 0
+    x, y = xy[:, 0], xy[:, 1]
+    ids = np.arange(len(xy), dtype=np.int64)
+    queries = np.array([*rnd.sample(range(len(xy)), 120), len(xy) - 1], dtype=np.int64)
+    got = nearest_vertices(x, y, ids, queries)
+    for query, near in zip(queries.tolist(), got.tolist()):
+        others = [v for v in range(len(xy)) if v != query]
+        d2 = [exact_sq_distance(x[v], y[v], x[query], y[query]) for v in others]
+        assert near == min(zip(d2, others))[1]
+
+
+def test_grid_points_with_random_points_under_rule_delaunay() -> None:
+    # DEM-like cell centres, with their many exact distance ties, plus scattered points: the
+    # points join in the order of their nearest vertices
+    rnd = random.Random(11)
+    outer = [(0.0, 0.0), (41.0, 0.0), (41.0, 41.0), (20.5, 30.0), (0.0, 41.0)]
+    island = [(10.2, 10.2), (10.2, 14.8), (14.8, 14.8), (14.8, 10.2)]
+    centres = [(i + 0.5, j + 0.5) for i in range(40) for j in range(40)]
+    scattered = [(rnd.uniform(0, 41), rnd.uniform(0, 41)) for _ in range(300)]
+    points = np.array(centres + scattered)
+    rings = [outer, island]
+    result = triangulate(rings, points=points, rule="delaunay")
+    check_with_points(rings, points, result, "delaunay")
