@@ -763,7 +763,10 @@ class _Tree:
             deferred: list[tuple[int, int, int, bool, int, int, int]] = []
             try:
                 self._grow([(1, self.m, True, -1, 0, 0)], rows, deferred)
-                rows = self._with_subtrees(rows, deferred, name) if deferred else rows
+                if deferred and not _worth_lockstep(deferred):
+                    rows = None
+                elif deferred:
+                    rows = self._with_subtrees(rows, deferred, name)
             except TriangulationError:
                 rows = None
         if rows is None:  # one step at a time throughout (and the errors in pre-order)
@@ -966,6 +969,19 @@ class _Tree:
     def _label(self, position: int) -> str:
         vid = int(self.ids[position])
         return ring_label(int(self.prepared.ring_of[vid]))
+
+
+# the lock-step builder pays a round per tree level: it is worth it only when this many
+# sub-polygons' worth of positions advance together (a deep chain alone costs a numpy round
+# per triangle)
+_LOCKSTEP_BREADTH = 8
+
+
+def _worth_lockstep(deferred: list[tuple[int, int, int, bool, int, int, int]]) -> bool:
+    """The deferred sub-polygons are many enough beside the largest of them (whose depth
+    bounds the lock-step rounds) to be built in lock-step rather than one step at a time."""
+    sizes = [hi - lo for _, lo, hi, *_ in deferred]
+    return sum(sizes) >= _LOCKSTEP_BREADTH * max(sizes)
 
 
 def _snap(clean: list[np.ndarray], tolerance: float) -> list[np.ndarray]:

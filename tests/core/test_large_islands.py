@@ -107,3 +107,28 @@ def test_blocked_bridge_search_matches_one_at_a_time(monkeypatch: pytest.MonkeyP
     monkeypatch.setattr(bridges, "_LAST_BLOCK", 1)
     _same(fast, triangulate(rings, rule="delaunay"))
     _same(triangulate(rings), _one_step(monkeypatch, rings))
+
+
+def test_lockstep_subtrees_only_where_many_advance_together(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Many small sub-polygons go to the lock-step builder; a deep chain alone (a comb of
+    near-collinear teeth) is built one step at a time, as a lock-step round per triangle
+    would cost far more."""
+    from .tree.test_batch_internals import near_collinear_polygon
+
+    calls: list[int] = []
+    build = one_polygon.build_subtrees
+    monkeypatch.setattr(
+        one_polygon, "build_subtrees", lambda *a, **k: calls.append(1) or build(*a, **k)
+    )
+    triangulate(_wavy(5000, 100, 1))
+    assert calls
+    calls.clear()
+    rng = np.random.default_rng(29)
+    comb = next(
+        p for p in (near_collinear_polygon(rng, 140, 0.0) for _ in range(20)) if len(p[0]) > 260
+    )
+    plain = _one_step(monkeypatch, comb)
+    _same(plain, triangulate(comb))
+    assert not calls
