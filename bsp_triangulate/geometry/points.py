@@ -226,21 +226,35 @@ def nearest_vertices(
     x: np.ndarray, y: np.ndarray, ids: np.ndarray, queries: np.ndarray
 ) -> np.ndarray:
     """For each vertex id of ``queries``, the nearest other vertex among ``ids`` (exact
-    squared distance, ties to the smallest id; -1 when there is none).
+    squared distance, ties to the smallest id; -1 when there is none)."""
+    return _nearest(x, y, ids, queries)[0]
+
+
+def _nearest(
+    x: np.ndarray,
+    y: np.ndarray,
+    ids: np.ndarray,
+    queries: np.ndarray,
+    labels: np.ndarray | None = None,
+    max_reach: int | None = None,
+) -> tuple[np.ndarray, float]:
+    """:func:`nearest_vertices` among the vertices of another label than the query's (per
+    vertex id; None: any other vertex), and a squared distance ``bound``: a query left at
+    -1 has no such vertex nearer (float) than ``bound`` (inf: none at all).
 
     A uniform grid over ``ids``: each query scans the block of cells around its own, the
-    block doubling until it holds the nearest vertex's whole circle.
+    block doubling (up to ``max_reach`` cells) until it holds the nearest vertex's circle.
     """
     result = np.full(len(queries), -1, dtype=np.int64)
     if len(queries) == 0 or len(ids) < 2:
-        return result
+        return result, np.inf
     ids = np.sort(ids)
     vx, vy = x[ids], y[ids]
     x0, y0 = float(vx.min()), float(vy.min())
     width, height = float(vx.max()) - x0, float(vy.max()) - y0
     extent = max(width, height)
     if not extent > 0:
-        return result
+        return result, np.inf
     cell = max(np.sqrt(width * height / len(ids)), extent / len(ids), extent / 4096)
     nx = int(width // cell) + 1
     ny = int(height // cell) + 1
@@ -277,7 +291,7 @@ def nearest_vertices(
             - np.repeat(np.cumsum(spans) - spans, spans)
         ]
         own = queries[todo][pair_query]
-        keep = vertex != own
+        keep = vertex != own if labels is None else labels[vertex] != labels[own]
         pair_query, vertex, own = pair_query[keep], vertex[keep], own[keep]
         d2 = (x[vertex] - x[own]) ** 2 + (y[vertex] - y[own]) ** 2
         best = np.full(len(todo), np.inf)
@@ -303,30 +317,94 @@ def nearest_vertices(
                 key=lambda v: (exact_sq_distance(float(x[v]), float(y[v]), hx, hy), v),
             )
         if covers:
-            break
+            return result, np.inf
         todo = todo[~done]
+        if max_reach is not None and reach >= max_reach and len(todo):
+            return result, safe / (1 + _TIE_MARGIN)
         reach *= 2
-    return result
+    return result, np.inf
+
+
+# rounds linking the components of points with no ring vertex to the nearest vertex outside,
+# and how far (grid cells) their members look
+_LINK_ROUNDS = 8
+_LINK_REACH = 8
 
 
 class PointOrder:
     """The order of the one-point islands under rule delaunay: a breadth-first walk, from the
-    vertices in the sequence, of the forest that links each point to its nearest vertex
-    (:func:`nearest_vertices` over every vertex). Either end of a link may be joined first:
-    the circle with the link as diameter holds no vertex strictly inside."""
+    vertices in the sequence, over links whose diametral circles hold no vertex strictly
+    inside, so that either end may be joined first.
+
+    The links: each point to its nearest vertex (:func:`nearest_vertices`), then, for a
+    while, each component of linked points without a ring vertex to the nearest vertex
+    outside it (a vertex strictly inside that circle would be nearer to one of the ends and
+    on the other side of the component's boundary).
+    """
 
     def __init__(self, bridger: Bridging, slots: list[int], point_vids: list[int]) -> None:
-        vids = np.asarray(point_vids, dtype=np.int64)
-        nearest = nearest_vertices(bridger.x, bridger.y, bridger.point_ids, vids).tolist()
-        slot_of = dict(zip(point_vids, slots))
+        x, y = bridger.x, bridger.y
+        self.slot_of = dict(zip(point_vids, slots))
         # vertex id -> (slot, vertex id): the linked points and where they are bridged to
         self.links: dict[int, list[tuple[int, int]]] = {}
-        for slot, vid, near in zip(slots, point_vids, nearest):
-            if near < 0:
-                continue
-            self.links.setdefault(near, []).append((slot, near))
-            if near in slot_of:
-                self.links.setdefault(vid, []).append((slot_of[near], vid))
+        self.root = {vid: vid for vid in point_vids}  # union-find over the points
+        self.anchored: set[int] = set()  # roots of components linked to a ring vertex
+        vids = np.asarray(point_vids, dtype=np.int64)
+        nearest = nearest_vertices(x, y, bridger.point_ids, vids).tolist()
+        for vid, near in zip(point_vids, nearest):
+            if near >= 0:
+                self._link(vid, near)
+        labels = np.arange(len(x), dtype=np.int64)
+        for _ in range(_LINK_ROUNDS):
+            free = [vid for vid in point_vids if self._find(vid) not in self.anchored]
+            if not free:
+                break
+            members = np.asarray(free, dtype=np.int64)
+            roots = np.asarray([self._find(vid) for vid in free], dtype=np.int64)
+            labels[members] = roots
+            near, bound = _nearest(x, y, bridger.point_ids, members, labels, _LINK_REACH)
+            labels[members] = members
+            found = near >= 0
+            d2 = np.full(len(members), np.inf)
+            d2[found] = (x[near[found]] - x[members[found]]) ** 2 + (
+                y[near[found]] - y[members[found]]
+            ) ** 2
+            component, index = np.unique(roots, return_inverse=True)
+            least = np.full(len(component), np.inf)
+            np.minimum.at(least, index, d2)
+            # certain: no member left without a result can be nearer
+            sure = np.isfinite(least) & (least * (1 + _TIE_MARGIN) < bound)
+            pick = sure[index] & (d2 <= least[index] * (1 + _TIE_MARGIN))
+            best: dict[int, tuple[Fraction, int, int]] = {}
+            for c, a, b in zip(index[pick].tolist(), members[pick].tolist(), near[pick].tolist()):
+                key = (exact_sq_distance(float(x[a]), float(y[a]), float(x[b]), float(y[b])), a, b)
+                if c not in best or key < best[c]:
+                    best[c] = key
+            if not best:
+                break
+            for _, a, b in best.values():
+                self._link(a, b)
+
+    def _find(self, vid: int) -> int:
+        root = self.root
+        while root[vid] != vid:
+            root[vid] = root[root[vid]]
+            vid = root[vid]
+        return vid
+
+    def _link(self, a: int, b: int) -> None:
+        """Link point ``a`` to vertex ``b``."""
+        self.links.setdefault(b, []).append((self.slot_of[a], b))
+        ra = self._find(a)
+        if b not in self.slot_of:
+            self.anchored.add(ra)
+            return
+        self.links.setdefault(a, []).append((self.slot_of[b], a))
+        rb = self._find(b)
+        if ra != rb:
+            self.root[ra] = rb
+            if ra in self.anchored:
+                self.anchored.add(rb)
 
     def ready(self, vids: list[int]) -> list[tuple[int, int]]:
         """(slot, target vertex id) of the points linked to one of ``vids`` (once each)."""

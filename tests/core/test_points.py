@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import json
 import random
+from fractions import Fraction
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -28,7 +30,7 @@ from bsp_triangulate import (
     triangulate_many,
     triangulate_packed,
 )
-from bsp_triangulate.geometry.points import nearest_vertices
+from bsp_triangulate.geometry.points import PointOrder, nearest_vertices
 from bsp_triangulate.geometry.predicates import exact_sq_distance
 
 from ..conftest import SHARED_DATA
@@ -309,3 +311,25 @@ def test_grid_points_with_random_points_under_rule_delaunay() -> None:
     rings = [outer, island]
     result = triangulate(rings, points=points, rule="delaunay")
     check_with_points(rings, points, result, "delaunay")
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_point_order_links_have_empty_diametral_circles(seed: int) -> None:
+    # each link may be the bridge of either end: no vertex strictly inside its circle (exact)
+    rnd = random.Random(seed)
+    ring = [(float(i), 0.0) for i in range(20)] + [(20.0, 20.0), (0.0, 20.0)]
+    grid = [(i + 0.5, j + 0.5) for i in range(0, 20, 2) for j in range(0, 20, 2)]
+    scattered = [(rnd.uniform(0.1, 19.9), rnd.uniform(0.1, 19.9)) for _ in range(150)]
+    xy = np.array(ring + grid + scattered)
+    x, y = xy[:, 0], xy[:, 1]
+    vids = list(range(len(ring), len(xy)))
+    bridger = SimpleNamespace(x=x, y=y, point_ids=np.arange(len(xy), dtype=np.int64))
+    order = PointOrder(bridger, [vid + 1000 for vid in vids], vids)
+    vid_of = {vid + 1000: vid for vid in vids}
+    links = {(vid_of[slot], near) for targets in order.links.values() for slot, near in targets}
+    assert {a for a, _ in links} == set(vids)  # every point is linked
+    for a, b in links:
+        ax, ay, bx, by = (Fraction(float(c)) for c in (x[a], y[a], x[b], y[b]))
+        for w in range(len(xy)):
+            wx, wy = Fraction(float(x[w])), Fraction(float(y[w]))
+            assert (wx - ax) * (wx - bx) + (wy - ay) * (wy - by) >= 0, (a, b, w)
