@@ -237,13 +237,15 @@ def _nearest(
     queries: np.ndarray,
     labels: np.ndarray | None = None,
     max_reach: int | None = None,
+    first_reach: int = 1,
 ) -> tuple[np.ndarray, float]:
     """:func:`nearest_vertices` among the vertices of another label than the query's (per
     vertex id; None: any other vertex), and a squared distance ``bound``: a query left at
     -1 has no such vertex nearer (float) than ``bound`` (inf: none at all).
 
     A uniform grid over ``ids``: each query scans the block of cells around its own, the
-    block doubling (up to ``max_reach`` cells) until it holds the nearest vertex's circle.
+    block (``first_reach`` cells around) doubling up to ``max_reach`` cells until it holds
+    the nearest vertex's circle.
     """
     result = np.full(len(queries), -1, dtype=np.int64)
     if len(queries) == 0 or len(ids) < 2:
@@ -269,7 +271,7 @@ def _nearest(
     qrow = np.clip((qy - y0) // cell, 0, ny - 1).astype(np.int64)
     pad = 1e-12 * max(abs(x0), abs(y0), abs(x0 + width), abs(y0 + height))
     todo = np.arange(len(queries), dtype=np.int64)
-    reach = 1
+    reach = first_reach
     while len(todo):
         covers = reach >= max(nx, ny)
         lo_col = np.maximum(qcol[todo] - reach, 0)
@@ -362,18 +364,30 @@ class PointOrder:
             members = np.asarray(free, dtype=np.int64)
             roots = np.asarray([self._find(vid) for vid in free], dtype=np.int64)
             labels[members] = roots
-            near, bound = _nearest(x, y, bridger.point_ids, members, labels, _LINK_REACH)
-            labels[members] = members
-            found = near >= 0
-            d2 = np.full(len(members), np.inf)
-            d2[found] = (x[near[found]] - x[members[found]]) ** 2 + (
-                y[near[found]] - y[members[found]]
-            ) ** 2
             component, index = np.unique(roots, return_inverse=True)
             least = np.full(len(component), np.inf)
-            np.minimum.at(least, index, d2)
-            # certain: no member left without a result can be nearer
-            sure = np.isfinite(least) & (least * (1 + _TIE_MARGIN) < bound)
+            sure = np.zeros(len(component), dtype=bool)
+            near = np.full(len(members), -1, dtype=np.int64)
+            d2 = np.full(len(members), np.inf)
+            # growing blocks, for the members of the components not settled yet
+            active, reach = np.arange(len(members)), 1
+            while len(active) and reach <= _LINK_REACH:
+                got, bound = _nearest(
+                    x, y, bridger.point_ids, members[active], labels, reach, first_reach=reach
+                )
+                hit, left = active[got >= 0], active[got < 0]
+                near[hit] = got[got >= 0]
+                d2[hit] = (x[near[hit]] - x[members[hit]]) ** 2 + (
+                    y[near[hit]] - y[members[hit]]
+                ) ** 2
+                np.minimum.at(least, index[hit], d2[hit])
+                # settled: no member left without a result can be nearer
+                open_ = np.zeros(len(component), dtype=bool)
+                open_[index[left]] = True
+                sure = np.isfinite(least) & (~open_ | (least * (1 + _TIE_MARGIN) < bound))
+                active = left[~sure[index[left]]]
+                reach *= 2
+            labels[members] = members
             pick = sure[index] & (d2 <= least[index] * (1 + _TIE_MARGIN))
             best: dict[int, tuple[Fraction, int, int]] = {}
             for c, a, b in zip(index[pick].tolist(), members[pick].tolist(), near[pick].tolist()):
