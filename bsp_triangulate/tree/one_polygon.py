@@ -533,7 +533,8 @@ class _Tree:
                         break
                 # most promising first: smallest centre offset (largest angle), in float
                 ux, uy = sx[untested] - mx, sy[untested] - my
-                key = (ux * ux + uy * uy - half2) / (ux * nx + uy * ny)
+                with np.errstate(divide="ignore", invalid="ignore"):  # an order, checked after
+                    key = (ux * ux + uy * uy - half2) / (ux * nx + uy * ny)
                 order = np.argsort(key, kind="stable")
                 chunk = np.sort(untested[order[:size]])[::-1]  # candidate order
                 untested = untested[order[size:]]
