@@ -96,7 +96,7 @@ class DelaunayRule:
         mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
         nx, ny = ay - by, bx - ax
         ux, uy = cx - mx, cy - my
-        half2 = 0.25 * ((bx - ax) ** 2 + (by - ay) ** 2)
+        half2 = 0.25 * ((bx - ax) * (bx - ax) + (by - ay) * (by - ay))  # no OverflowError
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             offset = (ux * ux + uy * uy - half2) / (ux * nx + uy * ny)
         offset = np.nan_to_num(offset, nan=np.inf, posinf=np.inf, neginf=-np.inf)

@@ -300,7 +300,8 @@ def _nearest(
         np.minimum.at(best, pair_query, d2)
         # the block holds every vertex within reach cells of the query, less a slack for the
         # rounding of the cell arithmetic
-        safe = max(reach * cell * (1 - 1e-6) - pad, 0.0) ** 2
+        safe = max(reach * cell * (1 - 1e-6) - pad, 0.0)
+        safe *= safe  # (** would raise OverflowError on a Python float)
         done = best * (1 + _TIE_MARGIN) <= safe if not covers else np.isfinite(best)
         near = done[pair_query] & (d2 <= best[pair_query] * (1 + _TIE_MARGIN))
         pair_query, vertex = pair_query[near], vertex[near]

@@ -562,7 +562,7 @@ class _Tree:
         sx, sy, xs, ys = self.sx, self.sy, self.xs, self.ys
         ax, ay, bx, by = float(sx[hi]), float(sy[hi]), float(sx[lo]), float(sy[lo])
         mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
-        half2 = 0.25 * ((bx - ax) ** 2 + (by - ay) ** 2)
+        half2 = 0.25 * ((bx - ax) * (bx - ax) + (by - ay) * (by - ay))  # no OverflowError
         ux, uy = sx[candidates] - mx, sy[candidates] - my
         toward = ux * (ay - by) + uy * (bx - ax)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):

@@ -90,7 +90,8 @@ def test_unknown_rule_is_a_value_error() -> None:
     [(1e15, 1.0), (0.0, 1e-9), (-1e8, 1e-6), (0.0, 1e300), (0.0, 1e-300)],
     ids=["1e15", "1e-9", "mixed", "huge", "subnormal-range"],
 )
-def test_far_or_tiny_comb_polygon_is_tiled_exactly(offset: float, scale: float) -> None:
+@pytest.mark.parametrize("rule", ["first", "elevation", "delaunay"])
+def test_far_or_tiny_comb_polygon_is_tiled_exactly(offset: float, scale: float, rule: str) -> None:
     # a comb: deep notches with nearly collinear teeth tips
     teeth = 12
     ring = [(0.0, 0.0), (2.0 * teeth, 0.0)]
@@ -98,7 +99,7 @@ def test_far_or_tiny_comb_polygon_is_tiled_exactly(offset: float, scale: float) 
         ring += [(2.0 * k, 5.0 + k * 1e-7), (2.0 * k - 1, 1.0)]
     ring.append((0.0, 5.0))
     points = np.array(ring) * scale + offset
-    result = triangulate([points])
+    result = triangulate([points], rule=rule)
     assert len(result) == len(points) - 2
     areas = triangle_areas2(result)
     assert all(area > 0 for area in areas)
