@@ -50,6 +50,8 @@ _EXIT_WAIT = 2.0
 _RESULT_FIELDS = (
     "vertices", "vertex_count", "triangles", "triangle_count", "parent", "depth", "side",
 )  # fmt: skip
+# keyword fields of PackedTriangulations that cross too (interior points' ids)
+_RESULT_KEYWORDS = ("point_ids", "point_count")
 
 
 class WorkerError(RuntimeError):
@@ -204,8 +206,12 @@ class WorkerPool:
         if request[0] != "triangulate":
             return None
         arrays, errors = payload
+        positional = arrays[: len(_RESULT_FIELDS)]
+        keywords = dict(zip(_RESULT_KEYWORDS, arrays[len(_RESULT_FIELDS) :]))
         return PackedTriangulations(
-            *arrays, errors={index: TriangulationError(text) for index, text in errors.items()}
+            *positional,
+            errors={index: TriangulationError(text) for index, text in errors.items()},
+            **keywords,
         )
 
     def _take(self) -> _Worker:
@@ -290,7 +296,8 @@ def _triangulate(
     from .api import triangulate_packed
 
     result = triangulate_packed(PackedPolygons(points, ring_len, ring_count), **options)
-    arrays = tuple(np.asarray(getattr(result, name)) for name in _RESULT_FIELDS)
+    names = _RESULT_FIELDS + _RESULT_KEYWORDS
+    arrays = tuple(np.asarray(getattr(result, name)) for name in names)
     return arrays, {index: str(error) for index, error in result.errors.items()}
 
 

@@ -20,7 +20,10 @@ from .test_packed import as_arrays
 from .tree.test_batch import farm_polygons
 
 EARCUT = SHARED_DATA / "earcut" / "fixtures"
-FIELDS = ("vertices", "vertex_count", "triangles", "triangle_count", "parent", "depth", "side")
+FIELDS = (
+    "vertices", "vertex_count", "triangles", "triangle_count", "parent", "depth", "side",
+    "point_ids", "point_count",
+)  # fmt: skip
 TRIANGLE = [[(0.0, 0.0), (2.0, 0.0), (0.0, 2.0)]]
 BOWTIE = [[(0.0, 0.0), (4.0, 4.0), (4.0, 0.0), (0.0, 4.0)]]
 
@@ -67,10 +70,15 @@ def test_workers_pass_the_options_and_proven_flags() -> None:
     call = PackedPolygons.of(polygons)
     proven = np.zeros(len(polygons), dtype=bool)
     with WorkerPool(1) as pool:
+        counts = np.array([rnd.randint(0, 3) for _ in polygons], dtype=np.int64)
+        inside = np.array(
+            [[rnd.uniform(-1, 1), rnd.uniform(-1, 1), 0.0] for _ in range(counts.sum())]
+        )
         for options in (
             {"rule": "elevation"},
             {"planar_tolerance": 0.5},
             {"invalid": "as_given", "proven": proven},
+            {"rule": "delaunay", "points": (inside, counts)},
         ):
             got = pool.submit(call, on_error="return", **options).result(timeout=300)
             want = triangulate_packed(call, on_error="return", **options)
