@@ -15,7 +15,7 @@ from ..triangulation import TriangulationError
 from .points import delaunay_point_bridge, nearest_point_bridge, point_order
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
-from .spatial_index import PointColumns, SegmentGrid
+from .spatial_index import PointColumns, SegmentGrid, chunks
 
 # relative margin within which float squared distances are re-compared exactly
 _DISTANCE_MARGIN = 1e-9
@@ -70,7 +70,7 @@ def _touching_pairs(
     near_ids = vertex_ids[points.order]  # vertex ids in the order of the points' cells
     ax, ay, bx, by = x[starts], y[starts], x[ends], y[ends]
     edges_found, vertices_found = [], []
-    for edge_lo, edge_hi in _chunks(points.column_spans(ax, bx), _PAIR_CHUNK):
+    for edge_lo, edge_hi in chunks(points.column_spans(ax, bx), _PAIR_CHUNK):
         window = slice(edge_lo, edge_hi)
         segment, first, last = points.segment_columns(
             ax[window], ay[window], bx[window], by[window]
@@ -78,7 +78,7 @@ def _touching_pairs(
         counts = last - first
         keep = counts > 0
         segment, first, counts = segment[keep] + edge_lo, first[keep], counts[keep]
-        for lo, hi in _chunks(counts, _PAIR_CHUNK):
+        for lo, hi in chunks(counts, _PAIR_CHUNK):
             part = counts[lo:hi]
             offsets = np.arange(int(part.sum()), dtype=np.int64) - np.repeat(
                 np.cumsum(part) - part, part
@@ -95,16 +95,6 @@ def _touching_pairs(
     if not edges_found:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     return np.concatenate(edges_found), np.concatenate(vertices_found)
-
-
-def _chunks(counts: np.ndarray, size: int) -> list[tuple[int, int]]:
-    """Consecutive index ranges [lo, hi) of ``counts`` summing to about ``size`` each."""
-    if len(counts) == 0:
-        return []
-    cumulative = np.cumsum(counts)
-    cuts = np.searchsorted(cumulative, np.arange(size, int(cumulative[-1]), size)).tolist()
-    bounds = sorted({0, *cuts, len(counts)})
-    return list(zip(bounds[:-1], bounds[1:]))
 
 
 def _order_along(x: np.ndarray, y: np.ndarray, a: int, b: int, inside: list[int]) -> list[int]:

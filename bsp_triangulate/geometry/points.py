@@ -14,7 +14,7 @@ import numpy as np
 
 from ..triangulation import TriangulationError
 from .predicates import exact_sq_distance, orient_many
-from .spatial_index import SegmentGrid
+from .spatial_index import SegmentGrid, chunks
 
 # (edge, point) pairs tested at once: bounds the memory of the vectorised tests
 _PAIR_CHUNK = 1 << 18
@@ -74,7 +74,7 @@ def strictly_inside(
     spans = last - first
     crossings = np.zeros(count, dtype=np.int64)
     boundary = np.zeros(count, dtype=bool)
-    for lo, hi in _chunks(spans, _PAIR_CHUNK):
+    for lo, hi in chunks(spans, _PAIR_CHUNK):
         part = spans[lo:hi]
         total = int(part.sum())
         if total == 0:
@@ -97,16 +97,6 @@ def strictly_inside(
         crossing = (upward & (side > 0)) | (downward & (side < 0))
         crossings += np.bincount(point[crossing], minlength=count)
     return (crossings % 2 == 1) & ~boundary
-
-
-def _chunks(counts: np.ndarray, size: int) -> list[tuple[int, int]]:
-    """Consecutive index ranges [lo, hi) of ``counts`` summing to about ``size`` each."""
-    if len(counts) == 0:
-        return []
-    cumulative = np.cumsum(counts)
-    cuts = np.searchsorted(cumulative, np.arange(size, int(cumulative[-1]), size)).tolist()
-    bounds = sorted({0, *cuts, len(counts)})
-    return list(zip(bounds[:-1], bounds[1:]))
 
 
 class Bridging(Protocol):

@@ -348,3 +348,13 @@ class ChainBoxes:
             (vmax - vmin) / 2 + pad,
         )
         return list(zip(*(field.tolist() for field in fields)))
+
+
+def chunks(counts: np.ndarray, size: int) -> list[tuple[int, int]]:
+    """Consecutive index ranges [lo, hi) of ``counts`` summing to about ``size`` each."""
+    if len(counts) == 0:
+        return []
+    cumulative = np.cumsum(counts)
+    cuts = np.searchsorted(cumulative, np.arange(size, int(cumulative[-1]), size)).tolist()
+    bounds = sorted({0, *cuts, len(counts)})
+    return list(zip(bounds[:-1], bounds[1:]))
