@@ -93,14 +93,21 @@ def plane(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def write_plane_dem(path: Path, nodata_cells: tuple[tuple[int, int], ...] = ()) -> Path:
-    """A Float32 GeoTIFF in EPSG:32733 holding the plane; listed cells set to nodata."""
+    """A Float64 GeoTIFF in EPSG:32733 holding the plane; listed cells set to nodata."""
     xs = X0 + (np.arange(COLS) + 0.5) * CELL
     ys = Y0 - (np.arange(ROWS) + 0.5) * CELL
     values = plane(xs[None, :], ys[:, None])
     for row, col in nodata_cells:
         values[row, col] = -9999.0
-    dataset = gdal.GetDriverByName("GTiff").Create(str(path), COLS, ROWS, 1, gdal.GDT_Float64)
-    dataset.SetGeoTransform((X0, CELL, 0.0, Y0, 0.0, -CELL))
+    return write_utm_dem(path, values, X0, Y0, CELL)
+
+
+def write_utm_dem(path: Path, values: np.ndarray, x0: float, y0: float, cell: float) -> Path:
+    """``values`` (rows, cols) as a Float64 GeoTIFF in EPSG:32733, north-up from the top-left
+    corner (x0, y0) with square cells; -9999 is nodata."""
+    rows, cols = values.shape
+    dataset = gdal.GetDriverByName("GTiff").Create(str(path), cols, rows, 1, gdal.GDT_Float64)
+    dataset.SetGeoTransform((x0, cell, 0.0, y0, 0.0, -cell))
     srs = osr.SpatialReference()
     srs.ImportFromEPSG(32733)
     dataset.SetProjection(srs.ExportToWkt())

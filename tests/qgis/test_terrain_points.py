@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import shapely
-from osgeo import gdal, osr
+from osgeo import gdal
 from qgis.core import (
     QgsCoordinateReferenceSystem,
     QgsCoordinateTransform,
@@ -21,7 +21,14 @@ from qgis.core import (
 
 from tests.conftest import SHARED_DATA
 from tests.core.terrain.test_refine import surface
-from tests.qgis.test_algorithm import RecordingFeedback, corners, polygon_layer, run, triangle_rows
+from tests.qgis.helpers import (
+    RecordingFeedback,
+    corners,
+    polygon_layer,
+    run,
+    triangle_rows,
+    write_utm_dem,
+)
 
 pytestmark = pytest.mark.usefixtures("provider")
 
@@ -49,16 +56,7 @@ def write_hill_dem(path: Path, nodata: tuple[slice, slice] | None = None) -> Pat
     values = hill(xs[None, :], ys[:, None])
     if nodata is not None:
         values[nodata] = -9999.0
-    dataset = gdal.GetDriverByName("GTiff").Create(str(path), COLS, ROWS, 1, gdal.GDT_Float64)
-    dataset.SetGeoTransform((X0, CELL, 0.0, Y0, 0.0, -CELL))
-    srs = osr.SpatialReference()
-    srs.ImportFromEPSG(32733)
-    dataset.SetProjection(srs.ExportToWkt())
-    band = dataset.GetRasterBand(1)
-    band.SetNoDataValue(-9999.0)
-    band.WriteArray(values)
-    dataset = None
-    return path
+    return write_utm_dem(path, values, X0, Y0, CELL)
 
 
 def wkt(rings: list[list[tuple[float, float]]]) -> str:
