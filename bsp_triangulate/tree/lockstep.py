@@ -192,6 +192,18 @@ class RunBoxes:
         )
 
 
+def _facing_candidates(
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every candidate of every node (lo, hi), in candidate order (hi - 1 down to lo + 1),
+    that faces its base: (node, candidate position) pairs."""
+    span = hi - lo - 1
+    owner = np.repeat(np.arange(len(lo), dtype=np.int64), span)
+    c = np.repeat(hi - 1, span) - ragged_index(np.zeros(len(lo), np.int64), span)
+    facing = _facing(seqs, lo[owner], hi[owner], c)
+    return owner[facing], c[facing]
+
+
 def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Per candidate position ``c`` on the base of the sub-polygon [lo, hi]: conditions 1 (c
     strictly left of the chord s_hi -> s_lo) and 4 (the interior angle at c)."""
@@ -936,11 +948,7 @@ def _elevation_apex(
     n = len(lo)
     found = np.zeros(n, dtype=bool)
     apex = np.full(n, -1, dtype=np.int64)
-    span = hi - lo - 1
-    owner = np.repeat(np.arange(n, dtype=np.int64), span)
-    c = np.repeat(hi - 1, span) - ragged_index(np.zeros(n, np.int64), span)
-    facing = _facing(seqs, lo[owner], hi[owner], c)
-    owner, c = owner[facing], c[facing]
+    owner, c = _facing_candidates(seqs, lo, hi)
     if not len(c):
         return found, apex
     at_hi = state[_AT_HI] == 1
@@ -1131,11 +1139,7 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
     n = len(lo)
     found = np.zeros(n, dtype=bool)
     apex = np.full(n, -1, dtype=np.int64)
-    span = hi - lo - 1
-    owner = np.repeat(np.arange(n, dtype=np.int64), span)
-    c = np.repeat(hi - 1, span) - ragged_index(np.zeros(n, np.int64), span)
-    facing = _facing(seqs, lo[owner], hi[owner], c)
-    owner, c = owner[facing], c[facing]
+    owner, c = _facing_candidates(seqs, lo, hi)
     if not len(c):
         return found, apex
     sx, sy = seqs.sx, seqs.sy
