@@ -11,7 +11,7 @@ from typing import Protocol
 
 import numpy as np
 
-from .geometry.predicates import incircle_many
+from .geometry.predicates import incircle_sos_many
 
 
 class ApexRule(Protocol):
@@ -65,7 +65,8 @@ class DelaunayRule:
     """The correct candidate that sees the base under the largest angle (docs/algorithm.md,
     "Rule delaunay"): no other correct candidate lies strictly inside its circumcircle with
     the base, so the tree is the constrained Delaunay triangulation of the polygon's vertices.
-    Cocircular candidates: the first in candidate order.
+    Cocircular candidates: ``predicates.cocircular_sign`` decides (a fixed perturbation, so
+    the triangulation is unique).
 
     The rule decides in the working plane, so it has :meth:`choose_in_plane`; the builders
     call that instead of :meth:`choose` (``in_plane`` is True). Under it the bridges are
@@ -85,8 +86,8 @@ class DelaunayRule:
     ) -> int:
         """Pick one of ``correct`` (positions in candidate order, all strictly left of the
         base a -> b): the one with no other strictly inside its circle with a and b, the
-        first in candidate order among cocircular ones. ``x``, ``y``: coordinates by
-        position."""
+        cocircular ones decided by ``predicates.cocircular_sign`` (the first in candidate order
+        among occurrences of one point). ``x``, ``y``: coordinates by position."""
         if len(correct) == 1:
             return int(correct[0])
         ax, ay, bx, by = float(x[a]), float(y[a]), float(x[b]), float(y[b])
@@ -102,12 +103,13 @@ class DelaunayRule:
         offset = np.nan_to_num(offset, nan=np.inf, posinf=np.inf, neginf=-np.inf)
         best = int(np.argmin(offset))
         while True:
-            inside = incircle_many(ax, ay, bx, by, cx[best], cy[best], cx, cy)
+            # exact, cocircular ties decided by the perturbation (0: the best's own point)
+            inside = incircle_sos_many(ax, ay, bx, by, cx[best], cy[best], cx, cy)
             better = np.flatnonzero(inside > 0)
             if len(better) == 0:
                 break
             best = int(better[np.argmin(offset[better])])
-        # every candidate on the best circle is as good: the first in candidate order
+        # the best's point may occur twice (a bridge end): the first in candidate order
         return int(correct[int(np.flatnonzero(inside == 0)[0])])
 
 

@@ -312,3 +312,90 @@ def incircle(
     """Scalar :func:`incircle_many`: +1 if d is strictly inside the circle through the
     counter-clockwise a, b, c, -1 if strictly outside, 0 if on it (exact)."""
     return int(incircle_many(ax, ay, bx, by, cx, cy, dx, dy)[0])
+
+
+def incircle_one(
+    ax: float, ay: float, bx: float, by: float, cx: float, cy: float, dx: float, dy: float
+) -> int:
+    """:func:`incircle` on Python floats without numpy (a float filter, exact where unsure)."""
+    adx, ady = ax - dx, ay - dy
+    bdx, bdy = bx - dx, by - dy
+    cdx, cdy = cx - dx, cy - dy
+    bc, cb = bdx * cdy, cdx * bdy
+    ca, ac = cdx * ady, adx * cdy
+    ab, ba = adx * bdy, bdx * ady
+    alift = adx * adx + ady * ady
+    blift = bdx * bdx + bdy * bdy
+    clift = cdx * cdx + cdy * cdy
+    det = alift * (bc - cb) + blift * (ca - ac) + clift * (ab - ba)
+    permanent = (
+        (abs(bc) + abs(cb)) * alift + (abs(ca) + abs(ac)) * blift + (abs(ab) + abs(ba)) * clift
+    )
+    bound = ICC_ERRBOUND * permanent + _UNDERFLOW_SLACK
+    if det > bound and bound < _INF:
+        return 1
+    if -det > bound and bound < _INF:
+        return -1
+    return incircle_exact(ax, ay, bx, by, cx, cy, dx, dy)
+
+
+_INF = float("inf")
+
+
+def cocircular_sign(
+    ax: float, ay: float, bx: float, by: float, cx: float, cy: float, dx: float, dy: float
+) -> int:
+    """The tie rule of rule "delaunay" for d exactly on the circle through the
+    counter-clockwise a, b, c: +1 if d counts as inside, -1 as outside, 0 if d is one of them.
+
+    A symbolic perturbation: every point's lift (x^2 + y^2) is lowered by eps^r, r its rank
+    in (x, y) order, so the lexicographically smallest of the four points dominates. If that
+    is d, d is inside; if it is a corner m, d is inside when it lies beyond the side opposite
+    m (its barycentric weight for m is negative). The perturbed points are in general
+    position, so the constrained Delaunay triangulation is unique, whichever way it is built.
+    """
+    d = (dx, dy)
+    a, b, c = (ax, ay), (bx, by), (cx, cy)
+    if d in (a, b, c):
+        return 0
+    low = min(a, b, c, d)
+    if low == d:
+        return 1
+    if low == a:
+        side = orient(bx, by, cx, cy, dx, dy)
+    elif low == b:
+        side = orient(cx, cy, ax, ay, dx, dy)
+    else:
+        side = orient(ax, ay, bx, by, dx, dy)
+    return 1 if side < 0 else -1
+
+
+def incircle_sos(
+    ax: float, ay: float, bx: float, by: float, cx: float, cy: float, dx: float, dy: float
+) -> int:
+    """:func:`incircle_one` with exact ties decided by :func:`cocircular_sign`: 0 only
+    when d is a corner's point."""
+    sign = incircle_one(ax, ay, bx, by, cx, cy, dx, dy)
+    return sign if sign else cocircular_sign(ax, ay, bx, by, cx, cy, dx, dy)
+
+
+def incircle_sos_many(
+    ax: np.ndarray | float,
+    ay: np.ndarray | float,
+    bx: np.ndarray | float,
+    by: np.ndarray | float,
+    cx: np.ndarray | float,
+    cy: np.ndarray | float,
+    dx: np.ndarray | float,
+    dy: np.ndarray | float,
+) -> np.ndarray:
+    """Vectorised :func:`incircle_sos` (int8, broadcasting)."""
+    signs = incircle_many(ax, ay, bx, by, cx, cy, dx, dy)
+    ties = np.flatnonzero(signs == 0)
+    if len(ties):
+        arrays = np.broadcast_arrays(ax, ay, bx, by, cx, cy, dx, dy)
+        arrays = [np.atleast_1d(np.asarray(a, dtype=np.float64)).ravel() for a in arrays]
+        picked = [a[ties].tolist() for a in arrays]
+        signs = signs.copy()
+        signs[ties] = [cocircular_sign(*point) for point in zip(*picked)]
+    return signs

@@ -29,7 +29,7 @@ import numpy as np
 from ..geometry.predicates import (
     CCW_ERRBOUND,
     grid_exact,
-    incircle_many,
+    incircle_sos_many,
     orient_many,
     strictly_between,
 )
@@ -1127,13 +1127,14 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
     The candidates that pass conditions 1 and 4 are tried in order of their circle's centre
     offset along the base's normal (in float: largest angle first; ties in candidate order),
     one per node and try. A candidate found correct becomes the node's best, and every
-    untried candidate that is not better (exact in-circle: strictly outside its circle, or on
-    it and later in candidate order) drops out. The best left when none remains is the
-    largest (angle, position) among the correct candidates, whatever the order of the tries:
-    the rule's choice. After ``_DELAUNAY_TRIES`` tries a node tests all its candidates left
-    at once. In proven polygons the tables are those of :func:`_bent_in_triangle`: a
-    candidate passed wrongly is chosen only if it is the best of those passed, and then its
-    tree cannot complete (it is built again with every table).
+    untried candidate that is not better (exact in-circle with the tie rule of
+    ``predicates.cocircular_sign``: outside its circle, or its point later in candidate
+    order) drops out. The best left when none remains is the best of all correct candidates
+    in that order, whatever the order of the tries: the rule's choice. After
+    ``_DELAUNAY_TRIES`` tries a node tests all its candidates left at once. In proven
+    polygons the tables are those of :func:`_bent_in_triangle`: a candidate passed wrongly
+    is chosen only if it is the best of those passed, and then its tree cannot complete (it
+    is built again with every table).
     """
     lo, hi = state[_LO], state[_HI]
     n = len(lo)
@@ -1188,7 +1189,7 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
             o = owner[rest]
             b = best[o]
             d = c[rest]
-            inside = incircle_many(ax[o], ay[o], bx[o], by[o], sx[b], sy[b], sx[d], sy[d])
+            inside = incircle_sos_many(ax[o], ay[o], bx[o], by[o], sx[b], sy[b], sx[d], sy[d])
             keep = (inside > 0) | ((inside == 0) & (d > b))
             alive[rest[~keep]] = False
     found = best >= 0

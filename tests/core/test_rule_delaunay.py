@@ -19,7 +19,7 @@ import pytest
 import shapely
 from osgeo import ogr
 
-from bsp_triangulate import triangulate
+from bsp_triangulate import triangulate, triangulate_many
 from bsp_triangulate.geometry.predicates import incircle, incircle_many
 
 from ..conftest import SHARED_DATA
@@ -210,3 +210,19 @@ def test_cocircular_vertices_give_a_fixed_valid_triangulation() -> None:
         assert not delaunay_violations(rings, first)
         again = triangulate(rings, rule="delaunay")
         np.testing.assert_array_equal(first.triangles, again.triangles)
+
+
+def test_cocircular_ties_fan_from_the_smallest_point_whatever_the_start_vertex() -> None:
+    # the octagon's vertices are exactly cocircular: every triangle takes the
+    # lexicographically smallest point, (-5, 0), whichever vertex the ring starts at
+    octagon = [(5, 0), (4, 3), (0, 5), (-3, 4), (-5, 0), (-4, -3), (0, -5), (3, -4)]
+    seen = set()
+    for start in range(len(octagon)):
+        ring = octagon[start:] + octagon[:start]
+        result = triangulate([ring], rule="delaunay")
+        corners = result.vertices[result.triangles][:, :, :2]
+        assert all((-5, 0) in [tuple(c) for c in tri] for tri in corners.tolist())
+        seen.add(frozenset(frozenset(map(tuple, tri)) for tri in corners.tolist()))
+        batch = triangulate_many([[ring]], rule="delaunay")[0]
+        np.testing.assert_array_equal(batch.triangles, result.triangles)
+    assert len(seen) == 1
