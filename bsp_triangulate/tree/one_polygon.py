@@ -25,8 +25,9 @@ from ..geometry.predicates import (
 )
 from ..geometry.rings import PreparedRings, normalise_rings, prepare, ring_label
 from ..geometry.spatial_index import ChainBoxes, SegmentGrid
-from ..rules import ApexRule, ElevationRule, FirstRule, get_rule
+from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
+from .delaunay_points import build_with_points
 from .subtrees import MAX_POSITIONS, build_subtrees
 
 INVALID_MODES = ("fail", "as_given")
@@ -1043,8 +1044,11 @@ def _triangulate(
     sequence = remove_spikes(prepared.x, prepared.y, sequence, is_point if point_rings else None)
     if len(sequence) < 3:
         return Triangulation(vertices=prepared.vertices, point_ids=point_ids)
+    inserted = None
+    if point_rings and type(apex_rule) is DelaunayRule and not as_given:
+        inserted = _delaunay_by_insertion(prepared, ring_ids, sequence, ring_count, apex_rule, tick)
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given, tick)
-    result = tree.build()
+    result = tree.build() if inserted is None else inserted
     result.point_ids = point_ids
     if tree.used_fallback and repair:
         lost = _area_loss(prepared, result, axes)
@@ -1056,6 +1060,41 @@ def _triangulate(
     if not as_given:
         check_area(prepared, result, axes)
     return result
+
+
+def _delaunay_by_insertion(
+    prepared: PreparedRings,
+    ring_ids: list[np.ndarray],
+    sequence: np.ndarray,
+    ring_count: int,
+    rule: ApexRule,
+    tick: Callable[[float], None] | None,
+) -> Triangulation | None:
+    """Rule "delaunay" with points (docs/algorithm.md, section 5b): the rings' tree (their
+    own bridges), the points inserted into it, the tree of ``sequence`` read off; None where
+    that does not give the recursion's tree (a bridge that is not an edge of it)."""
+    try:
+        rings = bridge_islands(
+            prepared.x, prepared.y, ring_ids, prepared.ring_numbers, delaunay=True
+        )
+        rings = remove_spikes(prepared.x, prepared.y, rings)
+        if len(rings) < 3:
+            return None
+        base = _Tree(prepared, rings, prepared.vertices[:, 2], rule).build()
+        if len(base.triangles) != len(rings) - 2:
+            return None
+        return build_with_points(
+            prepared.x,
+            prepared.y,
+            prepared.vertices,
+            sequence,
+            base.triangles,
+            ring_count,
+            prepared.mirrored,
+            tick,
+        )
+    except (TriangulationError, ValueError):
+        return None
 
 
 def _with_points(

@@ -1,0 +1,115 @@
+"""Rule "delaunay" with interior points, built by insertion (docs/algorithm.md, section 5b).
+
+The constrained Delaunay triangulation of a polygon's rings is built by the BSP recursion; the
+points are then inserted one at a time with flips (``geometry/delaunay_mesh.py``), and the
+BSP tree is read off the finished triangulation: the root on the sequence's first edge, each
+node's children the triangles across its two new sides, stopping at the sequence's edges.
+With the tie rule of ``predicates.cocircular_sign`` the triangulation is unique, so this gives
+the tree the recursion builds over the bridged sequence, node for node, whenever the
+sequence's bridges are edges of it (it checks; the caller builds the recursion otherwise).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ..geometry.delaunay_mesh import DelaunayMesh
+from ..triangulation import Triangulation
+
+
+def build_with_points(
+    x: np.ndarray,
+    y: np.ndarray,
+    vertices: np.ndarray,
+    sequence: np.ndarray,
+    ring_triangles: np.ndarray,
+    ring_count: int,
+    mirrored: bool,
+    tick: Callable[[float], None] | None = None,
+) -> Triangulation | None:
+    """The tree of rule "delaunay" over ``sequence`` (with its points), or None where the
+    inserted triangulation does not hold the sequence's bridges.
+
+    ``x``, ``y``: working coordinates of every vertex (rings, then points); ``vertices``: the
+    result's rows; ``ring_triangles``: the rings' triangulation (counter-clockwise in the
+    output's XY); the vertices from ``ring_count`` on are the points."""
+    triangles = np.asarray(ring_triangles, dtype=np.int64)
+    if mirrored:
+        triangles = triangles[:, [1, 0, 2]]  # counter-clockwise in the working plane
+    mesh = DelaunayMesh(x[:ring_count], y[:ring_count], triangles)
+    if tick is not None:
+        tick(0.0)
+    ids = mesh.insert_many(x[ring_count:], y[ring_count:])
+    if (ids < 0).any():
+        return None
+    # mesh ids are in insertion order: back to the vertex rows
+    vertex_of = np.arange(ring_count + len(ids), dtype=np.int64)
+    vertex_of[ids] = ring_count + np.arange(len(ids))
+    if tick is not None:
+        tick(0.9)
+    rows = tree_of_mesh(vertex_of[mesh.triangles()].tolist(), sequence.tolist(), mirrored)
+    if rows is None:
+        return None
+    tri, parent, depth, side = rows
+    return Triangulation(
+        vertices=vertices,
+        triangles=np.array(tri, dtype=np.int64).reshape(-1, 3),
+        parent=np.array(parent, dtype=np.int64),
+        depth=np.array(depth, dtype=np.int64),
+        side=np.array(side, dtype=np.int8),
+    )
+
+
+def tree_of_mesh(
+    triangles: list[list[int]], sequence: list[int], mirrored: bool
+) -> tuple[list[tuple[int, int, int]], list[int], list[int], list[int]] | None:
+    """The BSP tree of a triangulation of the bridged ``sequence`` (triangles counter-
+    clockwise in the working plane): rows (triangle, parent, depth, side) in pre-order, as
+    the recursion of docs/algorithm.md section 3 records them; None when the triangulation
+    does not have every edge of the sequence or its triangles do not form one tree."""
+    m = len(sequence)
+    if m < 3 or len(triangles) != m - 2:
+        return None
+    owner: dict[tuple[int, int], int] = {}
+    for t, (a, b, c) in enumerate(triangles):
+        owner[a, b] = t
+        owner[b, c] = t
+        owner[c, a] = t
+    walls = set()
+    for i in range(m):
+        u, v = sequence[i], sequence[(i + 1) % m]
+        if (u, v) not in owner and (v, u) not in owner:
+            return None
+        walls.add((u, v))
+        walls.add((v, u))
+    used = [False] * len(triangles)
+    out: list[tuple[int, int, int]] = []
+    parent: list[int] = []
+    depth: list[int] = []
+    side: list[int] = []
+    # (chord a -> b with the sub-polygon on its left, V1 at a, parent, depth, side)
+    stack = [(sequence[0], sequence[1], True, -1, 0, 0)]
+    while stack:
+        a, b, v1_at_a, par, dep, sd = stack.pop()
+        t = owner.get((a, b))
+        if t is None or used[t]:
+            return None
+        used[t] = True
+        p, q, r = triangles[t]
+        c = r if p == a else (p if q == a else q)
+        node = len(out)
+        out.append((b, a, c) if mirrored else (a, b, c))
+        parent.append(par)
+        depth.append(dep)
+        side.append(sd)
+        upper = (a, c, True)
+        lower = (c, b, False)
+        left, right = (upper, lower) if v1_at_a else (lower, upper)
+        for (ca, cb, flag), child_side in ((right, 2), (left, 1)):
+            if (ca, cb) not in walls:
+                stack.append((ca, cb, flag, node, dep + 1, child_side))
+    if len(out) != m - 2:
+        return None
+    return out, parent, depth, side
