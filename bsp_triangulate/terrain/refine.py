@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry.delaunay_mesh import DelaunayMesh
+from ..geometry.predicates import ring_area_sign
 from .raster_sampling import PreparedGrid
 
 # (triangle, cell) pairs examined per numpy step of the point location
@@ -321,6 +323,7 @@ def refine_many(
         ]
     )
     lookup, base = _lookup(windows, candidates)
+    meshes = _Meshes(polygons) if _by_insertion(options) else None
     outcome = [Refinement(fixed_points[p]) for p in range(count)]
     cells_of = np.bincount(owner, minlength=count)
     for p in range(count):
@@ -336,7 +339,14 @@ def refine_many(
         if progress is not None:
             progress(rounds, len(active))
         given = [np.vstack([fixed_points[p], cand_xyz[added[p]]]) for p in active]
-        results = engine([polygons[p] for p in active], points=given, on_error="return", **options)
+        if meshes is not None and rounds > 1:
+            results = [meshes.result(p) for p in active]
+        else:
+            results = engine(
+                [polygons[p] for p in active], points=given, on_error="return", **options
+            )
+            if meshes is not None:
+                meshes.start(active, results)
         measured, corners, grid_of = [], [], []
         for p, points, result in zip(active, given, results):
             if isinstance(result, Exception) or not hasattr(result, "triangles"):
@@ -356,6 +366,9 @@ def refine_many(
             break
         tri_corners = np.concatenate(corners)
         tri_grid = np.concatenate(grid_of)
+        tri_start = np.zeros(count, np.int64)
+        sizes = np.array([len(g) for g in grid_of], np.int64)
+        tri_start[measured] = np.cumsum(sizes) - sizes
         tri, row, col, z = locate_cells(tri_corners, windows, tri_grid)
         polygon_of_hit = tri_grid[tri]
         cand = lookup[base[polygon_of_hit] + row * _cols(windows)[polygon_of_hit] + col]
@@ -385,6 +398,9 @@ def refine_many(
         rest = finishing[owner[over_cells]]
         pick = np.concatenate([pick, over_cells[rest]])
         pick_error = np.concatenate([pick_error, error[over][over_at][rest]])
+        # a triangle holding each cell: where the mesh inserts it from
+        holder = np.zeros(len(value), np.int64)
+        holder[cand] = tri - tri_start[polygon_of_hit[keep]]
         pick, unique_at = np.unique(pick, return_index=True)
         pick_error = pick_error[unique_at]
         if spacing:
@@ -410,12 +426,95 @@ def refine_many(
             if outcome[p].within:
                 continue
             if chosen_of[p]:
-                added[p] = np.concatenate([added[p], chosen[owner[chosen] == p]])
+                mine = chosen[owner[chosen] == p]
+                added[p] = np.concatenate([added[p], mine])
+                if meshes is not None:
+                    meshes.insert(p, cand_xyz[mine], holder[mine])
                 next_active.append(p)
             elif refused[p] or spent[group[p]] >= max_points:
                 outcome[p].capped = True
         active = next_active
     return outcome
+
+
+def _by_insertion(options: dict) -> bool:
+    """Whether the rounds insert their points into the last mesh instead of triangulating
+    again: rule "delaunay" in the XY plane, where both give the same triangulation (the
+    constrained Delaunay one, unique with the tie rule of ``predicates.cocircular_sign``)."""
+    return (
+        options.get("rule") == "delaunay"
+        and options.get("plane") == "xy"
+        and not options.get("planar_tolerance")
+        and options.get("invalid", "fail") != "as_given"
+    )
+
+
+class _Meshes:
+    """Per polygon, its mesh of the first round (the engine's, with the fixed points) as a
+    :class:`DelaunayMesh` that later rounds insert their points into. The mesh works in the
+    engine's working plane (x mirrored where the outer ring is clockwise), so that cocircular
+    ties fall as the engine decides them."""
+
+    def __init__(self, polygons: Sequence[Sequence[np.ndarray]]) -> None:
+        self.polygons = polygons
+        self.meshes: dict[int, DelaunayMesh] = {}
+        self.mirror: dict[int, float] = {}
+        self.z: dict[int, list[float]] = {}
+        self.point_ids: dict[int, list[int]] = {}
+
+    def start(self, active: Sequence[int], results: Sequence[object]) -> None:
+        """Meshes from the engine's first results (errors and empty results get none)."""
+        for p, result in zip(active, results):
+            if isinstance(result, Exception) or not len(getattr(result, "triangles", ())):
+                continue
+            outer = np.asarray(self.polygons[p][0], dtype=np.float64)
+            sign = ring_area_sign(outer[:, 0], outer[:, 1])
+            mirror = -1.0 if sign < 0 else 1.0
+            triangles = np.asarray(result.triangles, np.int64)
+            if mirror < 0:
+                triangles = triangles[:, [1, 0, 2]]
+            vertices = np.asarray(result.vertices, dtype=np.float64)
+            try:
+                mesh = DelaunayMesh(mirror * vertices[:, 0], vertices[:, 1], triangles)
+            except ValueError:
+                continue
+            self.meshes[p] = mesh
+            self.mirror[p] = mirror
+            self.z[p] = vertices[:, 2].tolist()
+            self.point_ids[p] = np.asarray(result.point_ids, np.int64).tolist()
+
+    def result(self, p: int) -> object:
+        """The polygon's mesh now, shaped as the engine's result (or None without a mesh)."""
+        mesh = self.meshes.get(p)
+        if mesh is None:
+            return None
+        vertices = np.column_stack(
+            [self.mirror[p] * np.array(mesh.x), np.array(mesh.y), np.array(self.z[p])]
+        )
+        return _MeshResult(vertices, mesh.triangles(), np.array(self.point_ids[p], np.int64))
+
+    def insert(self, p: int, xyz: np.ndarray, near: np.ndarray) -> None:
+        """Insert the points (x, y, z) into polygon p's mesh, each found from its triangle
+        ``near``; a point the mesh cannot take (on a vertex) is recorded as not used."""
+        mesh = self.meshes.get(p)
+        if mesh is None:
+            return
+        mirror, z, ids = self.mirror[p], self.z[p], self.point_ids[p]
+        for (px, py, pz), start in zip(xyz.tolist(), near.tolist()):
+            try:
+                vid = mesh.insert(mirror * px, py, start)
+            except ValueError:
+                ids.append(-1)
+                continue
+            z.append(pz)
+            ids.append(vid)
+
+
+@dataclass
+class _MeshResult:
+    vertices: np.ndarray
+    triangles: np.ndarray
+    point_ids: np.ndarray
 
 
 def _points(points: np.ndarray | None) -> np.ndarray:

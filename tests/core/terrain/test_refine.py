@@ -199,3 +199,29 @@ def test_locate_cells_finds_every_centre_once_per_triangle():
     assert np.allclose(z, 0.1 * x + 0.1 * y)
     on_diagonal = x == y
     assert np.bincount(tri[on_diagonal]).tolist() == [10, 10]
+
+
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_rule_delaunay_rounds_by_insertion_equal_rounds_by_triangulation(
+    clockwise: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # the cell centres are exactly cocircular in fours: the ties must fall alike both ways
+    from bsp_triangulate.terrain import refine as refine_module
+
+    grid = hill_grid()
+    rings = with_z(square_with_islands(), grid)
+    if clockwise:
+        rings = [ring[::-1] for ring in rings]
+    survey = np.array([[50.0, 60.0, 123.0], [333.3, 222.2, 40.0]])
+    runs = []
+    for insertion in (True, False):
+        monkeypatch.setattr(refine_module, "_by_insertion", lambda options, on=insertion: on)
+        runs.append(
+            refine(rings, grid, 0.5, engine=engine, fixed=survey, rule="delaunay", plane="xy")
+        )
+    inserted, triangulated = runs
+    assert inserted.rounds == triangulated.rounds > 3
+    assert inserted.added == triangulated.added > 50
+    assert inserted.max_error == triangulated.max_error
+    assert inserted.within and triangulated.within
+    np.testing.assert_array_equal(inserted.points, triangulated.points)
