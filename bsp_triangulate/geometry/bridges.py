@@ -26,9 +26,14 @@ _LAST_BLOCK = 64
 
 
 def _ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end vertex ids of every ring edge, ring by ring."""
     starts = np.concatenate(rings)
-    ends = np.concatenate([np.roll(r, -1) for r in rings])
-    return starts, ends
+    lengths = np.fromiter((len(r) for r in rings), dtype=np.int64, count=len(rings))
+    ends_at = np.cumsum(lengths)
+    # each edge ends at the next vertex of its ring, the last one at the ring's first
+    following = np.arange(1, len(starts) + 1, dtype=np.int64)
+    following[ends_at[lengths > 0] - 1] = (ends_at - lengths)[lengths > 0]
+    return starts, starts[following]
 
 
 def split_touching(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> list[np.ndarray]:
@@ -114,6 +119,32 @@ def _order_along(x: np.ndarray, y: np.ndarray, a: int, b: int, inside: list[int]
 _LABEL_GAP = 1 << 32
 
 
+class MeshEdges:
+    """The edges of a triangulation of the polygon with every vertex (rings and points), the
+    ring edges among them: each crosses no ring edge and no other of them, and no vertex lies
+    on it. While every bridge made is one of them, a candidate bridge that is one is clear
+    (:meth:`_Bridger._segment_clear`) without the test."""
+
+    def __init__(self, triangles: np.ndarray, vertex_count: int) -> None:
+        tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        a, b = tri.ravel(), tri[:, [1, 2, 0]].ravel()
+        self.n = vertex_count
+        self.keys: set[int] = set((np.minimum(a, b) * vertex_count + np.maximum(a, b)).tolist())
+        self.used = 0  # segment tests skipped
+
+    def __contains__(self, pair: tuple[int, int]) -> bool:
+        u, w = pair
+        return (u * self.n + w if u < w else w * self.n + u) in self.keys
+
+    def holds_rings(self, rings: list[np.ndarray]) -> bool:
+        """Every edge of ``rings`` is one of the edges."""
+        starts, ends = _ring_edges(rings)
+        keep = starts != ends
+        a, b = starts[keep], ends[keep]
+        keys = (np.minimum(a, b) * self.n + np.maximum(a, b)).tolist()
+        return all(key in self.keys for key in keys)
+
+
 class _Bridger:
     """Joins islands one by one into the sequence (outer ring first).
 
@@ -123,8 +154,16 @@ class _Bridger:
     labels compares positions.
     """
 
-    def __init__(self, x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> None:
+    def __init__(
+        self,
+        x: np.ndarray,
+        y: np.ndarray,
+        rings: list[np.ndarray],
+        mesh_edges: MeshEdges | None = None,
+    ) -> None:
         self.x, self.y = x, y
+        # None once a bridge is not a mesh edge (or none given)
+        self.mesh_edges = mesh_edges
         starts, ends = _ring_edges(rings)
         self.edge_a, self.edge_b = starts, ends
         self.edges = SegmentGrid(x[starts], y[starts], x[ends], y[ends])
@@ -186,6 +225,36 @@ class _Bridger:
         self.prv[nodes[1:]] = nodes[:-1]
         self.nxt[node], self.prv[nodes[0]] = nodes[0], node
         self.nxt[nodes[-1]], self.prv[after] = after, nodes[-1]
+
+    def _insert_few_after(self, node: int, vids: list[int]) -> None:
+        """:meth:`_insert_after` of a few vertices, element by element (no numpy calls on tiny
+        arrays); the same occurrences and the same order."""
+        label, nxt, prv = self.label, self.nxt, self.prv
+        after = int(nxt[node])
+        low = int(label[node])
+        if after == 0:  # at the end of the sequence
+            gap = _LABEL_GAP
+        else:
+            gap = (int(label[after]) - low) // (len(vids) + 1)
+            if gap < 1:
+                self._relabel()
+                low = int(label[node])
+                gap = (int(label[after]) - low) // (len(vids) + 1)
+        first, more, vid, in_seq = self.first, self.more, self.vid, self.in_seq
+        previous = node
+        for step, v in enumerate(vids, 1):
+            new = self.count
+            self.count += 1
+            vid[new] = v
+            in_seq[v] = True
+            if first[v] < 0:
+                first[v] = new
+            else:
+                more.setdefault(v, []).append(new)
+            label[new] = low + step * gap
+            nxt[previous], prv[new] = new, previous
+            previous = new
+        nxt[previous], prv[after] = after, previous
 
     def _relabel(self) -> None:
         """Evenly spaced labels again (when some gap has run out)."""
@@ -283,9 +352,17 @@ class _Bridger:
                 and self._inside_angle(k, x[prv], y[prv], closed=True)
             ]
         ks = [k for k in self.occurrences(vid) if self._inside_angle(k, x[h], y[h])]
-        if ks and self._segment_clear(vid, h):
+        if ks and (self._known_clear(vid, h) or self._segment_clear(vid, h)):
             return ks
         return []
+
+    def _known_clear(self, u: int, w: int) -> bool:
+        """The segment u-w is a mesh edge while every bridge is one: it is clear."""
+        edges = self.mesh_edges
+        if edges is None or (u, w) not in edges:
+            return False
+        edges.used += 1
+        return True
 
     def _inside_angle_many(self, nodes: np.ndarray, tx: float, ty: float) -> np.ndarray:
         """Vectorised :meth:`_inside_angle` (open angle) of the occurrences ``nodes``."""
@@ -486,22 +563,35 @@ class _Bridger:
     def splice(self, k: int, island: np.ndarray, h_index: int) -> None:
         """Join the island at occurrence (node) k (docs/algorithm.md section 2)."""
         x, y = self.x, self.y
+        if len(island) == 1:  # an interior point: ..., s_k, p, s_k, ...
+            h = int(island[0])
+            sk = int(self.vid[k])
+            if x[sk] == x[h] and y[sk] == y[h]:
+                parts = [h]
+            else:
+                self._add_bridge(sk, h)
+                parts = [sk, h] if k == 0 else [h, sk]
+            self._insert_few_after(int(self.prv[0]) if k == 0 else k, parts)
+            self.seq_points.add((float(x[h]), float(y[h])))
+            return
         loop = np.roll(island, -h_index)
         h = int(loop[0])
         sk = int(self.vid[k])
         if x[sk] == x[h] and y[sk] == y[h]:
-            parts = [loop] if k == 0 else [loop[1:], loop[:1]]
+            arrays = [loop] if k == 0 else [loop[1:], loop[:1]]
         else:
-            self.bridges[self.bridge_count] = (sk, h)
-            self.bridge_count += 1
+            self._add_bridge(sk, h)
             shared = np.array([sk], dtype=np.int64)
-            if len(loop) == 1:  # an interior point: ..., s_k, p, s_k, ...
-                parts = [shared, loop] if k == 0 else [loop, shared]
-            else:
-                parts = [shared, loop, loop[:1]] if k == 0 else [loop, loop[:1], shared]
+            arrays = [shared, loop, loop[:1]] if k == 0 else [loop, loop[:1], shared]
         # k == 0: the island goes to the end, so that S keeps its first two vertices
-        self._insert_after(int(self.prv[0]) if k == 0 else k, np.concatenate(parts))
+        self._insert_after(int(self.prv[0]) if k == 0 else k, np.concatenate(arrays))
         self._add_points(island)
+
+    def _add_bridge(self, sk: int, h: int) -> None:
+        self.bridges[self.bridge_count] = (sk, h)
+        self.bridge_count += 1
+        if self.mesh_edges is not None and (sk, h) not in self.mesh_edges:
+            self.mesh_edges = None  # it may cross mesh edges: no more shortcuts
 
     def nearest_occurrence(self, h: int) -> tuple[int, int]:
         """(node, vertex id) of the occurrence nearest to vertex ``h`` (first on ties)."""
@@ -520,6 +610,7 @@ def bridge_islands(
     ring_numbers: list[int],
     relaxed: bool = False,
     delaunay: bool = False,
+    mesh_edges: MeshEdges | None = None,
 ) -> np.ndarray:
     """The single vertex sequence of the outer ring with every island joined by a bridge.
 
@@ -532,10 +623,15 @@ def bridge_islands(
     rings (:meth:`_Bridger.find_delaunay_bridge`); an island that has none to the sequence
     yet waits until the other islands are joined, and only then takes the usual bridge
     (docs/algorithm.md, "Rule delaunay"). Without it the bridges are those of section 2.
+
+    ``mesh_edges``: the edges of a triangulation of the polygon with every vertex of
+    ``rings``; they spare segment tests (:class:`MeshEdges`), the result is the same.
     """
     if len(rings) == 1:
         return rings[0]
-    bridger = _Bridger(x, y, rings)
+    if mesh_edges is not None and not mesh_edges.holds_rings(rings):
+        mesh_edges = None
+    bridger = _Bridger(x, y, rings, mesh_edges)
     leftmost: list[tuple[float, float, int, int]] = []
     islands_at: dict[tuple[float, float], list[int]] = {}
     for slot in range(1, len(rings)):

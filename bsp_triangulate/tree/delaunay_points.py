@@ -7,6 +7,8 @@ node's children the triangles across its two new sides, stopping at the sequence
 With the tie rule of ``predicates.cocircular_sign`` the triangulation is unique, so this gives
 the tree the recursion builds over the bridged sequence, node for node, whenever the
 sequence's bridges are edges of it (it checks; the caller builds the recursion otherwise).
+The triangulation is built before the sequence: its edges spare the bridges' segment tests
+(``bridges.MeshEdges``).
 """
 
 from __future__ import annotations
@@ -35,6 +37,23 @@ def build_with_points(
     ``x``, ``y``: working coordinates of every vertex (rings, then points); ``vertices``: the
     result's rows; ``ring_triangles``: the rings' triangulation (counter-clockwise in the
     output's XY); the vertices from ``ring_count`` on are the points."""
+    triangles = points_mesh(x, y, ring_triangles, ring_count, mirrored, tick)
+    if triangles is None:
+        return None
+    return tree_of_triangles(triangles, vertices, sequence, mirrored, tick)
+
+
+def points_mesh(
+    x: np.ndarray,
+    y: np.ndarray,
+    ring_triangles: np.ndarray,
+    ring_count: int,
+    mirrored: bool,
+    tick: Callable[[float], None] | None = None,
+) -> np.ndarray | None:
+    """(t, 3) vertex ids, counter-clockwise in the working plane: the rings' triangulation
+    with every point (the vertices from ``ring_count`` on) inserted, or None where a point
+    could not be inserted."""
     triangles = np.asarray(ring_triangles, dtype=np.int64)
     if mirrored:
         triangles = triangles[:, [1, 0, 2]]  # counter-clockwise in the working plane
@@ -47,9 +66,21 @@ def build_with_points(
     # mesh ids are in insertion order: back to the vertex rows
     vertex_of = np.arange(ring_count + len(ids), dtype=np.int64)
     vertex_of[ids] = ring_count + np.arange(len(ids))
+    return vertex_of[mesh.triangles()]
+
+
+def tree_of_triangles(
+    triangles: np.ndarray,
+    vertices: np.ndarray,
+    sequence: np.ndarray,
+    mirrored: bool,
+    tick: Callable[[float], None] | None = None,
+) -> Triangulation | None:
+    """The tree of :func:`tree_of_mesh` over ``sequence`` as a :class:`Triangulation` (rows of
+    ``vertices``), or None."""
     if tick is not None:
         tick(0.9)
-    rows = tree_of_mesh(vertex_of[mesh.triangles()].tolist(), sequence.tolist(), mirrored)
+    rows = tree_of_mesh(triangles.tolist(), sequence.tolist(), mirrored)
     if rows is None:
         return None
     tri, parent, depth, side = rows

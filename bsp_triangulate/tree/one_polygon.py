@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..geometry.bridges import bridge_islands, remove_spikes, split_touching
+from ..geometry.bridges import MeshEdges, bridge_islands, remove_spikes, split_touching
 from ..geometry.points import as_point_array, first_occurrences, strictly_inside
 from ..geometry.predicates import (
     grid_exact,
@@ -27,7 +27,7 @@ from ..geometry.rings import PreparedRings, normalise_rings, prepare, ring_label
 from ..geometry.spatial_index import ChainBoxes, SegmentGrid
 from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
-from .delaunay_points import build_with_points
+from .delaunay_points import points_mesh, tree_of_triangles
 from .subtrees import MAX_POSITIONS, build_subtrees
 
 INVALID_MODES = ("fail", "as_given")
@@ -1032,21 +1032,34 @@ def _triangulate(
     prepared, point_ids = _with_points(prepared, given, axes)
     point_rings = [np.array([vid], dtype=np.int64) for vid in point_ids[point_ids >= 0].tolist()]
     ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
-    sequence = bridge_islands(
-        prepared.x,
-        prepared.y,
-        ring_ids + point_rings,
-        prepared.ring_numbers + (-1 - np.flatnonzero(point_ids >= 0)).tolist(),
-        relaxed=as_given,
-        delaunay=getattr(apex_rule, "in_plane", False),
-    )
     is_point = np.arange(len(prepared.vertices)) >= ring_count
-    sequence = remove_spikes(prepared.x, prepared.y, sequence, is_point if point_rings else None)
+
+    def bridged(mesh_edges: MeshEdges | None = None) -> np.ndarray:
+        sequence = bridge_islands(
+            prepared.x,
+            prepared.y,
+            ring_ids + point_rings,
+            prepared.ring_numbers + (-1 - np.flatnonzero(point_ids >= 0)).tolist(),
+            relaxed=as_given,
+            delaunay=getattr(apex_rule, "in_plane", False),
+            mesh_edges=mesh_edges,
+        )
+        return remove_spikes(prepared.x, prepared.y, sequence, is_point if point_rings else None)
+
+    # rule delaunay with points: the points inserted into the rings' triangulation first, so
+    # that its edges spare the bridges' segment tests (section 5b)
+    mesh = None
+    if point_rings and type(apex_rule) is DelaunayRule and not as_given:
+        mesh = _delaunay_mesh(prepared, ring_ids, ring_count, apex_rule, tick)
+    edges = None if mesh is None else MeshEdges(mesh, len(prepared.vertices))
+    sequence = bridged(edges)
     if len(sequence) < 3:
         return Triangulation(vertices=prepared.vertices, point_ids=point_ids)
     inserted = None
-    if point_rings and type(apex_rule) is DelaunayRule and not as_given:
-        inserted = _delaunay_by_insertion(prepared, ring_ids, sequence, ring_count, apex_rule, tick)
+    if mesh is not None:
+        inserted = _delaunay_by_insertion(prepared, mesh, sequence, tick)
+        if inserted is None and edges is not None and edges.used:
+            sequence = bridged()  # the recursion over the sequence of section 2a, untouched
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given, tick)
     result = tree.build() if inserted is None else inserted
     result.point_ids = point_ids
@@ -1062,17 +1075,16 @@ def _triangulate(
     return result
 
 
-def _delaunay_by_insertion(
+def _delaunay_mesh(
     prepared: PreparedRings,
     ring_ids: list[np.ndarray],
-    sequence: np.ndarray,
     ring_count: int,
     rule: ApexRule,
     tick: Callable[[float], None] | None,
-) -> Triangulation | None:
-    """Rule "delaunay" with points (docs/algorithm.md, section 5b): the rings' tree (their
-    own bridges), the points inserted into it, the tree of ``sequence`` read off; None where
-    that does not give the recursion's tree (a bridge that is not an edge of it)."""
+) -> np.ndarray | None:
+    """Rule "delaunay" with points (docs/algorithm.md, section 5b): the rings' triangulation
+    (their own bridges) with every point inserted, as (t, 3) vertex ids counter-clockwise in
+    the working plane; None where it cannot be built."""
     try:
         rings = bridge_islands(
             prepared.x, prepared.y, ring_ids, prepared.ring_numbers, delaunay=True
@@ -1083,16 +1095,23 @@ def _delaunay_by_insertion(
         base = _Tree(prepared, rings, prepared.vertices[:, 2], rule).build()
         if len(base.triangles) != len(rings) - 2:
             return None
-        return build_with_points(
-            prepared.x,
-            prepared.y,
-            prepared.vertices,
-            sequence,
-            base.triangles,
-            ring_count,
-            prepared.mirrored,
-            tick,
+        return points_mesh(
+            prepared.x, prepared.y, base.triangles, ring_count, prepared.mirrored, tick
         )
+    except (TriangulationError, ValueError):
+        return None
+
+
+def _delaunay_by_insertion(
+    prepared: PreparedRings,
+    mesh: np.ndarray,
+    sequence: np.ndarray,
+    tick: Callable[[float], None] | None,
+) -> Triangulation | None:
+    """The tree of ``sequence`` read off the ``mesh`` of :func:`_delaunay_mesh`; None where
+    that does not give the recursion's tree (a bridge that is not an edge of it)."""
+    try:
+        return tree_of_triangles(mesh, prepared.vertices, sequence, prepared.mirrored, tick)
     except (TriangulationError, ValueError):
         return None
 
