@@ -363,12 +363,16 @@ class PointOrder:
             if near >= 0:
                 self._link(vid, near)
         labels = np.arange(len(x), dtype=np.int64)
+        free = point_vids
         for _ in range(_LINK_ROUNDS):
-            free = [vid for vid in point_vids if self._find(vid) not in self.anchored]
-            if not free:
+            # a component once anchored stays so: only the free points of the round before
+            found = [(vid, self._find(vid)) for vid in free]
+            found = [(vid, root) for vid, root in found if root not in self.anchored]
+            if not found:
                 break
+            free = [vid for vid, _ in found]
             members = np.asarray(free, dtype=np.int64)
-            roots = np.asarray([self._find(vid) for vid in free], dtype=np.int64)
+            roots = np.asarray([root for _, root in found], dtype=np.int64)
             labels[members] = roots
             component, index = np.unique(roots, return_inverse=True)
             least = np.full(len(component), np.inf)
