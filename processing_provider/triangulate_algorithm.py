@@ -71,6 +71,7 @@ from .qgis_compat import (
 )
 from .run_report import REFINE_STAGES, FailureLog, Progress
 from .terrain_points import CancelledError, InteriorPoints, SurveyPoints, scale_points
+from .warped_dem import WarpedDemSampler
 
 ICON = Path(__file__).resolve().parent.parent / "icons" / "triangulate.svg"
 APEX_RULES = ("first", "elevation", "delaunay")
@@ -185,7 +186,11 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             "centres inside each polygon are added as interior vertices, each round where the "
             "mesh is farthest from the DEM, until the mesh is within this distance of the DEM "
             "at every cell centre strictly inside the polygon (cells on nodata are skipped). "
-            "The DEM must be in the layer's CRS.</p>"
+            "A DEM in another CRS than the layer's is first resampled into the layer's CRS "
+            "(GDAL warp in memory, bilinear, or nearest with <i>Nearest cell</i>; cells of about "
+            "the DEM's cell area; nodata kept): the vertices' z, the added points and the "
+            "error are then all taken on the resampled cells, whose values differ slightly "
+            "from the DEM's own (interpolated between its cells); the log gives their size.</p>"
             "<p><b>Maximum added points per feature</b> (default 10,000): a feature that "
             "reaches it is still written; it is reported as a warning with its id and the "
             "error reached (and listed in the failure report). POINTS_ADDED counts the DEM "
@@ -511,7 +516,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                     "The DEM ({}) does not overlap the input layer: no vertex would get an "
                     "elevation. Check the DEM and the layers' CRSs."
                 ).format(layer.name())
-        refused = self._check_points(parameters, context, source, layer_source)
+        refused = self._check_points(parameters, context, source)
         if refused:
             return False, refused
         path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
@@ -528,22 +533,14 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         parameters: dict[str, Any],
         context: QgsProcessingContext,
         kind: int,
-        layer_source: QgsProcessingFeatureSource | None,
     ) -> str:
         """Why the interior point parameters cannot run together ("" when they can)."""
-        if self.parameterAsDouble(parameters, self.MAX_VERTICAL_ERROR, context) > 0:
-            if kind != elevation.ELEVATION_DEM:
-                return self.tr(
-                    "A maximum vertical error needs the DEM as the elevation source: choose a "
-                    "DEM, or set the maximum vertical error to 0."
-                )
-            dem = self.parameterAsRasterLayer(parameters, self.DEM, context)
-            crs = layer_source.sourceCrs() if layer_source is not None else None
-            if dem is not None and crs is not None and crs.isValid() and dem.crs() != crs:
-                return self.tr(
-                    "A maximum vertical error needs the DEM in the layer's CRS ({}; the DEM is "
-                    "in {}): reproject the DEM or the layer."
-                ).format(crs.authid(), dem.crs().authid())
+        tolerance = self.parameterAsDouble(parameters, self.MAX_VERTICAL_ERROR, context)
+        if tolerance > 0 and kind != elevation.ELEVATION_DEM:
+            return self.tr(
+                "A maximum vertical error needs the DEM as the elevation source: choose a "
+                "DEM, or set the maximum vertical error to 0."
+            )
         points = self.parameterAsSource(parameters, self.INPUT_POINTS, context)
         z_field = self._points_z_field(parameters, context)
         if points is None:
@@ -682,6 +679,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         parameters: dict[str, Any],
         context: QgsProcessingContext,
         source: QgsProcessingFeatureSource,
+        feedback: QgsProcessingFeedback,
     ) -> elevation.ElevationSource:
         kind = self._elevation_kind(parameters, context)
         if kind == elevation.ELEVATION_GEOMETRY:
@@ -707,10 +705,37 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
             method = elevation.INTERPOLATION_METHODS[
                 self.parameterAsEnum(parameters, self.DEM_INTERPOLATION, context)
             ]
+            refining = self.parameterAsDouble(parameters, self.MAX_VERTICAL_ERROR, context) > 0
             try:
                 sampler = elevation.DemSampler(
-                    self._dem_provider, self._dem_band(parameters, context), method, transform
+                    self._dem_provider,
+                    self._dem_band(parameters, context),
+                    method,
+                    None if refining else transform,
                 )
+                if refining and transform is not None:
+                    # the refinement needs the DEM's cells in the layer's CRS: the DEM is
+                    # resampled there, and the rings are sampled on the same cells
+                    sampler = WarpedDemSampler(
+                        sampler,
+                        crs,
+                        self._dem_crs,
+                        context.transformContext(),
+                        source.sourceExtent().center(),
+                    )
+                    feedback.pushInfo(
+                        self.tr(
+                            "The DEM ({}) is resampled into the layer's CRS ({}) for the "
+                            "maximum vertical error: {} cells of {:.6g} × {:.6g} layer units; "
+                            "vertex z and the error are taken on these cells."
+                        ).format(
+                            self._dem_crs.authid() or self.tr("its CRS"),
+                            crs.authid() or self.tr("its CRS"),
+                            self.tr("bilinear") if method == "bilinear" else self.tr("nearest"),
+                            sampler.dx,
+                            sampler.dy,
+                        )
+                    )
             except ValueError as error:
                 raise QgsProcessingException(self.tr("DEM: {}").format(error)) from error
             nodata = self.parameterAsEnum(parameters, self.DEM_NODATA, context)
@@ -795,7 +820,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         crs = source.sourceCrs()
         lines = tree_fields()
         mesh_path = self.parameterAsFileOutput(parameters, self.OUTPUT_MESH, context)
-        source_of_z = self._elevation_source(parameters, context, source)
+        source_of_z = self._elevation_source(parameters, context, source, feedback)
         rule = APEX_RULES[self.parameterAsEnum(parameters, self.APEX_RULE, context)]
         tolerance = self.parameterAsDouble(parameters, self.PLANAR_TOLERANCE, context)
         max_length = self.parameterAsDouble(parameters, self.MAX_SEGMENT_LENGTH, context)
@@ -1025,7 +1050,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         sampler = getattr(source_of_z, "sampler", None)
         if tolerance > 0 and (sampler is None or sampler.transform is not None):
             raise QgsProcessingException(
-                self.tr("A maximum vertical error needs a DEM in the layer's CRS.")
+                self.tr("A maximum vertical error needs the DEM as the elevation source.")
             )
         max_points = self.parameterAsInt(parameters, self.MAX_POINTS, context)
         return InteriorPoints(survey, sampler, tolerance, max_points, options, feedback)

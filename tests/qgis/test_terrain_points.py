@@ -14,11 +14,14 @@ from qgis.core import (
     QgsCoordinateTransform,
     QgsFeature,
     QgsGeometry,
+    QgsPointXY,
     QgsProcessingException,
     QgsProject,
+    QgsRasterLayer,
     QgsVectorLayer,
 )
 
+from bsp_triangulate.terrain.raster_sampling import PreparedGrid
 from tests.conftest import SHARED_DATA
 from tests.core.terrain.test_refine import surface
 from tests.qgis.helpers import (
@@ -212,9 +215,16 @@ def test_bad_combinations_are_refused(tmp_path: Path):
         run({"INPUT": layer, "INPUT_POINTS": point_layer(SURVEY, False), "DEM": str(dem)})
     with pytest.raises(QgsProcessingException, match="without input points"):
         run({"INPUT": layer, "POINTS_Z_FIELD": "h"})
+
+
+def test_a_geographic_layer_with_a_projected_dem_is_refined_on_the_resampled_dem(
+    tmp_path: Path,
+):
+    # refused before the DEM was resampled into the layer's CRS
+    dem = write_hill_dem(tmp_path / "hill.tif", (slice(20, 23), slice(8, 12)))
     wgs84 = QgsVectorLayer("Polygon?crs=EPSG:4326", "input", "memory")
     feature = QgsFeature()
-    geometry = QgsGeometry.fromWkt(wkt([HILL]))
+    geometry = QgsGeometry.fromWkt(wkt([HILL, HOLE]))
     geometry.transform(
         QgsCoordinateTransform(
             QgsCoordinateReferenceSystem("EPSG:32733"),
@@ -224,8 +234,21 @@ def test_bad_combinations_are_refused(tmp_path: Path):
     )
     feature.setGeometry(geometry)
     wgs84.dataProvider().addFeatures([feature])
-    with pytest.raises(QgsProcessingException, match="layer's CRS"):
-        run({"INPUT": wgs84, "DEM": str(dem), "MAX_VERTICAL_ERROR": 1.0})
+    feedback = RecordingFeedback()
+    result = run(
+        {"INPUT": wgs84, "DEM": str(dem), "MAX_VERTICAL_ERROR": 2.0, "APEX_RULE": 2}, feedback
+    )
+    assert result["FAILED_COUNT"] == 0 and result["POINTS_ADDED"] > 20
+    assert not [w for w in feedback.warnings if "mesh within" in w]
+    vertices, triangles, _owner = mesh_of(result)
+    grid = resampled_grid(wgs84, dem)
+    polygon = shapely.from_wkb(bytes(geometry.asWkb()))
+    one = np.zeros(len(triangles), np.int64)
+    assert largest_error_on_grid(grid, [polygon], vertices, triangles, one) <= 2.0
+    assert largest_error_from_original(grid, dem, [polygon], vertices, triangles, one) <= 2.0 + 1e-6
+    # the DEM's nodata cells stay nodata on the resampled grid (and are skipped)
+    cells = grid.cells(*polygon.bounds)
+    assert np.isnan(cells.values).sum() >= 12 and np.isfinite(cells.values).sum() > 300
 
 
 FARMS = SWELLENDAM / "farms_33S.shp"
@@ -257,6 +280,173 @@ def test_swellendam_farms_within_the_tolerance():
     ids = [c.id() for c in layer.getFeatures()]
     owner = np.searchsorted(ids, owner)
     assert largest_error(FARM_DEM, polygons, vertices, triangles, owner) <= 5.0
+
+
+def resampled_grid(layer: QgsVectorLayer, dem_path: Path):
+    """The resampled DEM a run of ``layer`` over a DEM in another CRS refines on: the
+    algorithm's own sampler, built from the same inputs (the layer's centre, the project's
+    transform context)."""
+    from bsptriangulate.processing_provider.elevation import DemSampler
+    from bsptriangulate.processing_provider.warped_dem import WarpedDemSampler
+
+    dem = QgsRasterLayer(str(dem_path), "dem")
+    assert dem.isValid()
+    return WarpedDemSampler(
+        DemSampler(dem.dataProvider().clone(), 1, "bilinear"),
+        layer.crs(),
+        dem.crs(),
+        QgsProject.instance().transformContext(),
+        layer.extent().center(),
+    )
+
+
+def largest_error_on_grid(sampler, polygons: list, vertices, triangles, owner) -> float:
+    """max |surface - cell value| over every cell centre of the resampled grid strictly
+    inside each polygon (the cells the refinement measured, from ``sampler.cells``)."""
+    worst = 0.0
+    for fid, polygon in enumerate(polygons):
+        xmin, ymin, xmax, ymax = polygon.bounds
+        grid = sampler.cells(xmin, ymin, xmax, ymax)
+        rows, cols = np.indices(grid.values.shape)
+        x, y = grid.centre_x(cols.ravel()), grid.centre_y(rows.ravel())
+        values = grid.values.ravel()
+        keep = shapely.contains_xy(polygon, x, y) & np.isfinite(values)
+        if not keep.any():
+            continue
+        z = surface(vertices, triangles[owner == fid], np.column_stack([x[keep], y[keep]]))
+        assert not np.isnan(z).any(), "a cell centre inside is in no triangle"
+        worst = max(worst, float(np.abs(z - values[keep]).max()))
+    return worst
+
+
+def largest_error_from_original(
+    sampler, dem_path: Path, polygons: list, vertices, triangles, owner
+) -> float:
+    """max |surface - DEM| at the same cell centres (those with a value), the DEM sampled
+    bilinearly in its own CRS at each centre transformed there (the resampled cell's value,
+    computed again)."""
+    dataset = gdal.Open(str(dem_path))
+    band = dataset.GetRasterBand(1)
+    original = PreparedGrid(band.ReadAsArray(), dataset.GetGeoTransform(), band.GetNoDataValue())
+    worst = 0.0
+    for fid, polygon in enumerate(polygons):
+        grid = sampler.cells(*polygon.bounds)
+        rows, cols = np.indices(grid.values.shape)
+        x, y = grid.centre_x(cols.ravel()), grid.centre_y(rows.ravel())
+        keep = shapely.contains_xy(polygon, x, y) & np.isfinite(grid.values.ravel())
+        if not keep.any():
+            continue
+        xy = np.column_stack([x[keep], y[keep]])
+        dem_xy = np.array(
+            [
+                (p.x(), p.y())
+                for p in (sampler.to_dem.transform(QgsPointXY(float(a), float(b))) for a, b in xy)
+            ]
+        )
+        expected = original.sample(dem_xy[:, 0], dem_xy[:, 1], "bilinear")
+        z = surface(vertices, triangles[owner == fid], xy)
+        worst = max(worst, float(np.nanmax(np.abs(z - expected))))
+    return worst
+
+
+@pytest.fixture(scope="module")
+def dem_4326(tmp_path_factory) -> Path:
+    """The Swellendam SRTM DEM in EPSG:4326 at 3 arc-seconds (as SRTM is published), warped
+    from the EPSG:32733 copy of the shared data (its EPSG:4326 original is not there)."""
+    path = tmp_path_factory.mktemp("dem") / "srtm_41_19_4326.tif"
+    warped = gdal.Warp(
+        str(path),
+        str(FARM_DEM),
+        dstSRS="EPSG:4326",
+        xRes=1 / 1200,
+        yRes=1 / 1200,
+        resampleAlg="bilinear",
+        dstNodata=-32768,
+        outputType=gdal.GDT_Int16,
+    )
+    assert warped is not None
+    warped = None
+    return path
+
+
+def small_farms(crs: str = "EPSG:32733") -> QgsVectorLayer:
+    """The first 12 farms under 1.5 km², in a memory layer of ``crs``."""
+    source = QgsVectorLayer(str(FARMS), "farms", "ogr")
+    chosen = [f for f in source.getFeatures() if f.geometry().area() < 1.5e6][:12]
+    layer = QgsVectorLayer(f"Polygon?crs={crs}", "farms", "memory")
+    transform = QgsCoordinateTransform(
+        source.crs(), QgsCoordinateReferenceSystem(crs), QgsProject.instance()
+    )
+    copies = []
+    for feature in chosen:
+        copy = QgsFeature()
+        geometry = QgsGeometry(feature.geometry())
+        geometry.transform(transform)
+        copy.setGeometry(geometry)
+        copies.append(copy)
+    assert layer.dataProvider().addFeatures(copies)
+    return layer
+
+
+def polygons_and_owner(layer: QgsVectorLayer, owner: np.ndarray) -> tuple[list, np.ndarray]:
+    polygons = [shapely.from_wkb(bytes(c.geometry().asWkb())) for c in layer.getFeatures()]
+    ids = [c.id() for c in layer.getFeatures()]
+    return polygons, np.searchsorted(ids, owner)
+
+
+class InfoFeedback(RecordingFeedback):
+    """Keeps the info lines too."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.infos: list[str] = []
+
+    def pushInfo(self, info: str) -> None:
+        self.infos.append(info)
+
+
+@pytest.mark.skipif(not FARMS.exists(), reason="the Swellendam data is not there")
+def test_utm_farms_with_a_geographic_dem_are_within_the_tolerance(dem_4326: Path):
+    layer = small_farms()
+    feedback = InfoFeedback()
+    result = run(
+        {"INPUT": layer, "DEM": str(dem_4326), "MAX_VERTICAL_ERROR": 5.0, "APEX_RULE": 2},
+        feedback,
+    )
+    assert result["FEATURE_COUNT"] == 12
+    assert result["FAILED_COUNT"] == 0 and result["EMPTY_COUNT"] == 0
+    assert result["POINTS_ADDED"] > 0
+    assert not [w for w in feedback.warnings if "mesh within" in w]
+    [info] = [i for i in feedback.infos if "resampled into the layer's CRS" in i]
+    assert "EPSG:4326" in info and "EPSG:32733" in info
+    vertices, triangles, owner = mesh_of(result)
+    assert len({int(fid) for fid in owner}) == 12
+    polygons, owner = polygons_and_owner(layer, owner)
+    sampler = resampled_grid(layer, dem_4326)
+    # SRTM's 3" cells are about 77 m x 92 m here: the grid keeps their area
+    assert 70 < sampler.dx < 85 and 85 < sampler.dy < 100
+    assert largest_error_on_grid(sampler, polygons, vertices, triangles, owner) <= 5.0
+    # the same cell centres against the original DEM, sampled bilinearly: the resampled
+    # cells are those samples, up to rounding
+    original = largest_error_from_original(sampler, dem_4326, polygons, vertices, triangles, owner)
+    assert original <= 5.0 + 1e-6
+
+
+@pytest.mark.skipif(not FARMS.exists(), reason="the Swellendam data is not there")
+def test_geographic_farms_with_a_geographic_dem_are_not_resampled(dem_4326: Path):
+    layer = small_farms("EPSG:4326")
+    feedback = InfoFeedback()
+    result = run(
+        {"INPUT": layer, "DEM": str(dem_4326), "MAX_VERTICAL_ERROR": 5.0, "APEX_RULE": 2},
+        feedback,
+    )
+    assert result["FEATURE_COUNT"] == 12
+    assert result["FAILED_COUNT"] == 0 and result["POINTS_ADDED"] > 0
+    assert not [i for i in feedback.infos if "resampled" in i]
+    assert not [w for w in feedback.warnings if "mesh within" in w]
+    vertices, triangles, owner = mesh_of(result)
+    polygons, owner = polygons_and_owner(layer, owner)
+    assert largest_error(dem_4326, polygons, vertices, triangles, owner) <= 5.0
 
 
 def test_input_points_in_another_crs_are_reprojected():
