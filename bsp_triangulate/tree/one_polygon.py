@@ -44,12 +44,6 @@ _MAX_RECENT_BLOCKERS = 8
 _SCALAR_CANDIDATES = 16
 # Largest chunk of candidates filtered at once by rule "first" on long runs.
 _MAX_FIRST_CHUNK = 1024
-# Largest chunk there when the candidates known to fail are skipped (:class:`_Hidden`).
-_MAX_HIDDEN_CHUNK = 16384
-# Sub-polygons longer than this record the candidates hidden from their end s_hi (rule
-# "first"), for the nodes below them that keep that end; at most this many ends are kept.
-_HIDDEN_SPAN = 256
-_HIDDEN_KEPT = 8
 
 
 def _rows(length: int, *rows: np.ndarray | float) -> np.ndarray:
@@ -74,19 +68,6 @@ def facing_candidates(
     sequence's interior angle at the apex position: this tells apart duplicate occurrences
     of one point, at bridge ends and touching rings).
     """
-    return facing_parts(sx, sy, lo, hi, candidates, exact_inputs)[0]
-
-
-def facing_parts(
-    sx: np.ndarray,
-    sy: np.ndarray,
-    lo: int,
-    hi: int,
-    candidates: np.ndarray,
-    exact_inputs: bool = False,
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`facing_candidates`, and the part of condition 4 that depends on ``s_hi`` alone
-    (``s_hi`` lies in the closed interior angle at the candidate's position)."""
     count = len(candidates)
     ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
     cx, cy = sx[candidates], sy[candidates]
@@ -111,7 +92,7 @@ def facing_parts(
         after_next & after_prev,
         np.where(turn < 0, after_next | after_prev, after_next | spike),
     )
-    return (signs[0] > 0) & inside[0] & inside[1], inside[0]
+    return (signs[0] > 0) & inside[0] & inside[1]
 
 
 def facing_one(xs: list[float], ys: list[float], lo: int, hi: int, c: int) -> bool:
@@ -337,19 +318,6 @@ def _remember(blockers: list[int], edge: int) -> None:
     del blockers[_MAX_RECENT_BLOCKERS:]
 
 
-class _Hidden:
-    """What the nodes of a long sub-polygon [lo, corner] found about its positions
-    ``base ..``, for the nodes below that keep ``s_corner`` as a corner (sub-polygons sharing
-    their end are nested): ``marks[c - base] == corner`` where ``s_corner`` lies outside the
-    interior angle at c (condition 4 fails for every base at ``s_corner``), and
-    ``last[c - base]`` the edge that last blocked position c (-1: none), tried first."""
-
-    def __init__(self, base: int, corner: int) -> None:
-        self.base = base
-        self.marks = np.full(corner - base + 1, -1, dtype=np.int64)
-        self.last = np.full(corner - base + 1, -1, dtype=np.int64)
-
-
 class _Rows:
     """Output rows of a tree being built: triangles, parent, depth, side; ``count`` used."""
 
@@ -390,7 +358,6 @@ class _Tree:
         self._grid: SegmentGrid | None = None
         self._points: SegmentGrid | None = None  # positions, for rule "delaunay"
         self.boxes = ChainBoxes(self.sx, self.sy) if self.m > SMALL_SEQUENCE else None
-        self._hidden: dict[int, _Hidden] = {}
 
     @property
     def grid(self) -> SegmentGrid | None:
@@ -629,15 +596,10 @@ class _Tree:
         """
         xs, ys = self.xs, self.ys
         blockers: list[int] = []
-        hidden = self._hidden_from(lo, hi)
         start = max(hi - 1 - _SCALAR_CANDIDATES, lo)
         for c in range(hi - 1, start, -1):
-            if hidden is not None and hidden.marks[c - hidden.base] >= lo:
-                continue  # s_hi lies outside the interior angle at c
             if facing_one(xs, ys, lo, hi, c) and not self._blocked(lo, hi, c, blockers):
                 return c
-        if hidden is not None:
-            return self._first_apex_hidden(lo, hi, start, blockers, hidden)
         # long runs of candidates that do not face the base or that the same few edges block:
         # filter them in chunks
         size = _SCALAR_CANDIDATES
@@ -651,65 +613,6 @@ class _Tree:
             for c in chunk.tolist():
                 if not self._blocked(lo, hi, c, blockers):
                     return c
-        return -1
-
-    def _hidden_from(self, lo: int, hi: int) -> _Hidden | None:
-        """The record of positions that can never be the apex of a base at ``s_hi`` (kept for
-        long sub-polygons, whose descendants keep ``s_hi`` as a corner), or None."""
-        if hi - lo <= _HIDDEN_SPAN:
-            return None
-        hidden = self._hidden.get(hi)
-        if hidden is None or hidden.base > lo:
-            if hidden is None and len(self._hidden) >= _HIDDEN_KEPT:
-                del self._hidden[next(iter(self._hidden))]
-            hidden = _Hidden(lo, hi)
-            self._hidden[hi] = hidden
-        return hidden
-
-    def _first_apex_hidden(
-        self, lo: int, hi: int, start: int, blockers: list[int], hidden: _Hidden
-    ) -> int:
-        """:meth:`_first_apex` after its scalar candidates, skipping the candidates that
-        ``s_hi`` never sees and trying first, per candidate, the edge that blocked it at an
-        ancestor (:class:`_Hidden`)."""
-        sx, sy, exact = self.sx, self.sy, self.exact
-        marks, last, base = hidden.marks, hidden.last, hidden.base
-        size = _SCALAR_CANDIDATES
-        while start > lo:
-            stop = max(start - size, lo)
-            chunk = np.arange(start, stop, -1)
-            start, size = stop, min(size * 2, _MAX_HIDDEN_CHUNK)
-            chunk = chunk[marks[chunk - base] < lo]
-            if len(chunk) == 0:
-                continue
-            facing, sees_hi = facing_parts(sx, sy, lo, hi, chunk, exact)
-            marks[chunk[~sees_hi] - base] = hi
-            chunk = chunk[facing]
-            if len(chunk) == 0:
-                continue
-            edges = last[chunk - base]
-            mine = np.flatnonzero(edges >= lo)
-            if len(mine):
-                failing, _ = pairs_failing(
-                    sx, sy, lo, hi, chunk[mine], np.arange(len(mine)), edges[mine], exact
-                )
-                if len(failing):
-                    keep = np.ones(len(chunk), dtype=bool)
-                    keep[mine[failing]] = False
-                    chunk = chunk[keep]
-            for e in blockers if len(chunk) > 1 else ():
-                failing, _ = pairs_failing(
-                    sx, sy, lo, hi, chunk, np.arange(len(chunk)), np.full(len(chunk), e), exact
-                )
-                if len(failing):
-                    last[chunk[failing] - base] = e
-                    keep = np.ones(len(chunk), dtype=bool)
-                    keep[failing] = False
-                    chunk = chunk[keep]
-            for c in chunk.tolist():
-                if not self._blocked(lo, hi, c, blockers):
-                    return c
-                last[c - base] = blockers[0]
         return -1
 
     def _not_blocked_by(
