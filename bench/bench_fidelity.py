@@ -399,8 +399,10 @@ def refined(tolerance: float) -> Callable[..., Outcome]:
 def pydelatin_method(tolerance: float) -> Callable[..., Outcome]:
     """pydelatin's greedy mesh of the whole DEM at ``tolerance``, seen inside the polygons.
 
-    Points: its vertices strictly inside a polygon; fidelity: its surface at the cells inside
-    the polygons; angles: its triangles whose centroid is inside one; time: the whole DEM.
+    Points: its vertices strictly inside a polygon, counted once per polygon holding them, as
+    each polygon's mesh has its own points (the farm layer covers its area twice over);
+    fidelity: its surface at the cells inside the polygons; angles: its triangles whose
+    centroid is inside one; time: the whole DEM.
     """
 
     def measure(layer: Layer, dem: Dem) -> Outcome:
@@ -420,14 +422,15 @@ def pydelatin_method(tolerance: float) -> Callable[..., Outcome]:
         whole = fidelity_at(keys, surface, np.arange(dem.values.size), dem, len(triangles))
         measured = fidelity_at(keys, surface, layer.cells % dem.values.size, dem, 0)
         tree = shapely.STRtree(layer.shapes)
-        inside = tree.query(shapely.points(vertices[:, :2]), predicate="within")[0]
+        # (vertex, polygon) pairs: a vertex inside two overlapping polygons counts in both
+        inside_pairs = tree.query(shapely.points(vertices[:, :2]), predicate="within")[0]
         centroids = shapely.points(vertices[triangles, :2].mean(1))
         kept = np.unique(tree.query(centroids, predicate="within")[0])
         measured.triangles = len(kept)
         note = f"{len(vertices):,} vertices and max {whole.maximum:.2f} m over the whole DEM"
         return Outcome(
             measured,
-            len(np.unique(inside)),
+            len(inside_pairs),
             minimum_angles(vertices[triangles[kept]]),
             seconds,
             note,
@@ -524,6 +527,27 @@ def failures(layer: Layer, results: list[tuple[str, Outcome | str]]) -> list[str
     return lines
 
 
+POINTS_TARGET = 1.3  # our points added at most this many times pydelatin's
+
+
+def point_ratios(layer: Layer, results: list[tuple[str, Outcome | str]]) -> list[Row]:
+    """Per tolerance: our points added over pydelatin's vertices inside the polygons."""
+    outcomes = {method: outcome for method, outcome in results if isinstance(outcome, Outcome)}
+    rows = []
+    for tolerance in TOLERANCES:
+        ours = outcomes.get(f'rule "delaunay" + DEM points, {tolerance:g} m')
+        theirs = outcomes.get(f"pydelatin (whole DEM), {tolerance:g} m")
+        if ours is None or theirs is None or not theirs.added:
+            continue
+        ratio = ours.added / theirs.added
+        verdict = "met" if ratio <= POINTS_TARGET else "missed"
+        note = f"{ours.added:,} / {theirs.added:,}; target at most {POINTS_TARGET:g}x: {verdict}"
+        rows.append(
+            Row(layer.label, f"points added / pydelatin's, {tolerance:g} m", ratio, "x", note)
+        )
+    return rows
+
+
 HEADERS = (
     "triangulation",
     "RMS (m)",
@@ -593,7 +617,16 @@ def run_tables(
     for layer in load_layers(dem, quick, densify, farms):
         results = layer_results(layer, dem, budget, densify, boundary_only)
         text += [f"**{layer.label}**", "", layer_table(results), ""]
-        rows += result_rows(layer, results)
+        ratios = point_ratios(layer, results)
+        if ratios:
+            text += [
+                "Points added / pydelatin's vertices inside: "
+                + "; ".join(
+                    f"{r.measure.rsplit(', ', 1)[1]} {r.value:.2f}x ({r.note})" for r in ratios
+                ),
+                "",
+            ]
+        rows += result_rows(layer, results) + ratios
         failed += failures(layer, results)
         outcome = dict(results).get(CDT_METHOD)
         if layer.name == "farms" and isinstance(outcome, Outcome):
