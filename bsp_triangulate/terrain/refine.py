@@ -311,17 +311,12 @@ def refine_many(
     group = np.arange(count) if groups is None else np.asarray(groups, np.int64)
     windows, candidates = _candidates(polygons, grids)
     owner, cell_row, cell_col, value = candidates
-    cand_xyz = np.column_stack(
-        [
-            np.concatenate([windows[p].centre_x(cell_col[owner == p]) for p in range(count)])
-            if count
-            else np.zeros(0),
-            np.concatenate([windows[p].centre_y(cell_row[owner == p]) for p in range(count)])
-            if count
-            else np.zeros(0),
-            value,
-        ]
+    x0, y0, dx, dy = (
+        np.array([getattr(w, name) for w in windows], np.float64)[owner]
+        for name in ("x0", "y0", "dx", "dy")
     )
+    # the same values as the windows' centre_x and centre_y
+    cand_xyz = np.column_stack([x0 + (cell_col + 0.5) * dx, y0 - (cell_row + 0.5) * dy, value])
     lookup, base = _lookup(windows, candidates)
     meshes = _Meshes(polygons) if _by_insertion(options) else None
     outcome = [Refinement(fixed_points[p]) for p in range(count)]
@@ -347,7 +342,7 @@ def refine_many(
             )
             if meshes is not None:
                 meshes.start(active, results)
-        measured, corners, grid_of = [], [], []
+        measured = []
         for p, points, result in zip(active, given, results):
             if isinstance(result, Exception) or not hasattr(result, "triangles"):
                 outcome[p].error = result if isinstance(result, Exception) else None
@@ -359,68 +354,63 @@ def refine_many(
             outcome[p].points = points
             outcome[p].added = int(used_cells[p])
             outcome[p].rounds = rounds
-            measured.append(p)
-            corners.append(result.vertices[result.triangles])
-            grid_of.append(np.full(len(result.triangles), p, np.int64))
+            measured.append((p, result))
         if not measured:
             break
-        tri_corners = np.concatenate(corners)
-        tri_grid = np.concatenate(grid_of)
-        tri_start = np.zeros(count, np.int64)
-        sizes = np.array([len(g) for g in grid_of], np.int64)
-        tri_start[measured] = np.cumsum(sizes) - sizes
-        tri, row, col, z = locate_cells(tri_corners, windows, tri_grid)
-        polygon_of_hit = tri_grid[tri]
-        cand = lookup[base[polygon_of_hit] + row * _cols(windows)[polygon_of_hit] + col]
-        keep = cand >= 0
-        tri, cand, z = tri[keep], cand[keep], z[keep]
+        # (polygon, triangle, candidate, z) of every cell centre in a triangle
+        if meshes is not None:
+            poly, tri, cand, z = meshes.located(measured, windows, lookup, base)
+        else:
+            poly, tri, cand, z = _located(measured, windows, lookup, base)
         error = np.abs(z - value[cand])
         is_measured = np.zeros(count, bool)
-        is_measured[measured] = True
+        is_measured[[p for p, _ in measured]] = True
         in_round = is_measured[owner]
         located = np.zeros(len(value), bool)
         located[cand] = True
         worst = np.zeros(count)
-        np.maximum.at(worst, owner[cand], error)
+        np.maximum.at(worst, poly, error)
+        # a cell on a shared edge has a z from each triangle: it counts by the larger error
+        cell_error = np.zeros(len(value))
+        np.maximum.at(cell_error, cand, error)
         missing = np.bincount(owner[in_round & ~located], minlength=count)
-        # each triangle's worst cell beyond the tolerance, if not given already
+        # each triangle's worst cell beyond the tolerance, if not given already (ties: the
+        # first cell)
         over = (error > limit) & ~taken[cand]
-        want = over & (error >= share * worst[owner[cand]]) if share > 0 else over
-        wanted_tri, wanted_cand, wanted_error = tri[want], cand[want], error[want]
-        order = np.lexsort((-wanted_error, wanted_tri))
-        sorted_tri = wanted_tri[order]
-        first = order[np.r_[True, sorted_tri[1:] != sorted_tri[:-1]]] if len(order) else order
-        pick, pick_error = wanted_cand[first], wanted_error[first]
+        want = over & (error >= share * worst[poly]) if share > 0 else over
+        wanted_key = poly[want] * _TRIANGLE_KEY + tri[want]
+        wanted_cand, wanted_error = cand[want], error[want]
+        order = np.lexsort((wanted_cand, -wanted_error, wanted_key))
+        sorted_key = wanted_key[order]
+        first = order[np.r_[True, sorted_key[1:] != sorted_key[:-1]]] if len(order) else order
+        pick = wanted_cand[first]
         # a polygon with few cells left over takes them all: its last rounds cost the most
-        over_cells, over_at = np.unique(cand[over], return_index=True)
+        over_cells = np.unique(cand[over])
         over_count = np.bincount(owner[over_cells], minlength=count)
         finishing = over_count <= finish_share * np.maximum(used_cells, 1)
-        rest = finishing[owner[over_cells]]
-        pick = np.concatenate([pick, over_cells[rest]])
-        pick_error = np.concatenate([pick_error, error[over][over_at][rest]])
+        pick = np.unique(np.concatenate([pick, over_cells[finishing[owner[over_cells]]]]))
+        pick_error = cell_error[pick]
         # a triangle holding each cell: where the mesh inserts it from
         holder = np.zeros(len(value), np.int64)
-        holder[cand] = tri - tri_start[polygon_of_hit[keep]]
-        pick, unique_at = np.unique(pick, return_index=True)
-        pick_error = pick_error[unique_at]
+        holder[cand] = tri
         if spacing:
             keep_pick = _local_maxima(pick, pick_error, owner, cell_row, cell_col, spacing)
             pick, pick_error = pick[keep_pick], pick_error[keep_pick]
         # the cap: each group's remaining points go to its worst cells first
         pick_group = group[owner[pick]]
-        order = np.lexsort((-pick_error, pick_group))
+        order = np.lexsort((pick, -pick_error, pick_group))
         pick, pick_group = pick[order], pick_group[order]
         group_start = np.r_[True, pick_group[1:] != pick_group[:-1]]
         starts = np.flatnonzero(group_start)
         rank = np.arange(len(pick)) - np.repeat(starts, np.diff(np.r_[starts, len(pick)]))
         allowed = rank < (max_points - spent[pick_group])
-        chosen = pick[allowed]
+        chosen = np.sort(pick[allowed])
         np.add.at(spent, pick_group[allowed], 1)
         refused = np.bincount(owner[pick[~allowed]], minlength=count)
         chosen_of = np.bincount(owner[chosen], minlength=count)
         taken[chosen] = True
         next_active = []
-        for p in measured:
+        for p, _ in measured:
             outcome[p].max_error = float(worst[p])
             outcome[p].within = worst[p] <= limit and missing[p] == 0
             if outcome[p].within:
@@ -435,6 +425,43 @@ def refine_many(
                 outcome[p].capped = True
         active = next_active
     return outcome
+
+
+# a triangle's key in a round: polygon * _TRIANGLE_KEY + its row
+_TRIANGLE_KEY = 1 << 32
+
+
+def _located(
+    measured: Sequence[tuple[int, object]],
+    windows: Sequence[CellGrid],
+    lookup: np.ndarray,
+    base: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(polygon, triangle row, candidate, z) of every candidate cell centre inside a triangle
+    of the measured polygons' results."""
+    polys = np.array([p for p, _ in measured], np.int64)
+    corners = [result.vertices[result.triangles] for _, result in measured]
+    sizes = np.array([len(c) for c in corners], np.int64)
+    tri_poly = np.repeat(polys, sizes)
+    tri_row = np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    tri, row, col, z = locate_cells(np.concatenate(corners), windows, tri_poly)
+    return _candidate_pairs(tri_poly[tri], tri_row[tri], row, col, z, windows, lookup, base)
+
+
+def _candidate_pairs(
+    poly: np.ndarray,
+    tri: np.ndarray,
+    row: np.ndarray,
+    col: np.ndarray,
+    z: np.ndarray,
+    windows: Sequence[CellGrid],
+    lookup: np.ndarray,
+    base: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The located cells that are candidates (strictly inside, with a value)."""
+    cand = lookup[base[poly] + row * _cols(windows)[poly] + col]
+    keep = cand >= 0
+    return poly[keep], tri[keep], cand[keep], z[keep]
 
 
 def _by_insertion(options: dict) -> bool:
@@ -461,6 +488,12 @@ class _Meshes:
         self.mirror: dict[int, float] = {}
         self.z: dict[int, list[float]] = {}
         self.point_ids: dict[int, list[int]] = {}
+        # per polygon: the triangles its cells were located in (and which changed last);
+        # (polygon, triangle, candidate, z) of every located cell, grouped by polygon
+        self.known: dict[int, np.ndarray] = {}
+        self.changed: dict[int, np.ndarray] = {}
+        empty = np.zeros(0, np.int64)
+        self.pairs: tuple[np.ndarray, ...] = (empty, empty, empty, np.zeros(0))
 
     def start(self, active: Sequence[int], results: Sequence[object]) -> None:
         """Meshes from the engine's first results (errors and empty results get none)."""
@@ -482,6 +515,49 @@ class _Meshes:
             self.mirror[p] = mirror
             self.z[p] = vertices[:, 2].tolist()
             self.point_ids[p] = np.asarray(result.point_ids, np.int64).tolist()
+
+    def located(
+        self,
+        measured: Sequence[tuple[int, object]],
+        windows: Sequence[CellGrid],
+        lookup: np.ndarray,
+        base: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`_located`, locating again only the cells of the triangles that changed
+        since the last round (the others keep their cells and z)."""
+        fresh: list[tuple[int, np.ndarray, np.ndarray]] = []
+        for p, result in measured:
+            triangles = np.asarray(result.triangles)
+            before = self.known.get(p)
+            changed = np.ones(len(triangles), bool)
+            if before is not None:
+                changed[: len(before)] = (triangles[: len(before)] != before).any(axis=1)
+            self.known[p] = triangles
+            self.changed[p] = changed
+            rows = np.flatnonzero(changed)
+            fresh.append((p, rows, result.vertices[triangles[rows]]))
+        # the pairs of the triangles that did not change stay (polygons no longer refined
+        # leave for good)
+        poly, tri, cand, z = self.pairs
+        if len(poly):
+            stays = np.zeros(len(poly), bool)
+            for p, _ in measured:
+                at = slice(*np.searchsorted(poly, [p, p + 1]))
+                stays[at] = ~self.changed[p][tri[at]]
+            poly, tri, cand, z = poly[stays], tri[stays], cand[stays], z[stays]
+        polys = np.array([p for p, _, _ in fresh], np.int64)
+        sizes = np.array([len(rows) for _, rows, _ in fresh], np.int64)
+        tri_poly = np.repeat(polys, sizes)
+        tri_row = np.concatenate([rows for _, rows, _ in fresh])
+        corners = np.concatenate([c for _, _, c in fresh]).reshape(-1, 3, 3)
+        found = locate_cells(corners, windows, tri_poly)
+        new = _candidate_pairs(
+            tri_poly[found[0]], tri_row[found[0]], *found[1:], windows, lookup, base
+        )
+        poly, tri, cand, z = (np.concatenate(pair) for pair in zip((poly, tri, cand, z), new))
+        order = np.argsort(poly, kind="stable")  # grouped by polygon for the next round
+        self.pairs = (poly[order], tri[order], cand[order], z[order])
+        return self.pairs
 
     def result(self, p: int) -> object:
         """The polygon's mesh now, shaped as the engine's result (or None without a mesh)."""

@@ -222,6 +222,43 @@ def test_rule_delaunay_rounds_by_insertion_equal_rounds_by_triangulation(
     inserted, triangulated = runs
     assert inserted.rounds == triangulated.rounds > 3
     assert inserted.added == triangulated.added > 50
-    assert inserted.max_error == triangulated.max_error
+    assert inserted.max_error == pytest.approx(triangulated.max_error, rel=1e-12)
     assert inserted.within and triangulated.within
     np.testing.assert_array_equal(inserted.points, triangulated.points)
+
+
+def test_rule_delaunay_by_insertion_with_groups_and_finished_polygons(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # polygons that finish early, a shared cap and a flat one: the same as triangulating again
+    from bsp_triangulate.terrain import refine as refine_module
+
+    grid = hill_grid()
+    squares = [
+        [np.array([[x, y], [x + w, y], [x + w, y + w], [x, y + w]], dtype=float)]
+        for x, y, w in ((5, 5, 60), (250, 5, 200), (5, 250, 220), (300, 300, 30), (80, 80, 90))
+    ]
+    polygons = [with_z(rings, grid) for rings in squares]
+    runs = []
+    for insertion in (True, False):
+        monkeypatch.setattr(refine_module, "_by_insertion", lambda options, on=insertion: on)
+        runs.append(
+            refine_many(
+                polygons,
+                [grid] * len(polygons),
+                0.7,
+                40,
+                engine=engine,
+                groups=[0, 1, 1, 2, 3],
+                rule="delaunay",
+                plane="xy",
+            )
+        )
+    for inserted, triangulated in zip(*runs):
+        assert inserted.rounds == triangulated.rounds
+        assert inserted.added == triangulated.added
+        assert inserted.capped == triangulated.capped
+        assert inserted.max_error == pytest.approx(triangulated.max_error, rel=1e-12)
+        np.testing.assert_array_equal(inserted.points, triangulated.points)
+    assert sum(r.added for r in runs[0][1:3]) <= 40
+    assert any(r.capped for r in runs[0]) and any(r.within for r in runs[0])
