@@ -20,7 +20,20 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from .predicates import incircle_sos, orient, orient_many
+from .predicates import (
+    CCW_ERRBOUND,
+    ICC_ERRBOUND,
+    UNDERFLOW_SLACK,
+    incircle_sos,
+    orient,
+    orient_many,
+)
+
+# ICC_ERRBOUND with a margin for the few roundings by which the float value of the simpler
+# bound of DelaunayMesh._restore may fall below the float permanent
+_ICC_SAFE = 1.25 * ICC_ERRBOUND
+# a larger bound may come with an overflowed determinant: left to predicates.incircle_sos
+_HUGE = 1e290
 
 
 class DelaunayMesh:
@@ -167,6 +180,7 @@ class DelaunayMesh:
         entry = -1  # the local edge we came in through: the point is strictly left of it
         limit = 64 + 8 * math.isqrt(len(vertex))
         toggle = 0
+        ccw_bound, slack = CCW_ERRBOUND, UNDERFLOW_SLACK
         for _ in range(limit):
             base = 3 * t
             blocked = False
@@ -179,7 +193,18 @@ class DelaunayMesh:
                     continue
                 a = vertex[base + (k + 1) % 3]
                 b = vertex[base + (k + 2) % 3]
-                side = orient(x[a], y[a], x[b], y[b], px, py)
+                # the float filter of predicates.orient, inlined
+                ax, ay, bx, by = x[a], y[a], x[b], y[b]
+                left = (ax - px) * (by - py)
+                right = (ay - py) * (bx - px)
+                det = left - right
+                bound = ccw_bound * (abs(left) + abs(right)) + slack
+                if det > bound:
+                    side = 1
+                elif -det > bound:
+                    side = -1
+                else:
+                    side = orient(ax, ay, bx, by, px, py)
                 if side < 0:
                     s = across[base + k]
                     if s >= 0:
@@ -415,14 +440,38 @@ class DelaunayMesh:
         vertex, across, fixed, owner = self._vertex, self._across, self._fixed, self._owner
         x, y = self.x, self.y
         px, py = x[p], y[p]
+        pop, push = stack.pop, stack.append
+        bound_factor = _ICC_SAFE
+        slack = UNDERFLOW_SLACK
         while stack:
-            t = stack.pop()
+            t = pop()
             s = 3 * t
             n = across[s]
             if n < 0 or fixed[s]:
                 continue
             b, c, d = vertex[s + 1], vertex[s + 2], vertex[n]
-            if incircle_sos(px, py, x[b], y[b], x[c], y[c], x[d], y[d]) <= 0:
+            # a float filter as in predicates.incircle_one, inlined (the loop is the whole cost),
+            # with a bound without abs(): |bdx cdy| + |cdx bdy| <= (blift + clift) / 2 and so on,
+            # so the permanent is at most the sum of the lifts' pairwise products
+            dx, dy = x[d], y[d]
+            adx, ady = px - dx, py - dy
+            bdx, bdy = x[b] - dx, y[b] - dy
+            cdx, cdy = x[c] - dx, y[c] - dy
+            alift = adx * adx + ady * ady
+            blift = bdx * bdx + bdy * bdy
+            clift = cdx * cdx + cdy * cdy
+            det = (
+                alift * (bdx * cdy - cdx * bdy)
+                + blift * (cdx * ady - adx * cdy)
+                + clift * (adx * bdy - bdx * ady)
+            )
+            bound = bound_factor * (alift * blift + blift * clift + clift * alift) + slack
+            if bound < _HUGE:
+                if -det > bound:
+                    continue
+                if det <= bound and incircle_sos(px, py, x[b], y[b], x[c], y[c], dx, dy) <= 0:
+                    continue
+            elif incircle_sos(px, py, x[b], y[b], x[c], y[c], dx, dy) <= 0:
                 continue
             t2 = n // 3
             q = 3 * t2
@@ -438,9 +487,15 @@ class DelaunayMesh:
             fixed[s] = fix_bd
             across[s + 1] = q + 2
             fixed[s + 1] = False
-            vertex[q : q + 3] = [p, d, c]
-            across[q : q + 3] = [out_dc, out_cp, s + 1]
-            fixed[q : q + 3] = [fix_dc, fix_cp, False]
+            vertex[q] = p
+            vertex[q + 1] = d
+            vertex[q + 2] = c
+            across[q] = out_dc
+            across[q + 1] = out_cp
+            across[q + 2] = s + 1
+            fixed[q] = fix_dc
+            fixed[q + 1] = fix_cp
+            fixed[q + 2] = False
             if out_bd >= 0:
                 across[out_bd] = s
             if out_dc >= 0:
@@ -449,8 +504,8 @@ class DelaunayMesh:
                 across[out_cp] = q + 1
             owner[b] = t
             owner[c] = t2
-            stack.append(t)
-            stack.append(t2)
+            push(t)
+            push(t2)
 
     def make_delaunay(self) -> int:
         """Flip every unconstrained interior edge that is not locally Delaunay until none is

@@ -15,6 +15,8 @@ _EPS = 2.0**-53
 CCW_ERRBOUND = (3.0 + 16.0 * _EPS) * _EPS
 # Absolute slack for products that underflow into the subnormal range.
 _UNDERFLOW_SLACK = 1e-300
+# the same, for the callers that inline a float filter
+UNDERFLOW_SLACK = _UNDERFLOW_SLACK
 
 
 def orient_exact(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> int:

@@ -289,3 +289,50 @@ def test_hilbert_order_is_a_permutation_that_keeps_neighbours_close():
     steps = np.hypot(*np.diff(points[order], axis=0).T)
     assert steps.mean() < 0.05
     assert len(hilbert_order(np.zeros(0), np.zeros(0))) == 0
+
+
+@pytest.mark.parametrize("origin", [1e7, 3.0e5])
+def test_near_cocircular_points_far_from_the_origin_are_decided_exactly(origin: float):
+    # a grid (every 4 neighbours cocircular) with some points moved by one unit in the last
+    # place: the float in-circle values are all within rounding of 0, the flip filter of
+    # _restore must leave them to the exact test
+    rng = np.random.default_rng(11)
+    ticks = origin + np.arange(1, 16) * 0.5
+    points = np.array([(a, b) for a in ticks for b in ticks])
+    nudge = rng.random(len(points)) < 0.3
+    points[nudge, 0] = np.nextafter(points[nudge, 0], np.inf)
+    nudge = rng.random(len(points)) < 0.3
+    points[nudge, 1] = np.nextafter(points[nudge, 1], -np.inf)
+    lo, hi = origin, origin + 8.0
+    sets = []
+    for order in (np.arange(len(points)), rng.permutation(len(points))):
+        mesh = DelaunayMesh([lo, hi, hi, lo], [lo, lo, hi, hi], SQUARE_TRIANGLES)
+        assert (mesh.insert_many(points[order, 0], points[order, 1]) >= 0).all()
+        _check_mesh(mesh)
+        sets.append(_triangle_set(mesh))
+    assert sets[0] == sets[1]
+
+
+@pytest.mark.parametrize(("centre", "radius"), [(0.5, 0.4), (1e7, 9e6)])
+def test_points_rounded_onto_a_circle_are_decided_exactly(centre: float, radius: float):
+    # cocircular up to the rounding of their coordinates: the float in-circle value often has
+    # the wrong sign, so the flip filter of _restore must pass those to the exact test
+    angles = np.random.default_rng(3).uniform(0.0, 2 * np.pi, 400)
+    px, py = centre + radius * np.cos(angles), centre + radius * np.sin(angles)
+    lo, hi = centre - 1.5 * radius, centre + 1.5 * radius
+    sets = []
+    for order in (np.arange(len(px)), np.argsort(angles)):
+        mesh = DelaunayMesh([lo, hi, hi, lo], [lo, lo, hi, hi], SQUARE_TRIANGLES)
+        assert (mesh.insert_many(px[order], py[order]) >= 0).all()
+        _check_mesh(mesh)
+        sets.append(_triangle_set(mesh))
+    assert sets[0] == sets[1]
+
+
+def test_huge_coordinates_leave_the_flip_test_to_the_exact_predicate():
+    # the lifts' products overflow: the inlined filter must not decide
+    scale = 1e100
+    mesh = DelaunayMesh([0.0, scale, scale, 0.0], [0.0, 0.0, scale, scale], SQUARE_TRIANGLES)
+    points = np.random.default_rng(5).uniform(0.05, 0.95, size=(200, 2)) * scale
+    assert (mesh.insert_many(points[:, 0], points[:, 1]) >= 0).all()
+    _check_mesh(mesh)
