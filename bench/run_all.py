@@ -20,21 +20,17 @@ import bench_large
 import bench_terrain_run
 from common import BUILD, Row, machine_info, markdown_table, rows_table
 
-# Farms in the terrain benchmarks: the DEM-point refinement of the whole layer takes hours today
-BENCH_FARMS = 20
-
 BENCHMARKS: dict[str, tuple[str, Callable[[bool, float, int | None], list[Row]]]] = {
     "core": ("Core triangulation speed (in one process)", bench_core.run),
     "large": ("Large polygons with many islands, every rule, against earcut", bench_large.run),
     "end_to_end": ("End to end through qgis_process", bench_end_to_end.run),
     "fidelity": (
-        f"Terrain fidelity (surface - DEM at DEM cell centres; the first {BENCH_FARMS} farms)",
-        lambda quick, budget, count: bench_fidelity.run(quick, budget, farms=BENCH_FARMS),
+        "Terrain fidelity (surface - DEM at DEM cell centres)",
+        bench_fidelity.run,
     ),
     "terrain_run": (
-        f"The first {BENCH_FARMS} farms with DEM points to 5 m through qgis_process, "
-        "against without",
-        lambda quick, budget, count: bench_terrain_run.run(quick, budget, farms=BENCH_FARMS),
+        "The farms with DEM points to 5 m through qgis_process, against without",
+        bench_terrain_run.run,
     ),
     "buildings": (
         "Buildings to a GLB against the mesh-only triangulate run",
