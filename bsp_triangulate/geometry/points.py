@@ -13,7 +13,7 @@ from typing import Protocol
 import numpy as np
 
 from ..triangulation import TriangulationError
-from .predicates import orient_many
+from .predicates import compare_sq_distances_many, orient_many, sq_distance_exact
 from .spatial_index import SegmentGrid, chunks
 
 # (edge, point) pairs tested at once: bounds the memory of the vectorised tests
@@ -212,19 +212,56 @@ def _crossed(bridger: Bridging, u: int, w: int) -> bool:
 _TIE_MARGIN = 1e-9
 
 
-def _sq_distance_key(ax: float, ay: float, bx: float, by: float) -> int:
-    """The exact squared distance between two float points times 2**2148: an integer (every
-    finite double is a multiple of 2**-1074), ordered as the exact distances are, and much
-    cheaper than fractions."""
-    dx = _scaled(ax) - _scaled(bx)
-    dy = _scaled(ay) - _scaled(by)
-    return dx * dx + dy * dy
+# all pairs of a group are compared at once while there are at most this many per candidate
+_ALL_PAIRS = 16
+
+# the exact squared distance as an integer (kept under the name the tests use)
+_sq_distance_key = sq_distance_exact
 
 
-def _scaled(value: float) -> int:
-    """``value`` times 2**1074, exactly (an integer)."""
-    numerator, denominator = value.as_integer_ratio()  # the denominator a power of two
-    return numerator << (1075 - denominator.bit_length())
+def _least_exact(
+    group: np.ndarray, a: np.ndarray, b: np.ndarray, x: np.ndarray, y: np.ndarray
+) -> np.ndarray:
+    """For the pairs of vertex ids (a[i], b[i]) sorted by ``group`` (then in tie order): the
+    position of each group's pair with the least exact squared distance, the first among
+    equal ones; one per group, in group order."""
+    count = len(group)
+    starts = np.flatnonzero(np.concatenate([[True], group[1:] != group[:-1]]))
+    sizes = np.diff(np.append(starts, count))
+    owner = np.repeat(np.arange(len(starts)), sizes)
+    if int((sizes * sizes).sum()) <= _ALL_PAIRS * count:
+        # small groups: every pair (i, j), i before j, compared at once; the one that never
+        # loses wins (a loser is farther, or as far and later)
+        span = sizes[owner]
+        i = np.repeat(np.arange(count), span)
+        j = np.repeat(starts[owner], span) + _ranks(span)
+        i, j = i[i < j], j[i < j]
+        sign = compare_sq_distances_many(
+            x[a[i]], y[a[i]], x[b[i]], y[b[i]], x[a[j]], y[a[j]], x[b[j]], y[b[j]]
+        )
+        lost = np.zeros(count, dtype=bool)
+        lost[i[sign > 0]] = True
+        lost[j[sign <= 0]] = True
+        return np.flatnonzero(~lost)
+    # large groups: a knockout, one round per rank in the groups
+    best = starts.copy()
+    rank = np.arange(count) - starts[owner]
+    by_rank = np.argsort(rank, kind="stable")
+    bounds = np.searchsorted(rank[by_rank], np.arange(int(sizes.max()) + 1))
+    for k in range(1, len(bounds) - 1):
+        challenger = by_rank[bounds[k] : bounds[k + 1]]
+        g = owner[challenger]
+        current = best[g]
+        ca, cb, ba, bb = a[challenger], b[challenger], a[current], b[current]
+        sign = compare_sq_distances_many(x[ca], y[ca], x[cb], y[cb], x[ba], y[ba], x[bb], y[bb])
+        better = sign < 0
+        best[g[better]] = challenger[better]
+    return best
+
+
+def _ranks(sizes: np.ndarray) -> np.ndarray:
+    """0, 1, ..., sizes[k] - 1 for each k, concatenated."""
+    return np.arange(int(sizes.sum()), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)
 
 
 def nearest_vertices(
@@ -314,16 +351,13 @@ def _nearest(
         ties = np.bincount(pair_query, minlength=len(todo))
         single = ties[pair_query] == 1
         result[todo[pair_query[single]]] = vertex[single]
-        tied: dict[int, list[int]] = {}
-        for q, v in zip(pair_query[~single].tolist(), vertex[~single].tolist()):
-            tied.setdefault(q, []).append(v)
-        for q, candidates in tied.items():
-            h = int(queries[todo[q]])
-            hx, hy = float(x[h]), float(y[h])
-            result[todo[q]] = min(
-                candidates,
-                key=lambda v: (_sq_distance_key(float(x[v]), float(y[v]), hx, hy), v),
-            )
+        if not single.all():
+            # exact distances, ties to the smallest vertex id
+            q, v = pair_query[~single], vertex[~single]
+            order = np.lexsort((v, q))
+            q, v = q[order], v[order]
+            win = _least_exact(q, v, queries[todo[q]], x, y)
+            result[todo[q[win]]] = v[win]
         if covers:
             return result, np.inf
         todo = todo[~done]
@@ -400,21 +434,27 @@ class PointOrder:
             labels[members] = members
             pick = sure[index] & (d2 <= least[index] * (1 + _TIE_MARGIN))
             picked = index[pick]
-            # exact distances only where a component has more than one candidate
-            tied = (np.bincount(picked, minlength=len(component))[picked] > 1).tolist()
-            best: dict[int, tuple[int | None, int, int]] = {}
-            for c, a, b, tie in zip(
-                picked.tolist(), members[pick].tolist(), near[pick].tolist(), tied
-            ):
-                if not tie:
-                    best[c] = (None, a, b)
-                    continue
-                key = (_sq_distance_key(float(x[a]), float(y[a]), float(x[b]), float(y[b])), a, b)
-                if c not in best or key < best[c]:
-                    best[c] = key
-            if not best:
+            if not len(picked):
                 break
-            for _, a, b in best.values():
+            start, end = members[pick], near[pick]
+            chosen_a = np.full(len(component), -1, dtype=np.int64)
+            chosen_b = np.full(len(component), -1, dtype=np.int64)
+            # exact distances only where a component has more than one candidate; ties to the
+            # smallest (point, vertex)
+            tied = np.bincount(picked, minlength=len(component))[picked] > 1
+            chosen_a[picked[~tied]] = start[~tied]
+            chosen_b[picked[~tied]] = end[~tied]
+            if tied.any():
+                c, ta, tb = picked[tied], start[tied], end[tied]
+                order = np.lexsort((tb, ta, c))
+                c, ta, tb = c[order], ta[order], tb[order]
+                win = _least_exact(c, ta, tb, x, y)
+                chosen_a[c[win]] = ta[win]
+                chosen_b[c[win]] = tb[win]
+            # the components in the order of their first candidate
+            unique, first = np.unique(picked, return_index=True)
+            linked = unique[np.argsort(first)]
+            for a, b in zip(chosen_a[linked].tolist(), chosen_b[linked].tolist()):
                 self._link(a, b)
 
     def _find(self, vid: int) -> int:

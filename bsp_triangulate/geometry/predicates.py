@@ -401,3 +401,129 @@ def incircle_sos_many(
         signs = signs.copy()
         signs[ties] = [cocircular_sign(*point) for point in zip(*picked)]
     return signs
+
+
+def _two_sum(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """fl(a + b) and its rounding error (Knuth's two-sum): a + b == x + y exactly."""
+    x = a + b
+    return x, _diff_error(a, -b, x)
+
+
+def _expansion_sign(terms: list[np.ndarray]) -> np.ndarray:
+    """Exact sign of the sum of the float arrays ``terms`` (int8), by Shewchuk's
+    grow-expansion: the components come out non-overlapping in increasing magnitude (zeros
+    anywhere), so the last non-zero one has the sum's sign. Overflow-free inputs only."""
+    expansion: list[np.ndarray] = []
+    for term in terms:
+        q = term
+        for i, component in enumerate(expansion):
+            q, expansion[i] = _two_sum(q, component)
+        expansion.append(q)
+    sign = np.zeros(len(terms[0]), dtype=np.int8)
+    for component in expansion:
+        sign = np.where(component != 0, np.sign(component).astype(np.int8), sign)
+    return sign
+
+
+def sq_distance_exact(ax: float, ay: float, bx: float, by: float) -> int:
+    """The exact squared distance between two float points times 2**2148 (an integer: every
+    finite double is a multiple of 2**-1074), ordered as the exact distances are."""
+    dx = _times_2_1074(ax) - _times_2_1074(bx)
+    dy = _times_2_1074(ay) - _times_2_1074(by)
+    return dx * dx + dy * dy
+
+
+def _times_2_1074(value: float) -> int:
+    """``value`` times 2**1074, exactly (an integer)."""
+    numerator, denominator = value.as_integer_ratio()  # the denominator a power of two
+    return numerator << (1075 - denominator.bit_length())
+
+
+# |differences| within which the two-product of their squares is exact (no underflow of the
+# error term, no overflow of the square or of the split)
+_SQUARE_LOW, _SQUARE_HIGH = 2.0**-450, 2.0**450
+
+
+def compare_sq_distances_many(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+) -> np.ndarray:
+    """Exact sign of |a - b|^2 - |c - d|^2 per entry (int8; 1-d arrays of one length).
+
+    With u = a - b and v = c - d the value is (ux - vx)(ux + vx) + (uy - vy)(uy + vy). Where
+    those six differences and sums are exact in float (two-sum) and of moderate size, the two
+    products are split exactly into floats and rounding errors (two-product) and the sign of
+    the four-term sum is taken exactly (:func:`_expansion_sign`); other entries take
+    :func:`_compare_sq_distances_expanded`.
+    """
+    arrays = [np.asarray(v, dtype=np.float64) for v in (ax, ay, bx, by, cx, cy, dx, dy)]
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        ux, uy = arrays[0] - arrays[2], arrays[1] - arrays[3]
+        vx, vy = arrays[4] - arrays[6], arrays[5] - arrays[7]
+        usable = (
+            (_diff_error(arrays[0], arrays[2], ux) == 0)
+            & (_diff_error(arrays[1], arrays[3], uy) == 0)
+            & (_diff_error(arrays[4], arrays[6], vx) == 0)
+            & (_diff_error(arrays[5], arrays[7], vy) == 0)
+        )
+        terms = []
+        for u, v in ((ux, vx), (uy, vy)):
+            low, high = u - v, u + v
+            usable &= (_diff_error(u, v, low) == 0) & (_diff_error(u, -v, high) == 0)
+            for factor in (low, high):
+                size = np.abs(factor)
+                usable &= (factor == 0) | ((size > _SQUARE_LOW) & (size < _SQUARE_HIGH))
+            product = low * high
+            terms += [product, _product_error(low, high, product)]
+        signs = _expansion_sign(terms)
+    rest = np.flatnonzero(~usable)
+    if len(rest):
+        signs[rest] = _compare_sq_distances_expanded(*(a[rest] for a in arrays))
+    return signs
+
+
+def _compare_sq_distances_expanded(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+) -> np.ndarray:
+    """:func:`compare_sq_distances_many` another way: where the four coordinate differences
+    are exact in float and of moderate size, each square is split exactly into a float and
+    its rounding error and the sign of the eight-term sum is taken exactly; the other entries
+    are decided on Python integers (:func:`sq_distance_exact`)."""
+    arrays = [ax, ay, bx, by, cx, cy, dx, dy]
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        differences = [(arrays[k] - arrays[k + 2], arrays[k], arrays[k + 2]) for k in (0, 1, 4, 5)]
+        usable = np.ones(len(arrays[0]), dtype=bool)
+        terms = []
+        for diff, first, second in differences:
+            size = np.abs(diff)
+            usable &= (_diff_error(first, second, diff) == 0) & (
+                (diff == 0) | ((size > _SQUARE_LOW) & (size < _SQUARE_HIGH))
+            )
+            square = diff * diff
+            terms.append((square, _product_error(diff, diff, square)))
+        (p, e), (q, f), (r, g), (s, h) = terms
+        signs = _expansion_sign([p, e, q, f, -r, -g, -s, -h])
+    rest = np.flatnonzero(~usable)
+    if len(rest):
+        picked = [a[rest].tolist() for a in arrays]
+        signs[rest] = [
+            (u > v) - (u < v)
+            for u, v in (
+                (sq_distance_exact(*point[:4]), sq_distance_exact(*point[4:]))
+                for point in zip(*picked)
+            )
+        ]
+    return signs

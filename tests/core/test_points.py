@@ -30,8 +30,9 @@ from bsp_triangulate import (
     triangulate_many,
     triangulate_packed,
 )
+from bsp_triangulate.geometry import points as points_module
 from bsp_triangulate.geometry.points import PointOrder, nearest_vertices
-from bsp_triangulate.geometry.predicates import exact_sq_distance
+from bsp_triangulate.geometry.predicates import compare_sq_distances_many, exact_sq_distance
 
 from ..conftest import SHARED_DATA
 from .checks import (
@@ -333,3 +334,82 @@ def test_point_order_links_have_empty_diametral_circles(seed: int) -> None:
         for w in range(len(xy)):
             wx, wy = Fraction(float(x[w])), Fraction(float(y[w]))
             assert (wx - ax) * (wx - bx) + (wy - ay) * (wy - by) >= 0, (a, b, w)
+
+
+def _near_ties(seed: int, origin: float, cell: float, count: int) -> list[np.ndarray]:
+    """(a, b, c, d) coordinate arrays with |a - b| and |c - d| equal in the reals before the
+    coordinates were rounded (b = d a cell centre, c = a turned by 90 degrees about it), some
+    of them then moved by one unit in the last place."""
+    rng = np.random.default_rng(seed)
+    bx = origin + (rng.integers(0, 100, count) + 0.5) * cell
+    by = 0.9 * origin + (rng.integers(0, 100, count) + 0.5) * cell
+    i, j = rng.integers(-3, 4, count), rng.integers(-3, 4, count)
+    ax, ay, cx, cy = bx + i * cell, by + j * cell, bx - j * cell, by + i * cell
+    for values in (ax, cy, bx):
+        moved = rng.random(count) < 0.2
+        values[moved] = np.nextafter(values[moved], np.inf if seed % 2 else -np.inf)
+    return [ax, ay, bx, by, cx, cy, bx.copy(), by.copy()]
+
+
+@pytest.mark.parametrize(
+    ("origin", "cell"), [(0.0, 1.0), (1e7, 0.5), (1e7, 3.0), (3.0e5, 82.3), (6.2e6, 82.3)]
+)
+def test_compare_sq_distances_is_exact_on_near_ties(origin: float, cell: float) -> None:
+    # the float comparison of these distances is often wrong; the exact one must not be
+    cases = _near_ties(int(origin) % 7 + int(cell), origin, cell, 3000)
+    got = compare_sq_distances_many(*cases)
+    want = [
+        (u > v) - (u < v)
+        for u, v in (
+            (exact_sq_distance(*row[:4]), exact_sq_distance(*row[4:]))
+            for row in zip(*(c.tolist() for c in cases))
+        )
+    ]
+    assert got.tolist() == want
+    assert 0 in want and 1 in want and -1 in want
+    ax, ay, bx, by, cx, cy, dx, dy = cases
+    floats = np.sign((ax - bx) ** 2 + (ay - by) ** 2 - (cx - dx) ** 2 - (cy - dy) ** 2)
+    assert (floats != np.array(want)).any()  # the test needs the exact path
+
+
+def test_compare_sq_distances_falls_back_where_differences_round() -> None:
+    # the first two: exact coordinate differences whose sum is not (the eight-term sum
+    # decides); then differences that are not exact in float, huge and tiny ones (integers)
+    tiny = 2.0**-52
+    ax = np.array([1.0 + tiny, 1.0 + tiny, 1e300, 1e-320, 1.0, 1e16, 0.1, -1e200])
+    ay = np.array([0.0, 0.0, 0.0, 0.0, 1e-30, 3.0, 0.2, 1e200])
+    bx = np.array([0.0, 0.0, -1e300, 0.0, -1e-30, -1.0, 0.3, 1e200])
+    by = np.array([0.0, 0.0, 0.0, 5e-324, 0.0, 0.0, 0.1, -1e200])
+    cx, cy, dx, dy = by.copy(), ax.copy(), ay.copy(), bx.copy()
+    cx[:2], cy[:2] = [2.0**-60, 3 * 2.0**-58], [1.0 + tiny, 1.0]
+    got = compare_sq_distances_many(ax, ay, bx, by, cx, cy, dx, dy)
+    for k in range(len(ax)):
+        u = exact_sq_distance(ax[k], ay[k], bx[k], by[k])
+        v = exact_sq_distance(cx[k], cy[k], dx[k], dy[k])
+        assert got[k] == (u > v) - (u < v), k
+
+
+@pytest.mark.parametrize("all_pairs", [16, 0])
+@pytest.mark.parametrize("origin", [0.5, 1e7, 6.2e6])
+def test_nearest_vertices_on_near_tied_cell_centres(
+    monkeypatch: pytest.MonkeyPatch, origin: float, all_pairs: int
+) -> None:
+    # cell centres, some moved by one unit in the last place: many nearest candidates are
+    # equally far in float but not exactly; both ways of the exact choice agree with a brute
+    # force over Fractions (ties to the smallest id)
+    monkeypatch.setattr(points_module, "_ALL_PAIRS", all_pairs)
+    rng = np.random.default_rng(int(origin) % 97)
+    cell = 0.5 if origin > 1e6 else 1.0
+    xy = np.array([(origin + i * cell, origin + j * cell) for i in range(14) for j in range(14)])
+    xy = xy[rng.permutation(len(xy))]
+    for column in (0, 1):
+        moved = rng.random(len(xy)) < 0.25
+        xy[moved, column] = np.nextafter(xy[moved, column], np.inf if column else -np.inf)
+    x, y = xy[:, 0], xy[:, 1]
+    ids = np.arange(len(xy), dtype=np.int64)
+    queries = rng.choice(len(xy), 80, replace=False).astype(np.int64)
+    got = nearest_vertices(x, y, ids, queries)
+    for query, near in zip(queries.tolist(), got.tolist()):
+        others = [v for v in range(len(xy)) if v != query]
+        d2 = [exact_sq_distance(x[v], y[v], x[query], y[query]) for v in others]
+        assert near == min(zip(d2, others))[1]
