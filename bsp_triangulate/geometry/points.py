@@ -212,6 +212,8 @@ def _crossed(bridger: Bridging, u: int, w: int) -> bool:
 _TIE_MARGIN = 1e-9
 
 
+# pairs to be ranked up to which Python integers are used
+_FEW_PAIRS = 128
 # all pairs of a group are compared at once while there are at most this many per candidate
 _ALL_PAIRS = 16
 
@@ -228,6 +230,17 @@ def _least_exact(
     count = len(group)
     starts = np.flatnonzero(np.concatenate([[True], group[1:] != group[:-1]]))
     sizes = np.diff(np.append(starts, count))
+    if count <= _FEW_PAIRS:
+        # few: exact integer keys in Python cost less than the vectorised test's set-up
+        keys = [
+            sq_distance_exact(*coordinates)
+            for coordinates in zip(x[a].tolist(), y[a].tolist(), x[b].tolist(), y[b].tolist())
+        ]
+        ends = (starts + sizes).tolist()
+        return np.array(
+            [min(range(lo, hi), key=keys.__getitem__) for lo, hi in zip(starts.tolist(), ends)],
+            dtype=np.int64,
+        )
     owner = np.repeat(np.arange(len(starts)), sizes)
     if int((sizes * sizes).sum()) <= _ALL_PAIRS * count:
         # small groups: every pair (i, j), i before j, compared at once; the one that never
@@ -269,102 +282,113 @@ def nearest_vertices(
 ) -> np.ndarray:
     """For each vertex id of ``queries``, the nearest other vertex among ``ids`` (exact
     squared distance, ties to the smallest id; -1 when there is none)."""
-    return _nearest(x, y, ids, queries)[0]
+    return _VertexGrid(x, y, ids).nearest(queries)[0]
 
 
-def _nearest(
-    x: np.ndarray,
-    y: np.ndarray,
-    ids: np.ndarray,
-    queries: np.ndarray,
-    labels: np.ndarray | None = None,
-    max_reach: int | None = None,
-    first_reach: int = 1,
-) -> tuple[np.ndarray, float]:
-    """:func:`nearest_vertices` among the vertices of another label than the query's (per
-    vertex id; None: any other vertex), and a squared distance ``bound``: a query left at
-    -1 has no such vertex nearer (float) than ``bound`` (inf: none at all).
+class _VertexGrid:
+    """A uniform grid over the vertex ids ``ids``, built once for many nearest searches."""
 
-    A uniform grid over ``ids``: each query scans the block of cells around its own, the
-    block (``first_reach`` cells around) doubling up to ``max_reach`` cells until it holds
-    the nearest vertex's circle.
-    """
-    result = np.full(len(queries), -1, dtype=np.int64)
-    if len(queries) == 0 or len(ids) < 2:
-        return result, np.inf
-    ids = np.sort(ids)
-    vx, vy = x[ids], y[ids]
-    x0, y0 = float(vx.min()), float(vy.min())
-    width, height = float(vx.max()) - x0, float(vy.max()) - y0
-    extent = max(width, height)
-    if not extent > 0:
-        return result, np.inf
-    cell = max(np.sqrt(width * height / len(ids)), extent / len(ids), extent / 4096)
-    nx = int(width // cell) + 1
-    ny = int(height // cell) + 1
-    col = np.minimum((vx - x0) // cell, nx - 1).astype(np.int64)
-    row = np.minimum((vy - y0) // cell, ny - 1).astype(np.int64)
-    key = row * nx + col
-    order = np.argsort(key, kind="stable")
-    sorted_ids = ids[order]
-    starts = np.searchsorted(key[order], np.arange(nx * ny + 1))
-    qx, qy = x[queries], y[queries]
-    qcol = np.clip((qx - x0) // cell, 0, nx - 1).astype(np.int64)
-    qrow = np.clip((qy - y0) // cell, 0, ny - 1).astype(np.int64)
-    pad = 1e-12 * max(abs(x0), abs(y0), abs(x0 + width), abs(y0 + height))
-    todo = np.arange(len(queries), dtype=np.int64)
-    reach = first_reach
-    while len(todo):
-        covers = reach >= max(nx, ny)
-        lo_col = np.maximum(qcol[todo] - reach, 0)
-        hi_col = np.minimum(qcol[todo] + reach, nx - 1)
-        lo_row = np.maximum(qrow[todo] - reach, 0)
-        rows = np.minimum(qrow[todo] + reach, ny - 1) - lo_row + 1
-        # one contiguous run of the sorted vertices per (query, row of the block)
-        query = np.repeat(np.arange(len(todo), dtype=np.int64), rows)
-        row_of = np.repeat(lo_row, rows) + (
-            np.arange(len(query), dtype=np.int64) - np.repeat(np.cumsum(rows) - rows, rows)
-        )
-        first = starts[row_of * nx + lo_col[query]]
-        spans = starts[row_of * nx + hi_col[query] + 1] - first
-        total = int(spans.sum())
-        pair_query = np.repeat(query, spans)
-        vertex = sorted_ids[
-            np.repeat(first, spans)
-            + np.arange(total, dtype=np.int64)
-            - np.repeat(np.cumsum(spans) - spans, spans)
-        ]
-        own = queries[todo][pair_query]
-        keep = vertex != own if labels is None else labels[vertex] != labels[own]
-        pair_query, vertex, own = pair_query[keep], vertex[keep], own[keep]
-        d2 = (x[vertex] - x[own]) ** 2 + (y[vertex] - y[own]) ** 2
-        best = np.full(len(todo), np.inf)
-        np.minimum.at(best, pair_query, d2)
-        # the block holds every vertex within reach cells of the query, less a slack for the
-        # rounding of the cell arithmetic
-        safe = max(reach * cell * (1 - 1e-6) - pad, 0.0)
-        safe *= safe  # (** would raise OverflowError on a Python float)
-        done = best * (1 + _TIE_MARGIN) <= safe if not covers else np.isfinite(best)
-        near = done[pair_query] & (d2 <= best[pair_query] * (1 + _TIE_MARGIN))
-        pair_query, vertex = pair_query[near], vertex[near]
-        # one candidate per query unless float distances come within the margin of a tie
-        ties = np.bincount(pair_query, minlength=len(todo))
-        single = ties[pair_query] == 1
-        result[todo[pair_query[single]]] = vertex[single]
-        if not single.all():
-            # exact distances, ties to the smallest vertex id
-            q, v = pair_query[~single], vertex[~single]
-            order = np.lexsort((v, q))
-            q, v = q[order], v[order]
-            win = _least_exact(q, v, queries[todo[q]], x, y)
-            result[todo[q[win]]] = v[win]
-        if covers:
+    def __init__(self, x: np.ndarray, y: np.ndarray, ids: np.ndarray) -> None:
+        self.x, self.y = x, y
+        self.empty = True  # fewer than two vertices, or all at one place
+        if len(ids) < 2:
+            return
+        ids = np.sort(ids)
+        vx, vy = x[ids], y[ids]
+        x0, y0 = float(vx.min()), float(vy.min())
+        width, height = float(vx.max()) - x0, float(vy.max()) - y0
+        extent = max(width, height)
+        if not extent > 0:
+            return
+        self.empty = False
+        cell = max(np.sqrt(width * height / len(ids)), extent / len(ids), extent / 4096)
+        nx = int(width // cell) + 1
+        ny = int(height // cell) + 1
+        col = np.minimum((vx - x0) // cell, nx - 1).astype(np.int64)
+        row = np.minimum((vy - y0) // cell, ny - 1).astype(np.int64)
+        key = row * nx + col
+        order = np.argsort(key, kind="stable")
+        self.sorted_ids = ids[order]
+        self.starts = np.searchsorted(key[order], np.arange(nx * ny + 1))
+        self.x0, self.y0, self.cell, self.nx, self.ny = x0, y0, cell, nx, ny
+        self.pad = 1e-12 * max(abs(x0), abs(y0), abs(x0 + width), abs(y0 + height))
+
+    def nearest(
+        self,
+        queries: np.ndarray,
+        labels: np.ndarray | None = None,
+        max_reach: int | None = None,
+        first_reach: int = 1,
+    ) -> tuple[np.ndarray, float]:
+        """:func:`nearest_vertices` among the vertices of another label than the query's (per
+        vertex id; None: any other vertex), and a squared distance ``bound``: a query left at
+        -1 has no such vertex nearer (float) than ``bound`` (inf: none at all).
+
+        Each query scans the block of cells around its own, the block (``first_reach`` cells
+        around) doubling up to ``max_reach`` cells until it holds the nearest vertex's circle.
+        """
+        result = np.full(len(queries), -1, dtype=np.int64)
+        if len(queries) == 0 or self.empty:
             return result, np.inf
-        todo = todo[~done]
-        if max_reach is not None and reach >= max_reach and len(todo):
-            return result, safe / (1 + _TIE_MARGIN)
-        reach *= 2
-    return result, np.inf
+        x, y = self.x, self.y
+        x0, y0, cell, nx, ny = self.x0, self.y0, self.cell, self.nx, self.ny
+        sorted_ids, starts, pad = self.sorted_ids, self.starts, self.pad
+        qx, qy = x[queries], y[queries]
+        qcol = np.clip((qx - x0) // cell, 0, nx - 1).astype(np.int64)
+        qrow = np.clip((qy - y0) // cell, 0, ny - 1).astype(np.int64)
+        todo = np.arange(len(queries), dtype=np.int64)
+        reach = first_reach
+        while len(todo):
+            covers = reach >= max(nx, ny)
+            lo_col = np.maximum(qcol[todo] - reach, 0)
+            hi_col = np.minimum(qcol[todo] + reach, nx - 1)
+            lo_row = np.maximum(qrow[todo] - reach, 0)
+            rows = np.minimum(qrow[todo] + reach, ny - 1) - lo_row + 1
+            # one contiguous run of the sorted vertices per (query, row of the block)
+            query = np.repeat(np.arange(len(todo), dtype=np.int64), rows)
+            row_of = np.repeat(lo_row, rows) + (
+                np.arange(len(query), dtype=np.int64) - np.repeat(np.cumsum(rows) - rows, rows)
+            )
+            first = starts[row_of * nx + lo_col[query]]
+            spans = starts[row_of * nx + hi_col[query] + 1] - first
+            total = int(spans.sum())
+            pair_query = np.repeat(query, spans)
+            vertex = sorted_ids[
+                np.repeat(first, spans)
+                + np.arange(total, dtype=np.int64)
+                - np.repeat(np.cumsum(spans) - spans, spans)
+            ]
+            own = queries[todo][pair_query]
+            keep = vertex != own if labels is None else labels[vertex] != labels[own]
+            pair_query, vertex, own = pair_query[keep], vertex[keep], own[keep]
+            d2 = (x[vertex] - x[own]) ** 2 + (y[vertex] - y[own]) ** 2
+            best = np.full(len(todo), np.inf)
+            np.minimum.at(best, pair_query, d2)
+            # the block holds every vertex within reach cells of the query, less a slack for the
+            # rounding of the cell arithmetic
+            safe = max(reach * cell * (1 - 1e-6) - pad, 0.0)
+            safe *= safe  # (** would raise OverflowError on a Python float)
+            done = best * (1 + _TIE_MARGIN) <= safe if not covers else np.isfinite(best)
+            near = done[pair_query] & (d2 <= best[pair_query] * (1 + _TIE_MARGIN))
+            pair_query, vertex = pair_query[near], vertex[near]
+            # one candidate per query unless float distances come within the margin of a tie
+            ties = np.bincount(pair_query, minlength=len(todo))
+            single = ties[pair_query] == 1
+            result[todo[pair_query[single]]] = vertex[single]
+            if not single.all():
+                # exact distances, ties to the smallest vertex id
+                q, v = pair_query[~single], vertex[~single]
+                order = np.lexsort((v, q))
+                q, v = q[order], v[order]
+                win = _least_exact(q, v, queries[todo[q]], x, y)
+                result[todo[q[win]]] = v[win]
+            if covers:
+                return result, np.inf
+            todo = todo[~done]
+            if max_reach is not None and reach >= max_reach and len(todo):
+                return result, safe / (1 + _TIE_MARGIN)
+            reach *= 2
+        return result, np.inf
 
 
 # rounds linking the components of points with no ring vertex to the nearest vertex outside,
@@ -392,7 +416,9 @@ class PointOrder:
         self.root = {vid: vid for vid in point_vids}  # union-find over the points
         self.anchored: set[int] = set()  # roots of components linked to a ring vertex
         vids = np.asarray(point_vids, dtype=np.int64)
-        nearest = nearest_vertices(x, y, bridger.point_ids, vids).tolist()
+        # one grid over every vertex for all the searches below
+        grid = _VertexGrid(x, y, bridger.point_ids)
+        nearest = grid.nearest(vids)[0].tolist()
         for vid, near in zip(point_vids, nearest):
             if near >= 0:
                 self._link(vid, near)
@@ -416,9 +442,7 @@ class PointOrder:
             # growing blocks, for the members of the components not settled yet
             active, reach = np.arange(len(members)), 1
             while len(active) and reach <= _LINK_REACH:
-                got, bound = _nearest(
-                    x, y, bridger.point_ids, members[active], labels, reach, first_reach=reach
-                )
+                got, bound = grid.nearest(members[active], labels, reach, first_reach=reach)
                 hit, left = active[got >= 0], active[got < 0]
                 near[hit] = got[got >= 0]
                 d2[hit] = (x[near[hit]] - x[members[hit]]) ** 2 + (

@@ -389,14 +389,16 @@ def test_compare_sq_distances_falls_back_where_differences_round() -> None:
         assert got[k] == (u > v) - (u < v), k
 
 
-@pytest.mark.parametrize("all_pairs", [16, 0])
+@pytest.mark.parametrize(("few", "all_pairs"), [(10**9, 16), (0, 16), (0, 0)])
 @pytest.mark.parametrize("origin", [0.5, 1e7, 6.2e6])
 def test_nearest_vertices_on_near_tied_cell_centres(
-    monkeypatch: pytest.MonkeyPatch, origin: float, all_pairs: int
+    monkeypatch: pytest.MonkeyPatch, origin: float, few: int, all_pairs: int
 ) -> None:
     # cell centres, some moved by one unit in the last place: many nearest candidates are
-    # equally far in float but not exactly; both ways of the exact choice agree with a brute
-    # force over Fractions (ties to the smallest id)
+    # equally far in float but not exactly; the three ways of the exact choice (integer keys,
+    # all pairs at once, a knockout) agree with a brute force over Fractions (ties to the
+    # smallest id)
+    monkeypatch.setattr(points_module, "_FEW_PAIRS", few)
     monkeypatch.setattr(points_module, "_ALL_PAIRS", all_pairs)
     rng = np.random.default_rng(int(origin) % 97)
     cell = 0.5 if origin > 1e6 else 1.0
