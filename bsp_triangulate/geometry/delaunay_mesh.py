@@ -34,6 +34,10 @@ from .predicates import (
 _ICC_SAFE = 1.25 * ICC_ERRBOUND
 # a larger bound may come with an overflowed determinant: left to predicates.incircle_sos
 _HUGE = 1e290
+# the edges of a triangle from edge ``first`` on, each with its two ends' local indices
+_WALK_ORDER = tuple(
+    tuple((k % 3, (k + 1) % 3, (k + 2) % 3) for k in range(first, first + 3)) for first in range(3)
+)
 
 
 class DelaunayMesh:
@@ -188,11 +192,11 @@ class DelaunayMesh:
             # start at either edge after the entry so that no walk keeps circling one way
             toggle ^= 1
             first = (entry + 1 + toggle) % 3 if entry >= 0 else toggle
-            for k in (first, (first + 1) % 3, (first + 2) % 3):
+            for k, k1, k2 in _WALK_ORDER[first]:
                 if k == entry:
                     continue
-                a = vertex[base + (k + 1) % 3]
-                b = vertex[base + (k + 2) % 3]
+                a = vertex[base + k1]
+                b = vertex[base + k2]
                 # the float filter of predicates.orient, inlined
                 ax, ay, bx, by = x[a], y[a], x[b], y[b]
                 left = (ax - px) * (by - py)
@@ -282,17 +286,37 @@ class DelaunayMesh:
         order = hilbert_order(xs, ys)
         order = order[holder[order] >= 0]
         previous = 0
+        # _insert_at inlined, with the names it uses held locally (the loop is the whole cost)
+        vertex, owner, vx, vy = self._vertex, self._owner, self.x, self.y
+        walk, restore = self._walk, self._restore
+        split_triangle, split_edge = self._split_triangle, self._split_edge
+        found_ids = ids.tolist()
         for i, px, py, t in zip(
             order.tolist(), xs[order].tolist(), ys[order].tolist(), holder[order].tolist()
         ):
-            found = self._walk(px, py, previous) or self._walk(px, py, t)
-            try:
-                v = self._insert_at(px, py, *(found or self._scan(px, py)))
-            except ValueError:
-                continue
-            ids[i] = v
-            previous = self._owner[v]
-        return ids
+            found = walk(px, py, previous) or walk(px, py, t)
+            if found is None:
+                try:
+                    found = self._scan(px, py)
+                except ValueError:
+                    continue
+            t, edge = found
+            base = 3 * t
+            a, b, c = vertex[base], vertex[base + 1], vertex[base + 2]
+            if (
+                (vx[a] == px and vy[a] == py)
+                or (vx[b] == px and vy[b] == py)
+                or (vx[c] == px and vy[c] == py)
+            ):
+                continue  # the point is a vertex
+            v = len(vx)
+            vx.append(px)
+            vy.append(py)
+            owner.append(t)
+            restore(v, split_triangle(t, v) if edge < 0 else split_edge(t, edge, v))
+            found_ids[i] = v
+            previous = owner[v]
+        return np.array(found_ids, dtype=np.int64)
 
     def _containing(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
         """A triangle holding each point (closed), or -1: a grid over the triangles' boxes."""
