@@ -424,10 +424,16 @@ class PointOrder:
                 self._link(vid, near)
         labels = np.arange(len(x), dtype=np.int64)
         free = point_vids
+        root, anchored, find = self.root, self.anchored, self._find
         for _ in range(_LINK_ROUNDS):
             # a component once anchored stays so: only the free points of the round before
-            found = [(vid, self._find(vid)) for vid in free]
-            found = [(vid, root) for vid, root in found if root not in self.anchored]
+            found = []
+            for vid in free:
+                top = root[vid]
+                if root[top] != top:  # else _find would change nothing
+                    top = find(vid)
+                if top not in anchored:
+                    found.append((vid, top))
             if not found:
                 break
             free = [vid for vid, _ in found]
@@ -531,4 +537,6 @@ def nearest_point_bridge(bridger: Bridging, h: int, v: int) -> tuple[int, int] |
     ks = bridger._valid_occurrences(v, np.array([h], dtype=np.int64), 0)
     if not ks:
         return None
+    if len(ks) == 1:
+        return ks[0], v
     return min(ks, key=lambda k: int(bridger.label[k])), v
