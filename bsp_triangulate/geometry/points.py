@@ -212,7 +212,7 @@ def _crossed(bridger: Bridging, u: int, w: int) -> bool:
 _TIE_MARGIN = 1e-9
 
 
-# pairs to be ranked up to which Python integers are used
+# up to this many candidates, exact integer keys in Python (less set-up than numpy)
 _FEW_PAIRS = 128
 # all pairs of a group are compared at once while there are at most this many per candidate
 _ALL_PAIRS = 16
