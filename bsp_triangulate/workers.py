@@ -186,6 +186,26 @@ class WorkerPool:
         )
         return self._threads.submit(self._run, request)
 
+    def refine(
+        self,
+        polygons: list,
+        grids: list,
+        tolerance: float,
+        max_points: int,
+        *,
+        fixed: list | None = None,
+        groups: list[int] | None = None,
+        **options: Any,
+    ) -> Future:
+        """``refine_many(polygons, grids, tolerance, max_points, engine=triangulate_many,
+        fixed=fixed, groups=groups, **options)`` in a worker: a future of its list of
+        :class:`~bsp_triangulate.terrain.refine.Refinement` (an error is rebuilt from its
+        type's name and message)."""
+        # the grids as plain values: the worker imports this package under another name
+        cells = [(grid.x0, grid.y0, grid.dx, grid.dy, grid.values) for grid in grids]
+        request = ("refine", (polygons, cells, tolerance, max_points, fixed, groups, options))
+        return self._threads.submit(self._run, request)
+
     def write_rows(self, path: str, kind: str, first: int, rows: np.ndarray) -> Future:
         """``mesh.write_rows(path, kind, first, rows)`` in a worker (a future of None)."""
         return self._threads.submit(self._run, ("write_rows", (str(path), kind, first, rows)))
@@ -203,6 +223,8 @@ class WorkerPool:
             if kind == TriangulationError.__name__:
                 raise TriangulationError(message)
             raise WorkerCallError(f"{kind}: {message}")
+        if request[0] == "refine":
+            return [_refinement(*values) for values in payload]
         if request[0] != "triangulate":
             return None
         arrays, errors = payload
@@ -301,6 +323,58 @@ def _triangulate(
     return arrays, {index: str(error) for index, error in result.errors.items()}
 
 
+def _refine(
+    polygons: list,
+    grids: list,
+    tolerance: float,
+    max_points: int,
+    fixed: list | None,
+    groups: list[int] | None,
+    options: dict,
+) -> list[tuple]:
+    """Task "refine": ``refine_many`` over the polygons (``grids`` as the plain values of
+    ``CellGrid``), each outcome as plain values (the fields of ``Refinement``, its error as
+    its type's name and message)."""
+    from .api import triangulate_many
+    from .terrain.refine import CellGrid, refine_many
+
+    results = refine_many(
+        polygons,
+        [CellGrid(*grid) for grid in grids],
+        tolerance,
+        max_points,
+        engine=triangulate_many,
+        fixed=fixed,
+        groups=groups,
+        **options,
+    )
+    return [
+        (
+            r.points,
+            r.added,
+            r.max_error,
+            r.cells,
+            r.rounds,
+            r.within,
+            r.capped,
+            None if r.error is None else (type(r.error).__name__, str(r.error)),
+        )
+        for r in results
+    ]
+
+
+def _refinement(*values: Any) -> Any:
+    """A ``Refinement`` from the plain values of the task "refine"."""
+    from .terrain.refine import Refinement
+
+    *fields, error = values
+    if error is not None:
+        kind, message = error
+        kind_of = TriangulationError if kind == TriangulationError.__name__ else WorkerCallError
+        error = kind_of(message)
+    return Refinement(*fields, error=error)
+
+
 def _write_rows(path: str, kind: str, first: int, rows: np.ndarray) -> None:
     """Task "write_rows": a part of a 2DM file (``mesh.write_rows``)."""
     from .formats.mesh import write_rows
@@ -308,4 +382,4 @@ def _write_rows(path: str, kind: str, first: int, rows: np.ndarray) -> None:
     write_rows(path, kind, first, rows)
 
 
-_TASKS = {"triangulate": _triangulate, "write_rows": _write_rows}
+_TASKS = {"triangulate": _triangulate, "refine": _refine, "write_rows": _write_rows}

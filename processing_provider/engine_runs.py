@@ -18,6 +18,9 @@ from .outputs import EngineChunk
 
 # seconds between cancel checks while waiting for a worker
 _POLL = 0.1
+# with workers, a batch's calls are cut to spread over them, but none below this many
+# vertices (points included): a smaller layer stays one call, in QGIS's process
+MIN_CALL_VERTICES = 50_000
 
 
 class _CancelledError(Exception):
@@ -128,6 +131,7 @@ class EngineRunner:
         tr: Callable[[str], str],
         chunk_features: int,
         chunk_vertices: int,
+        min_call_vertices: int | None = None,
     ) -> None:
         self.options = options
         self.workers = workers
@@ -135,6 +139,9 @@ class EngineRunner:
         self.tr = tr
         self.chunk_features = chunk_features
         self.chunk_vertices = chunk_vertices
+        self.min_call_vertices = (
+            MIN_CALL_VERTICES if min_call_vertices is None else min_call_vertices
+        )
         self._pool: WorkerPool | None = None
         self._waiting: list[_Call] = []
         # engine calls run, of them in workers, and the workers started
@@ -147,29 +154,51 @@ class EngineRunner:
         """The running workers, if any (they can write a large 2DM mesh's lines too)."""
         return self._pool
 
+    def worker_pool(self) -> WorkerPool | None:
+        """The workers for other tasks of the run (refinement), started if the run uses
+        workers; None when it does not (or no longer does)."""
+        if not self.parallel:
+            return None
+        if self._pool is None:
+            self._pool = WorkerPool(self.workers)
+        return self._pool
+
     @property
     def parallel(self) -> bool:
         """Calls may run in workers: finish a batch after submitting the next one."""
         return self.workers > 1
 
+    def call_vertices(self, total: int) -> int:
+        """The vertices (points included) after which a call of a batch of ``total`` is cut:
+        with workers, about a share of 2 calls per worker (so that they end together), at
+        least ``min_call_vertices``; never above ``chunk_vertices``."""
+        if not self.parallel:
+            return self.chunk_vertices
+        share = -(-total // (2 * self.workers))
+        return min(self.chunk_vertices, max(self.min_call_vertices, share))
+
     def submit(self, batch: list[FeatureRings], points: FeaturePoints | None = None) -> BatchJob:
         """The batch cut into engine calls, started in the workers when they are used;
         ``points``: per feature of the batch, its interior points (or None)."""
         job = BatchJob(batch)
+        sizes = [
+            item.vertex_count()
+            + (sum(len(part) for part in points[index] or ()) if points is not None else 0)
+            if item.ok
+            else 0
+            for index, item in enumerate(batch)
+        ]
+        limit = self.call_vertices(sum(sizes))
         chunk: list[FeatureRings] = []
         chunk_points: FeaturePoints = []
         vertices = 0
         for index, item in enumerate(batch):
             if item.ok:
                 chunk.append(item)
-                of_item = points[index] if points is not None else None
-                chunk_points.append(of_item)
-                vertices += item.vertex_count()
-                vertices += sum(len(part) for part in of_item) if of_item else 0
+                chunk_points.append(points[index] if points is not None else None)
+                vertices += sizes[index]
             last = index == len(batch) - 1
-            if chunk and (
-                last or len(chunk) >= self.chunk_features or vertices >= self.chunk_vertices
-            ):
+            if chunk and (last or len(chunk) >= self.chunk_features or vertices >= limit):
                 job.calls.append(_call(chunk, chunk_points if points is not None else None))
                 chunk, chunk_points, vertices = [], [], 0
         if self.parallel:
@@ -230,6 +259,11 @@ class EngineRunner:
         return None
 
     def _stop_workers(self, error: BaseException) -> None:
+        self.stop_workers(error)
+
+    def stop_workers(self, error: BaseException) -> None:
+        """End the use of workers for the run (a worker could not start or stopped): a
+        warning names ``error``, the calls run in QGIS's process from now on."""
         if self._pool is None:
             return
         self.feedback.pushWarning(

@@ -3,6 +3,7 @@ cell centres added until the mesh is within a vertical tolerance of the DEM."""
 
 from __future__ import annotations
 
+import concurrent.futures
 from collections.abc import Callable
 
 import numpy as np
@@ -16,10 +17,17 @@ from qgis.core import (
 )
 
 from ..bsp_triangulate import triangulate_many
-from ..bsp_triangulate.terrain.refine import Refinement, refine_many
+from ..bsp_triangulate.terrain.refine import CellGrid, Refinement, refine_many
+from ..bsp_triangulate.workers import WorkerError
 from .elevation import DemSampler, transform_xy
-from .engine_runs import EngineOptions, FeaturePoints
+from .engine_runs import EngineOptions, EngineRunner, FeaturePoints
 from .geometry_io import FeatureRings
+
+# seconds between cancel checks while waiting for a worker
+_POLL = 0.1
+# DEM cells (of the parts' boxes) per share of a batch refined in a worker, at least: a
+# smaller batch is refined in QGIS's process
+MIN_SHARE_CELLS = 50_000
 
 
 class CancelledError(Exception):
@@ -106,6 +114,7 @@ class InteriorPoints:
         max_points: int,
         options: EngineOptions,
         feedback: QgsProcessingFeedback,
+        runner: EngineRunner | None = None,
     ) -> None:
         self.survey = survey
         self.sampler = sampler if tolerance > 0 else None
@@ -113,6 +122,8 @@ class InteriorPoints:
         self.max_points = max_points
         self.options = {k: v for k, v in options.keywords().items() if k != "on_error"}
         self.feedback = feedback
+        # the run's engine runner: its worker pool, when the run uses one
+        self.runner = runner
         self.added = 0
 
     def for_batch(
@@ -150,14 +161,97 @@ class InteriorPoints:
         for part in polygons:
             outer = part[0][:, :2]
             grids.append(self.sampler.cells(*outer.min(0), *outer.max(0)))
+        results = self._refine(polygons, grids, fixed, owners, progress)
+        progress(1.0)
+        slots: dict[int, int] = {}
+        for owner, result in zip(owners, results):
+            slot = slots.get(owner, 0)
+            slots[owner] = slot + 1
+            points[owner][slot] = result.points
+            self.added += result.added
+        self._report(batch, owners, results, warn)
+        return points
+
+    def _refine(
+        self,
+        polygons: list,
+        grids: list[CellGrid],
+        fixed: list[np.ndarray],
+        owners: list[int],
+        progress: Callable[[float], None],
+    ) -> list[Refinement]:
+        """``refine_many`` over the parts: in shares in the workers when the run uses them
+        and the batch is large enough, else here."""
         total = len(polygons)
+        shares = self._shares(grids, owners)
+        pool = self.runner.worker_pool() if self.runner is not None and len(shares) > 1 else None
+        if pool is None:
+            return self._refine_here(polygons, grids, fixed, owners, 0, total, progress)
+        futures = [
+            pool.refine(
+                polygons[first:last],
+                grids[first:last],
+                self.tolerance,
+                self.max_points,
+                fixed=fixed[first:last],
+                groups=owners[first:last],
+                **self.options,
+            )
+            for first, last in shares
+        ]
+        results: list[Refinement] = []
+        for (first, last), future in zip(shares, futures):
+            share = self._worker_result(future)
+            if share is None:  # no result from the worker: refined here
+                share = self._refine_here(
+                    polygons[first:last],
+                    grids[first:last],
+                    fixed[first:last],
+                    owners[first:last],
+                    first,
+                    total,
+                    progress,
+                )
+            results += share
+            progress(last / total)
+        return results
+
+    def _worker_result(self, future: concurrent.futures.Future) -> list[Refinement] | None:
+        """A share's refinements from its worker, None when it has none (refine it here);
+        raises ``CancelledError`` when the run is cancelled meanwhile."""
+        while True:
+            if self.feedback.isCanceled():
+                future.cancel()
+                raise CancelledError
+            try:
+                return future.result(timeout=_POLL)
+            except concurrent.futures.TimeoutError:
+                continue
+            except (WorkerError, concurrent.futures.CancelledError) as error:
+                self.runner.stop_workers(error)
+                return None
+            except Exception:  # raised in the worker: here it raises as in a run without
+                return None
+
+    def _refine_here(
+        self,
+        polygons: list,
+        grids: list[CellGrid],
+        fixed: list[np.ndarray],
+        owners: list[int],
+        first: int,
+        total: int,
+        progress: Callable[[float], None],
+    ) -> list[Refinement]:
+        """``refine_many`` in this process over parts ``first``... of ``total``."""
+        count = len(polygons)
 
         def rounds(_round: int, active: int) -> None:
             if self.feedback.isCanceled():
                 raise CancelledError
-            progress((total - active) / total)
+            progress((first + count - active) / total)
 
-        results = refine_many(
+        return refine_many(
             polygons,
             grids,
             self.tolerance,
@@ -168,15 +262,27 @@ class InteriorPoints:
             progress=rounds,
             **self.options,
         )
-        progress(1.0)
-        slots: dict[int, int] = {}
-        for owner, result in zip(owners, results):
-            slot = slots.get(owner, 0)
-            slots[owner] = slot + 1
-            points[owner][slot] = result.points
-            self.added += result.added
-        self._report(batch, owners, results, warn)
-        return points
+
+    def _shares(self, grids: list[CellGrid], owners: list[int]) -> list[tuple[int, int]]:
+        """The parts cut into runs (first, last) of whole features with about equal DEM
+        cells: two per worker, of at least ``MIN_SHARE_CELLS`` (one run without workers)."""
+        whole = [(0, len(grids))]
+        workers = self.runner.workers if self.runner is not None and self.runner.parallel else 1
+        if workers < 2:
+            return whole
+        cells = np.cumsum([grid.values.size for grid in grids])
+        count = min(2 * workers, int(cells[-1]) // MIN_SHARE_CELLS)
+        if count < 2:
+            return whole
+        # a feature's parts share its cap of points: cut only between features
+        starts = [i for i in range(1, len(owners)) if owners[i] != owners[i - 1]]
+        if not starts:
+            return whole
+        before = cells[np.array(starts) - 1]
+        targets = cells[-1] * np.arange(1, count) / count
+        cuts = sorted({starts[int(np.argmin(np.abs(before - t)))] for t in targets})
+        bounds = [0, *cuts, len(grids)]
+        return list(zip(bounds[:-1], bounds[1:]))
 
     def _report(
         self,

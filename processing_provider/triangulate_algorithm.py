@@ -838,7 +838,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         )
 
         interior = self._interior_points(
-            parameters, context, source, source_of_z, options, feedback
+            parameters, context, source, source_of_z, options, feedback, runner
         )
         refining = interior is not None and interior.sampler is not None
         ellipsoid = _ellipsoid(crs)
@@ -1024,8 +1024,10 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
         source_of_z: elevation.ElevationSource,
         options: EngineOptions,
         feedback: QgsProcessingFeedback,
+        runner: EngineRunner | None = None,
     ) -> InteriorPoints | None:
-        """The run's interior points (survey points, DEM points), or None without them."""
+        """The run's interior points (survey points, DEM points), or None without them; the
+        DEM points are added in the ``runner``'s workers when it uses them."""
         tolerance = self.parameterAsDouble(parameters, self.MAX_VERTICAL_ERROR, context)
         points_source = self.parameterAsSource(parameters, self.INPUT_POINTS, context)
         if tolerance <= 0 and points_source is None:
@@ -1053,7 +1055,7 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
                 self.tr("A maximum vertical error needs the DEM as the elevation source.")
             )
         max_points = self.parameterAsInt(parameters, self.MAX_POINTS, context)
-        return InteriorPoints(survey, sampler, tolerance, max_points, options, feedback)
+        return InteriorPoints(survey, sampler, tolerance, max_points, options, feedback, runner)
 
     def _report_repaired(self, repaired: list[int], feedback: QgsProcessingFeedback) -> None:
         listed = ", ".join(str(fid) for fid in repaired[:MAX_LISTED_IDS])

@@ -211,3 +211,52 @@ def test_a_module_beside_the_package_cannot_shadow_the_standard_library(tmp_path
     )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "4"
+
+
+def test_refinement_in_workers_in_shares_equals_one_call_here() -> None:
+    """``refine_many`` over shares of whole groups in workers: the same points and fields
+    as one call over all polygons here, and an engine error comes back with its message."""
+    from bsp_triangulate import triangulate_many
+    from bsp_triangulate.terrain.refine import refine_many
+
+    from .terrain.test_refine import hill_grid, with_z
+
+    grid = hill_grid()
+    squares = [
+        [np.array([[x, y], [x + w, y], [x + w, y + w], [x, y + w]], dtype=float)]
+        for x, y, w in ((5, 5, 60), (250, 5, 200), (5, 250, 220), (300, 300, 30), (80, 80, 90))
+    ]
+    polygons = [with_z(rings, grid) for rings in squares]
+    polygons.append(with_z([np.array(BOWTIE[0], dtype=float) * 20.0 + 100.0], grid))
+    fixed = [None, np.array([[260.0, 20.0, 99.0]]), None, None, None, None]
+    groups = [0, 1, 1, 2, 3, 4]
+    options = {"rule": "delaunay", "plane": "xy", "invalid": "fail"}
+    expected = refine_many(
+        polygons, [grid] * 6, 0.7, 40, engine=triangulate_many, fixed=fixed, groups=groups,
+        **options,
+    )  # fmt: skip
+    with WorkerPool(2) as pool:
+        shares = ((0, 1), (1, 4), (4, 6))
+        futures = [
+            pool.refine(
+                polygons[a:b],
+                [grid] * (b - a),
+                0.7,
+                40,
+                fixed=fixed[a:b],
+                groups=groups[a:b],
+                **options,
+            )
+            for a, b in shares
+        ]
+        got = [result for future in futures for result in future.result(timeout=300)]
+    assert len(got) == len(expected) == 6
+    for mine, theirs in zip(got, expected):
+        np.testing.assert_array_equal(mine.points, theirs.points)
+        assert mine.points.dtype == theirs.points.dtype
+        for name in ("added", "max_error", "cells", "rounds", "within", "capped"):
+            assert getattr(mine, name) == getattr(theirs, name), name
+        assert type(mine.error) is type(theirs.error)
+        assert str(mine.error) == str(theirs.error)
+    assert expected[-1].error is not None  # the bow tie
+    assert sum(r.added for r in expected) > 10
