@@ -169,13 +169,17 @@ class EngineRunner:
         return self.workers > 1
 
     def call_vertices(self, total: int) -> int:
-        """The vertices (points included) after which a call of a batch of ``total`` is cut:
-        with workers, about a share of 2 calls per worker (so that they end together), at
-        least ``min_call_vertices``; never above ``chunk_vertices``."""
+        """The vertices (points included) after which a call of a batch of ``total`` is cut.
+        With workers: calls of about equal size, two per worker where each keeps at least
+        ``min_call_vertices`` (else fewer, a multiple of the workers where there are as many:
+        they end together), one call under twice that; never above ``chunk_vertices``."""
         if not self.parallel:
             return self.chunk_vertices
-        share = -(-total // (2 * self.workers))
-        return min(self.chunk_vertices, max(self.min_call_vertices, share))
+        calls = min(2 * self.workers, total // max(self.min_call_vertices, 1))
+        if calls >= self.workers:
+            calls -= calls % self.workers
+        calls = max(calls, 1, -(-total // self.chunk_vertices))
+        return max(-(-total // calls), 1)
 
     def submit(self, batch: list[FeatureRings], points: FeaturePoints | None = None) -> BatchJob:
         """The batch cut into engine calls, started in the workers when they are used;

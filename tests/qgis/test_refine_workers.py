@@ -189,7 +189,7 @@ def test_with_workers_a_batch_is_cut_into_two_calls_per_worker(monkeypatch: pyte
     batch = circles(400, 100)  # 40,000 ring vertices
     points = [[np.zeros((900, 3))] for _ in batch]  # and 360,000 points
     sizes = {}
-    for workers in (1, 2, 4, 8):
+    for workers in (1, 2, 4, 8, 16):
         engine = runner(workers)
         job = engine.submit(batch, points)
         engine.close(cancel=True)
@@ -198,16 +198,22 @@ def test_with_workers_a_batch_is_cut_into_two_calls_per_worker(monkeypatch: pyte
     assert sizes[2] == [100] * 4  # 400,000 / (2 x 2)
     assert sizes[4] == [50] * 8  # 400,000 / (2 x 4)
     assert sizes[8] == [50] * 8  # not below 50,000 vertices
-    assert [pool.polygons for pool in pools] == [[100] * 4, [50] * 8, [50] * 8]
+    assert sizes[16] == [50] * 8
+    assert [pool.polygons for pool in pools] == [[100] * 4] + [[50] * 8] * 3
     # without points: 40,000 vertices, one call, no pool
     job = runner(8).submit(batch)
     assert [len(call.items) for call in job.calls] == [400]
-    assert len(pools) == 3
+    assert len(pools) == 4
 
 
 def test_the_vertices_of_a_call():
-    assert runner(4).call_vertices(41_685) == 50_000  # the farms without points: one call
-    assert runner(4).call_vertices(310_000) == 50_000
-    assert runner(4).call_vertices(1_000_000) == 125_000
-    assert runner(4).call_vertices(4_000_000) == 250_000
+    two, four = runner(2), runner(4)
+    assert four.call_vertices(41_685) == 41_685  # the farms without points: one call
+    assert two.call_vertices(99_999) == 99_999  # under twice 50,000: one call
+    assert two.call_vertices(140_000) == 70_000  # one per worker
+    assert two.call_vertices(310_000) == 77_500  # two per worker
+    assert four.call_vertices(160_000) == 53_334  # fewer calls than workers, 50,000 or more
+    assert four.call_vertices(310_000) == 77_500  # one per worker
+    assert four.call_vertices(1_000_000) == 125_000  # two per worker
+    assert four.call_vertices(4_000_000) == 250_000  # the limit
     assert runner(1).call_vertices(1_000_000) == 250_000
