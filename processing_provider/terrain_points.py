@@ -265,13 +265,16 @@ class InteriorPoints:
 
     def _shares(self, grids: list[CellGrid], owners: list[int]) -> list[tuple[int, int]]:
         """The parts cut into runs (first, last) of whole features with about equal DEM
-        cells: two per worker, of at least ``MIN_SHARE_CELLS`` (one run without workers)."""
+        cells: two per worker where each keeps ``MIN_SHARE_CELLS`` (else fewer, a multiple
+        of the workers where there are as many), one run without workers."""
         whole = [(0, len(grids))]
         workers = self.runner.workers if self.runner is not None and self.runner.parallel else 1
         if workers < 2:
             return whole
         cells = np.cumsum([grid.values.size for grid in grids])
         count = min(2 * workers, int(cells[-1]) // MIN_SHARE_CELLS)
+        if count >= workers:  # the workers end together
+            count -= count % workers
         if count < 2:
             return whole
         # a feature's parts share its cap of points: cut only between features

@@ -217,3 +217,24 @@ def test_the_vertices_of_a_call():
     assert four.call_vertices(1_000_000) == 125_000  # two per worker
     assert four.call_vertices(4_000_000) == 250_000  # the limit
     assert runner(1).call_vertices(1_000_000) == 250_000
+
+
+def test_refinement_shares_keep_features_whole_and_spread_the_cells():
+    from bsptriangulate.bsp_triangulate.terrain.refine import CellGrid
+    from bsptriangulate.processing_provider.terrain_points import InteriorPoints
+
+    def shares(workers: int, cells: list[int], owners: list[int]) -> list[tuple[int, int]]:
+        engine = runner(workers)
+        interior = InteriorPoints(None, None, 0.0, 0, engine.options, engine.feedback, engine)
+        grids = [CellGrid(0.0, 0.0, 1.0, 1.0, np.zeros((1, size))) for size in cells]
+        return interior._shares(grids, owners)
+
+    eight = [25_000] * 8
+    assert shares(2, eight, list(range(8))) == [(0, 2), (2, 4), (4, 6), (6, 8)]
+    # a feature's parts stay in one share
+    assert shares(2, eight, [0, 0, 0, 1, 2, 3, 3, 4]) == [(0, 3), (3, 4), (4, 5), (5, 8)]
+    assert shares(1, eight, list(range(8))) == [(0, 8)]  # no workers
+    assert shares(2, [20_000] * 4, list(range(4))) == [(0, 4)]  # under 100,000 cells
+    assert shares(2, [30_000] * 5, list(range(5))) == [(0, 2), (2, 5)]  # 3 shares: 2
+    assert shares(4, [30_000] * 5, list(range(5))) == [(0, 2), (2, 3), (3, 5)]  # 3 < 4
+    assert shares(2, eight, [0] * 8) == [(0, 8)]  # one feature
