@@ -25,7 +25,7 @@ _FIRST_BLOCK = 8
 _LAST_BLOCK = 64
 
 
-def _ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Start and end vertex ids of every ring edge, ring by ring."""
     starts = np.concatenate(rings)
     lengths = np.fromiter((len(r) for r in rings), dtype=np.int64, count=len(rings))
@@ -38,7 +38,7 @@ def _ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 def split_touching(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> list[np.ndarray]:
     """Split every ring edge at the vertices (of any ring) lying in its relative interior."""
-    starts, ends = _ring_edges(rings)
+    starts, ends = ring_edges(rings)
     edge, vertex = _touching_pairs(x, y, starts, ends)
     if len(edge) == 0:
         return rings
@@ -138,7 +138,7 @@ class MeshEdges:
 
     def holds_rings(self, rings: list[np.ndarray]) -> bool:
         """Every edge of ``rings`` is one of the edges."""
-        starts, ends = _ring_edges(rings)
+        starts, ends = ring_edges(rings)
         keep = starts != ends
         a, b = starts[keep], ends[keep]
         keys = (np.minimum(a, b) * self.n + np.maximum(a, b)).tolist()
@@ -164,7 +164,7 @@ class _Bridger:
         self.x, self.y = x, y
         # None once a bridge is not a mesh edge (or none given)
         self.mesh_edges = mesh_edges
-        starts, ends = _ring_edges(rings)
+        starts, ends = ring_edges(rings)
         self.edge_a, self.edge_b = starts, ends
         self.edges = SegmentGrid(x[starts], y[starts], x[ends], y[ends])
         # point grid (zero-length segments) over every vertex of the sequence-to-be

@@ -346,7 +346,9 @@ class DelaunayMesh:
         cells = (cy0[owner] + local // width) * side + cx0[owner] + local % width
         order = np.argsort(cells, kind="stable")
         cells, owner = cells[order], owner[order]
-        inside = (px >= left) & (px <= left + span) & (py >= bottom) & (py <= bottom + span)
+        # the boxes' own extremes: left + span may round below them
+        right, top = float(x1.max()), float(y1.max())
+        inside = (px >= left) & (px <= right) & (py >= bottom) & (py <= top)
         where = np.flatnonzero(inside)
         point_cells = _cells(px[where], left, size, side)
         point_cells += _cells(py[where], bottom, size, side) * side

@@ -351,7 +351,8 @@ def cocircular_sign(
     counter-clockwise a, b, c: +1 if d counts as inside, -1 as outside, 0 if d is one of them.
 
     A symbolic perturbation: every point's lift (x^2 + y^2) is lowered by eps^r, r its rank
-    in (x, y) order, so the lexicographically smallest of the four points dominates. If that
+    in (x, y) order of the coordinates given (the working plane's), so the lexicographically
+    smallest of the four points dominates. If that
     is d, d is inside; if it is a corner m, d is inside when it lies beyond the side opposite
     m (its barycentric weight for m is negative). The perturbed points are in general
     position, so the constrained Delaunay triangulation is unique, whichever way it is built.

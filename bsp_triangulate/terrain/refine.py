@@ -334,13 +334,23 @@ def refine_many(
         if progress is not None:
             progress(rounds, len(active))
         given = [np.vstack([fixed_points[p], cand_xyz[added[p]]]) for p in active]
-        if meshes is not None and rounds > 1:
-            results = [meshes.result(p) for p in active]
-        else:
-            results = engine(
-                [polygons[p] for p in active], points=given, on_error="return", **options
+        # by insertion where a polygon has its mesh, else triangulated again
+        again = [i for i, p in enumerate(active) if meshes is None or not meshes.holds(p)]
+        results: list[object] = [None] * len(active)
+        if meshes is not None:
+            for i, p in enumerate(active):
+                if meshes.holds(p):
+                    results[i] = meshes.result(p)
+        if again:
+            fresh = engine(
+                [polygons[active[i]] for i in again],
+                points=[given[i] for i in again],
+                on_error="return",
+                **options,
             )
-            if meshes is not None:
+            for i, result in zip(again, fresh):
+                results[i] = result
+            if meshes is not None and rounds == 1:
                 meshes.start(active, results)
         measured = []
         for p, points, result in zip(active, given, results):
@@ -495,8 +505,14 @@ class _Meshes:
         empty = np.zeros(0, np.int64)
         self.pairs: tuple[np.ndarray, ...] = (empty, empty, empty, np.zeros(0))
 
+    def holds(self, p: int) -> bool:
+        """Polygon p has a mesh (the others are triangulated again each round)."""
+        return p in self.meshes
+
     def start(self, active: Sequence[int], results: Sequence[object]) -> None:
-        """Meshes from the engine's first results (errors and empty results get none)."""
+        """Meshes from the engine's first results. Errors, empty results and a triangulation
+        that is not locally Delaunay (an island's fallback bridge, section 5a: the engine's
+        next results would not be this mesh with points inserted) get none."""
         for p, result in zip(active, results):
             if isinstance(result, Exception) or not len(getattr(result, "triangles", ())):
                 continue
@@ -510,6 +526,8 @@ class _Meshes:
             try:
                 mesh = DelaunayMesh(mirror * vertices[:, 0], vertices[:, 1], triangles)
             except ValueError:
+                continue
+            if mesh.make_delaunay():
                 continue
             self.meshes[p] = mesh
             self.mirror[p] = mirror
@@ -560,18 +578,17 @@ class _Meshes:
         return self.pairs
 
     def result(self, p: int) -> object:
-        """The polygon's mesh now, shaped as the engine's result (or None without a mesh)."""
-        mesh = self.meshes.get(p)
-        if mesh is None:
-            return None
+        """The polygon's mesh now, shaped as the engine's result."""
+        mesh = self.meshes[p]
         vertices = np.column_stack(
             [self.mirror[p] * np.array(mesh.x), np.array(mesh.y), np.array(self.z[p])]
         )
         return _MeshResult(vertices, mesh.triangles(), np.array(self.point_ids[p], np.int64))
 
     def insert(self, p: int, xyz: np.ndarray, near: np.ndarray) -> None:
-        """Insert the points (x, y, z) into polygon p's mesh, each found from its triangle
-        ``near``; a point the mesh cannot take (on a vertex) is recorded as not used."""
+        """Insert the points (x, y, z) into polygon p's mesh (if it has one), each found from
+        its triangle ``near``; a point the mesh cannot take (on a vertex) is recorded as not
+        used."""
         mesh = self.meshes.get(p)
         if mesh is None:
             return

@@ -1,7 +1,8 @@
 """Rule "delaunay" with interior points, built by insertion (docs/algorithm.md, section 5b).
 
-The constrained Delaunay triangulation of a polygon's rings is built by the BSP recursion; the
-points are then inserted one at a time with flips (``geometry/delaunay_mesh.py``), and the
+The constrained Delaunay triangulation of a polygon's rings is built by the BSP recursion
+(and checked to be locally Delaunay); the points are then inserted one at a time with flips
+(``geometry/delaunay_mesh.py``, the ring edges as constraints), and the
 BSP tree is read off the finished triangulation: the root on the sequence's first edge, each
 node's children the triangles across its two new sides, stopping at the sequence's edges.
 With the tie rule of ``predicates.cocircular_sign`` the triangulation is unique, so this gives
@@ -21,28 +22,6 @@ from ..geometry.delaunay_mesh import DelaunayMesh
 from ..triangulation import Triangulation
 
 
-def build_with_points(
-    x: np.ndarray,
-    y: np.ndarray,
-    vertices: np.ndarray,
-    sequence: np.ndarray,
-    ring_triangles: np.ndarray,
-    ring_count: int,
-    mirrored: bool,
-    tick: Callable[[float], None] | None = None,
-) -> Triangulation | None:
-    """The tree of rule "delaunay" over ``sequence`` (with its points), or None where the
-    inserted triangulation does not hold the sequence's bridges.
-
-    ``x``, ``y``: working coordinates of every vertex (rings, then points); ``vertices``: the
-    result's rows; ``ring_triangles``: the rings' triangulation (counter-clockwise in the
-    output's XY); the vertices from ``ring_count`` on are the points."""
-    triangles = points_mesh(x, y, ring_triangles, ring_count, mirrored, tick)
-    if triangles is None:
-        return None
-    return tree_of_triangles(triangles, vertices, sequence, mirrored, tick)
-
-
 def points_mesh(
     x: np.ndarray,
     y: np.ndarray,
@@ -50,14 +29,20 @@ def points_mesh(
     ring_count: int,
     mirrored: bool,
     tick: Callable[[float], None] | None = None,
+    ring_edges: list[tuple[int, int]] = (),
 ) -> np.ndarray | None:
     """(t, 3) vertex ids, counter-clockwise in the working plane: the rings' triangulation
-    with every point (the vertices from ``ring_count`` on) inserted, or None where a point
-    could not be inserted."""
+    with every point (the vertices from ``ring_count`` on) inserted, or None where the rings'
+    triangulation is not locally Delaunay or a point could not be inserted. ``ring_edges``:
+    vertex pairs never flipped."""
     triangles = np.asarray(ring_triangles, dtype=np.int64)
     if mirrored:
         triangles = triangles[:, [1, 0, 2]]  # counter-clockwise in the working plane
-    mesh = DelaunayMesh(x[:ring_count], y[:ring_count], triangles)
+    mesh = DelaunayMesh(x[:ring_count], y[:ring_count], triangles, ring_edges)
+    # the rings' tree is the rings' constrained Delaunay triangulation unless an island took
+    # the fallback bridge of section 5a: then it is not the recursion's triangulation either
+    if mesh.make_delaunay():
+        return None
     if tick is not None:
         tick(0.0)
     ids = mesh.insert_many(x[ring_count:], y[ring_count:])

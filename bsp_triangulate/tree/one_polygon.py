@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..geometry.bridges import MeshEdges, bridge_islands, remove_spikes, split_touching
+from ..geometry.bridges import MeshEdges, bridge_islands, remove_spikes, ring_edges, split_touching
 from ..geometry.points import as_point_array, first_occurrences, strictly_inside
 from ..geometry.predicates import (
     grid_exact,
@@ -1095,8 +1095,16 @@ def _delaunay_mesh(
         base = _Tree(prepared, rings, prepared.vertices[:, 2], rule).build()
         if len(base.triangles) != len(rings) - 2:
             return None
+        starts, ends = ring_edges(ring_ids)
+        distinct = starts != ends
         return points_mesh(
-            prepared.x, prepared.y, base.triangles, ring_count, prepared.mirrored, tick
+            prepared.x,
+            prepared.y,
+            base.triangles,
+            ring_count,
+            prepared.mirrored,
+            tick,
+            list(zip(starts[distinct].tolist(), ends[distinct].tolist())),
         )
     except (TriangulationError, ValueError):
         return None

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bsp_triangulate.geometry.bridges import _ring_edges, _touching_pairs
+from bsp_triangulate.geometry.bridges import _touching_pairs, ring_edges
 from bsp_triangulate.geometry.predicates import orient_exact, strictly_between_one
 
 
@@ -48,7 +48,7 @@ def test_touching_pairs_equal_an_all_pairs_exact_search(transform: str) -> None:
     total = 0
     for seed in range(60):
         x, y, rings = _lattice_rings(seed, transform)
-        starts, ends = _ring_edges(rings)
+        starts, ends = ring_edges(rings)
         edge, vertex = _touching_pairs(x, y, starts, ends)
         found = set(zip(edge.tolist(), vertex.tolist()))
         assert found == _all_pairs(x, y, starts, ends), f"seed {seed}"

@@ -262,3 +262,19 @@ def test_rule_delaunay_by_insertion_with_groups_and_finished_polygons(
         np.testing.assert_array_equal(inserted.points, triangulated.points)
     assert sum(r.added for r in runs[0][1:3]) <= 40
     assert any(r.capped for r in runs[0]) and any(r.within for r in runs[0])
+
+
+def test_a_polygon_without_its_mesh_is_triangulated_again_each_round(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a first triangulation that is not locally Delaunay (an island's fallback bridge) gets
+    # no mesh: that polygon is refined by triangulating again, to the same points
+    from bsp_triangulate.geometry.delaunay_mesh import DelaunayMesh
+
+    grid = hill_grid()
+    rings = with_z(square_with_islands(), grid)
+    expected = refine(rings, grid, 1.0, engine=engine, rule="delaunay", plane="xy")
+    monkeypatch.setattr(DelaunayMesh, "make_delaunay", lambda self: 1)
+    result = refine(rings, grid, 1.0, engine=engine, rule="delaunay", plane="xy")
+    assert result.within and result.rounds == expected.rounds > 3
+    np.testing.assert_array_equal(result.points, expected.points)
