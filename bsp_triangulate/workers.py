@@ -26,12 +26,15 @@ import tempfile
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
 from .packed import PackedPolygons, PackedTriangulations
 from .triangulation import TriangulationError
+
+if TYPE_CHECKING:
+    from .terrain.refine import Refinement
 
 # this package's folder: the worker loads the package from there by its path, so that
 # nothing beside it (an ``inspect.py`` next to a checkout) can shadow the standard library
@@ -363,15 +366,17 @@ def _refine(
     ]
 
 
-def _refinement(*values: Any) -> Any:
+def _refinement(*values: Any) -> Refinement:
     """A ``Refinement`` from the plain values of the task "refine"."""
     from .terrain.refine import Refinement
 
     *fields, error = values
     if error is not None:
         kind, message = error
-        kind_of = TriangulationError if kind == TriangulationError.__name__ else WorkerCallError
-        error = kind_of(message)
+        if kind == TriangulationError.__name__:
+            error = TriangulationError(message)
+        else:
+            error = WorkerCallError(f"{kind}: {message}")
     return Refinement(*fields, error=error)
 
 
