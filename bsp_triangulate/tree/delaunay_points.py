@@ -1,7 +1,7 @@
 """Rule "delaunay" with interior points, built by insertion (docs/algorithm.md, section 5b).
 
-The constrained Delaunay triangulation of a polygon's rings is built by the BSP recursion
-(and checked to be locally Delaunay); the points are then inserted one at a time with flips
+The constrained Delaunay triangulation of a polygon's rings is made from any triangulation of
+them by flips; the points are then inserted one at a time with flips
 (``geometry/delaunay_mesh.py``, the ring edges as constraints), and the
 BSP tree is read off the finished triangulation: the root on the sequence's first edge, each
 node's children the triangles across its two new sides, stopping at the sequence's edges.
@@ -31,18 +31,15 @@ def points_mesh(
     tick: Callable[[float], None] | None = None,
     ring_edges: list[tuple[int, int]] = (),
 ) -> np.ndarray | None:
-    """(t, 3) vertex ids, counter-clockwise in the working plane: the rings' triangulation
-    with every point (the vertices from ``ring_count`` on) inserted, or None where the rings'
-    triangulation is not locally Delaunay or a point could not be inserted. ``ring_edges``:
-    vertex pairs never flipped."""
+    """(t, 3) vertex ids, counter-clockwise in the working plane: the constrained Delaunay
+    triangulation of the rings (``ring_triangles``, any triangulation of them, flipped until
+    locally Delaunay; ``ring_edges``: the vertex pairs never flipped) with every point (the
+    vertices from ``ring_count`` on) inserted, or None where a point could not be inserted."""
     triangles = np.asarray(ring_triangles, dtype=np.int64)
     if mirrored:
         triangles = triangles[:, [1, 0, 2]]  # counter-clockwise in the working plane
     mesh = DelaunayMesh(x[:ring_count], y[:ring_count], triangles, ring_edges)
-    # the rings' tree is the rings' constrained Delaunay triangulation unless an island took
-    # the fallback bridge of section 5a: then it is not the recursion's triangulation either
-    if mesh.make_delaunay():
-        return None
+    mesh.make_delaunay()  # the rings' constrained Delaunay triangulation
     if tick is not None:
         tick(0.0)
     ids = mesh.insert_many(x[ring_count:], y[ring_count:])

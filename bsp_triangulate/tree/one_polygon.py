@@ -31,6 +31,7 @@ from .delaunay_points import points_mesh, tree_of_triangles
 from .subtrees import MAX_POSITIONS, build_subtrees
 
 INVALID_MODES = ("fail", "as_given")
+_FIRST = FirstRule()
 # Sub-polygons up to this many vertices test their candidates against all their edges at once;
 # larger sequences use a grid over the edges.
 SMALL_SEQUENCE = 64
@@ -1092,7 +1093,8 @@ def _delaunay_mesh(
         rings = remove_spikes(prepared.x, prepared.y, rings)
         if len(rings) < 3:
             return None
-        base = _Tree(prepared, rings, prepared.vertices[:, 2], rule).build()
+        # any triangulation of the rings: the flips make it their constrained Delaunay one
+        base = _Tree(prepared, rings, prepared.vertices[:, 2], _FIRST).build()
         if len(base.triangles) != len(rings) - 2:
             return None
         starts, ends = ring_edges(ring_ids)
