@@ -217,9 +217,6 @@ _FEW_PAIRS = 128
 # all pairs of a group are compared at once while there are at most this many per candidate
 _ALL_PAIRS = 16
 
-# the exact squared distance as an integer (kept under the name the tests use)
-_sq_distance_key = sq_distance_exact
-
 
 def _least_exact(
     group: np.ndarray, a: np.ndarray, b: np.ndarray, x: np.ndarray, y: np.ndarray

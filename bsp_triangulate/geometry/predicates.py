@@ -14,9 +14,7 @@ import numpy as np
 _EPS = 2.0**-53
 CCW_ERRBOUND = (3.0 + 16.0 * _EPS) * _EPS
 # Absolute slack for products that underflow into the subnormal range.
-_UNDERFLOW_SLACK = 1e-300
-# the same, for the callers that inline a float filter
-UNDERFLOW_SLACK = _UNDERFLOW_SLACK
+UNDERFLOW_SLACK = 1e-300
 
 
 def orient_exact(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> int:
@@ -74,7 +72,7 @@ def orient(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> 
     detleft = (ax - cx) * (by - cy)
     detright = (ay - cy) * (bx - cx)
     det = detleft - detright
-    bound = CCW_ERRBOUND * (abs(detleft) + abs(detright)) + _UNDERFLOW_SLACK
+    bound = CCW_ERRBOUND * (abs(detleft) + abs(detright)) + UNDERFLOW_SLACK
     if det > bound:
         return 1
     if -det > bound:
@@ -131,7 +129,7 @@ def orient_many(
     det = detleft - detright
     if exact_inputs:
         return np.sign(det).astype(np.int8)
-    bound = CCW_ERRBOUND * (np.abs(detleft) + np.abs(detright)) + _UNDERFLOW_SLACK
+    bound = CCW_ERRBOUND * (np.abs(detleft) + np.abs(detright)) + UNDERFLOW_SLACK
     sure = np.abs(det) > bound
     signs = np.sign(det).astype(np.int8)
     if not sure.all():
@@ -198,7 +196,7 @@ def ring_area_sign(x: np.ndarray, y: np.ndarray) -> int:
             right = dxn * dy
             total = float(np.sum(left - right))
             magnitude = float(np.sum(np.abs(left) + np.abs(right)))
-            bound = magnitude * (len(x) + 4) * 4.0 * _EPS + _UNDERFLOW_SLACK * len(x)
+            bound = magnitude * (len(x) + 4) * 4.0 * _EPS + UNDERFLOW_SLACK * len(x)
             if np.isfinite(total) and np.isfinite(bound) and abs(total) > bound:
                 return 1 if total > 0 else -1
     # exact: integers times one common power of two, summed chunk by chunk (bounded memory)
@@ -261,6 +259,40 @@ def incircle_exact(
     return (det > 0) - (det < 0)
 
 
+_INF = float("inf")
+
+
+Coordinate = float | np.ndarray
+
+
+def _incircle_float(
+    ax: Coordinate,
+    ay: Coordinate,
+    bx: Coordinate,
+    by: Coordinate,
+    cx: Coordinate,
+    cy: Coordinate,
+    dx: Coordinate,
+    dy: Coordinate,
+) -> tuple[Coordinate, Coordinate]:
+    """The in-circle determinant in float and Shewchuk's static bound on its rounding
+    (``iccerrboundA``, differences included): Python floats or numpy arrays alike."""
+    adx, ady = ax - dx, ay - dy
+    bdx, bdy = bx - dx, by - dy
+    cdx, cdy = cx - dx, cy - dy
+    bc, cb = bdx * cdy, cdx * bdy
+    ca, ac = cdx * ady, adx * cdy
+    ab, ba = adx * bdy, bdx * ady
+    alift = adx * adx + ady * ady
+    blift = bdx * bdx + bdy * bdy
+    clift = cdx * cdx + cdy * cdy
+    det = alift * (bc - cb) + blift * (ca - ac) + clift * (ab - ba)
+    permanent = (
+        (abs(bc) + abs(cb)) * alift + (abs(ca) + abs(ac)) * blift + (abs(ab) + abs(ba)) * clift
+    )
+    return det, ICC_ERRBOUND * permanent + UNDERFLOW_SLACK
+
+
 def incircle_many(
     ax: np.ndarray | float,
     ay: np.ndarray | float,
@@ -278,22 +310,7 @@ def incircle_many(
     static bound; entries within it are re-decided exactly.
     """
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        adx, ady = ax - dx, ay - dy
-        bdx, bdy = bx - dx, by - dy
-        cdx, cdy = cx - dx, cy - dy
-        bc, cb = bdx * cdy, cdx * bdy
-        ca, ac = cdx * ady, adx * cdy
-        ab, ba = adx * bdy, bdx * ady
-        alift = adx * adx + ady * ady
-        blift = bdx * bdx + bdy * bdy
-        clift = cdx * cdx + cdy * cdy
-        det = alift * (bc - cb) + blift * (ca - ac) + clift * (ab - ba)
-        permanent = (
-            (np.abs(bc) + np.abs(cb)) * alift
-            + (np.abs(ca) + np.abs(ac)) * blift
-            + (np.abs(ab) + np.abs(ba)) * clift
-        )
-        bound = ICC_ERRBOUND * permanent + _UNDERFLOW_SLACK
+        det, bound = _incircle_float(ax, ay, bx, by, cx, cy, dx, dy)
         sure = (np.abs(det) > bound) & np.isfinite(det) & np.isfinite(bound)
     signs = np.atleast_1d(np.sign(np.nan_to_num(det)).astype(np.int8))
     sure = np.atleast_1d(sure)
@@ -320,28 +337,12 @@ def incircle_one(
     ax: float, ay: float, bx: float, by: float, cx: float, cy: float, dx: float, dy: float
 ) -> int:
     """:func:`incircle` on Python floats without numpy (a float filter, exact where unsure)."""
-    adx, ady = ax - dx, ay - dy
-    bdx, bdy = bx - dx, by - dy
-    cdx, cdy = cx - dx, cy - dy
-    bc, cb = bdx * cdy, cdx * bdy
-    ca, ac = cdx * ady, adx * cdy
-    ab, ba = adx * bdy, bdx * ady
-    alift = adx * adx + ady * ady
-    blift = bdx * bdx + bdy * bdy
-    clift = cdx * cdx + cdy * cdy
-    det = alift * (bc - cb) + blift * (ca - ac) + clift * (ab - ba)
-    permanent = (
-        (abs(bc) + abs(cb)) * alift + (abs(ca) + abs(ac)) * blift + (abs(ab) + abs(ba)) * clift
-    )
-    bound = ICC_ERRBOUND * permanent + _UNDERFLOW_SLACK
+    det, bound = _incircle_float(ax, ay, bx, by, cx, cy, dx, dy)
     if det > bound and bound < _INF:
         return 1
     if -det > bound and bound < _INF:
         return -1
     return incircle_exact(ax, ay, bx, by, cx, cy, dx, dy)
-
-
-_INF = float("inf")
 
 
 def cocircular_sign(

@@ -14,17 +14,16 @@ from typing import Callable
 
 import numpy as np
 
-from .predicates import CCW_ERRBOUND, orient_many
+from .predicates import CCW_ERRBOUND, UNDERFLOW_SLACK, orient_many
 
 _EPS = 2.0**-53
 # |fl(p - a)| <= (1 + eps) |p - a|, the extents and the bound itself are rounded: margin
 _BOUND_FACTOR = CCW_ERRBOUND * (1.0 + 32.0 * _EPS)
-_UNDERFLOW_SLACK = 1e-300
 
 
 def row_bound(ux: np.ndarray, uy: np.ndarray, width: np.ndarray, height: np.ndarray) -> np.ndarray:
     """Error bound per row for points whose |p - a| is at most (width, height) per axis."""
-    return _BOUND_FACTOR * (np.abs(ux) * height + np.abs(uy) * width) + _UNDERFLOW_SLACK
+    return _BOUND_FACTOR * (np.abs(ux) * height + np.abs(uy) * width) + UNDERFLOW_SLACK
 
 
 def orient_rows(
@@ -131,7 +130,7 @@ def orient_items(
     det = left - right
     if exact:
         return np.sign(det).astype(np.int8)
-    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + _UNDERFLOW_SLACK
+    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
     signs = (det > bound).view(np.int8) - (det < -bound).view(np.int8)
     where = np.flatnonzero(signs == 0)
     if len(where) == 0:

@@ -14,12 +14,11 @@ from operator import attrgetter
 
 import numpy as np
 
-from .predicates import orient_many
+from .predicates import UNDERFLOW_SLACK, orient_many
 from .rings import WALL_RATIO
 
 _EPS = 2.0**-53
 _FLOAT64 = np.dtype(np.float64)
-_UNDERFLOW_SLACK = 1e-300
 
 
 @dataclass
@@ -175,7 +174,7 @@ def _sum_with_bound(terms: np.ndarray, starts: np.ndarray, counts: np.ndarray) -
     """Per-segment sums of ``terms`` and a bound on the error of any summation order."""
     total = np.add.reduceat(terms, starts)
     magnitude = np.add.reduceat(np.abs(terms), starts)
-    bound = magnitude * (counts + 8) * 4.0 * _EPS + _UNDERFLOW_SLACK * counts
+    bound = magnitude * (counts + 8) * 4.0 * _EPS + UNDERFLOW_SLACK * counts
     return total, bound
 
 
@@ -226,7 +225,7 @@ def _area_signs(
     np.abs(right, out=right)
     left += right
     magnitude = np.add.reduceat(left, starts)
-    bound = 2.0 * (magnitude * (counts + 4) * 2.0 * _EPS + _UNDERFLOW_SLACK * counts)
+    bound = 2.0 * (magnitude * (counts + 4) * 2.0 * _EPS + UNDERFLOW_SLACK * counts)
     finite = np.isfinite(bound)
     sure = (np.abs(total) > bound) & np.isfinite(total) & finite
     return np.where(sure, np.sign(total), 0).astype(np.int64), bool(finite.all())

@@ -30,12 +30,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..formats.wkb import PolygonTable
-from .predicates import CCW_ERRBOUND
+from .predicates import CCW_ERRBOUND, UNDERFLOW_SLACK
 from .rings_batch import covers_in_order
 
 # Coordinates beyond this stay finite in every product below.
 _LARGEST = 1e150
-_UNDERFLOW_SLACK = 1e-300
 # Larger polygons (in islands, parts or island-edge pairs) are left to GEOS.
 MAX_ISLANDS = 32
 MAX_PARTS = 32
@@ -50,7 +49,7 @@ def _orientation(ax, ay, bx, by, cx, cy) -> np.ndarray:
     left = (ax - cx) * (by - cy)
     right = (ay - cy) * (bx - cx)
     det = left - right
-    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + _UNDERFLOW_SLACK
+    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
     return (det > bound).astype(np.int8) - (-det > bound).astype(np.int8)
 
 
@@ -236,7 +235,7 @@ def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
     bound = np.abs(left)
     bound += np.abs(right)
     bound *= CCW_ERRBOUND
-    bound += _UNDERFLOW_SLACK
+    bound += UNDERFLOW_SLACK
     counter = det > bound
     clockwise = det < -bound
     # winding number around the centre: edges crossing the horizontal ray to its right are

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..geometry.predicates import (
     CCW_ERRBOUND,
+    UNDERFLOW_SLACK,
     grid_exact,
     incircle_sos_many,
     orient_many,
@@ -47,7 +48,6 @@ _SPIKE = 2.0
 _EPS = 2.0**-53
 # |fl(q - p)| <= (1 + eps) |q - p|, the extents and the bound itself are rounded: margin
 _BOUND_FACTOR = CCW_ERRBOUND * (1.0 + 32.0 * _EPS)
-_UNDERFLOW_SLACK = 1e-300
 
 
 @dataclass
@@ -127,7 +127,7 @@ class Sequences:
         table[1:, _PY] = table[:-1, _EY]
         if not exact:
             # every coordinate difference in a sequence is within its extents
-            bound = _BOUND_FACTOR * 2.0 * extent_x * extent_y + _UNDERFLOW_SLACK
+            bound = _BOUND_FACTOR * 2.0 * extent_x * extent_y + UNDERFLOW_SLACK
             table[:, _BOUND] = np.repeat(bound, lengths)
         if n > 2:
             px, py, vx, vy, nx, ny = sx[:-2], sy[:-2], sx[1:-1], sy[1:-1], sx[2:], sy[2:]
@@ -1101,8 +1101,8 @@ def _delaunay_guess(
     # |E| <= 2 (X^2 + Y^2) and |B x D| <= 2 X Y, and each float value is within a few
     # roundings of those magnitudes (16 eps and 128 eps cover them)
     ex, ey = seqs.extent_x[lo], seqs.extent_y[lo]
-    cross_bound = 16.0 * _EPS * ex * ey + _UNDERFLOW_SLACK
-    circle_bound = 128.0 * _EPS * ex * ey * (ex * ex + ey * ey) + _UNDERFLOW_SLACK
+    cross_bound = 16.0 * _EPS * ex * ey + UNDERFLOW_SLACK
+    circle_bound = 128.0 * _EPS * ex * ey * (ex * ex + ey * ey) + UNDERFLOW_SLACK
     value = cross[head, rows] * e
     value -= e[head, rows] * cross
     clear = value > circle_bound

@@ -10,8 +10,7 @@ import pytest
 
 from bsp_triangulate import triangulate
 from bsp_triangulate.geometry import bridges
-from bsp_triangulate.geometry.points import _sq_distance_key
-from bsp_triangulate.geometry.predicates import exact_sq_distance
+from bsp_triangulate.geometry.predicates import exact_sq_distance, sq_distance_exact
 from bsp_triangulate.tree import one_polygon
 
 from ..random_polygons import random_polygon
@@ -143,7 +142,7 @@ def test_mesh_edges_hold_the_rings_or_are_not_used() -> None:
     assert edges.used == 1
 
 
-def test_sq_distance_key_orders_as_the_exact_distance() -> None:
+def test_sq_distance_exact_orders_as_the_exact_distance() -> None:
     rnd = random.Random(5)
     special = [0.0, -0.0, 5e-324, -5e-324, 1e308, -1e308, 0.5, 1.5, 1e-300, 0.1, 0.3]
     pairs = []
@@ -154,7 +153,7 @@ def test_sq_distance_key_orders_as_the_exact_distance() -> None:
             else rnd.uniform(-1e3, 1e3) * 10.0 ** rnd.randint(-8, 8)
             for _ in range(4)
         ]
-        pairs.append((exact_sq_distance(*c), _sq_distance_key(*c)))
+        pairs.append((exact_sq_distance(*c), sq_distance_exact(*c)))
     for (e1, k1), (e2, k2) in zip(pairs, pairs[1:]):
         assert (e1 < e2) == (k1 < k2) and (e1 == e2) == (k1 == k2)
-    assert _sq_distance_key(0.5, 0.5, 0.5, 1.5) == 2**2148
+    assert sq_distance_exact(0.5, 0.5, 0.5, 1.5) == 2**2148
