@@ -213,7 +213,7 @@ class WorkerPool:
         """``mesh.write_rows(path, kind, first, rows)`` in a worker (a future of None)."""
         return self._threads.submit(self._run, ("write_rows", (str(path), kind, first, rows)))
 
-    def _run(self, request: tuple) -> PackedTriangulations | None:
+    def _run(self, request: tuple) -> PackedTriangulations | list[Refinement] | None:
         worker = self._take()
         try:
             status, payload = worker.call(request)

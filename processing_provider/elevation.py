@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable
 
 import numpy as np
 from qgis.core import (
@@ -164,12 +165,75 @@ def _transform_each(xy: np.ndarray, transform: QgsCoordinateTransform) -> np.nda
     return out
 
 
-class DemSampler:
-    """Samples one band of a raster at arrays of points, reading it in cached tiles."""
+class TiledGrid:
+    """A grid read in square tiles of ``TILE`` cells (and a ``MARGIN`` of cells around
+    them), the last ``CACHE`` tiles kept: the tiling that ``DemSampler`` and
+    ``warped_dem.WarpedDemSampler`` share. A tile is named by a pair of whole numbers; a
+    subclass reads it (``_load``)."""
 
     TILE = 1024
     MARGIN = 2
     CACHE = 8
+
+    def __init__(self, method: str) -> None:
+        self.method = method
+        self._cache: OrderedDict[tuple[int, int], PreparedGrid] = OrderedDict()
+
+    def _load(self, key: tuple[int, int]) -> PreparedGrid:
+        """The cells of tile ``key``, with its margin."""
+        raise NotImplementedError
+
+    def _tile(self, key) -> PreparedGrid:
+        """Tile ``key`` (a pair), from the cache or read."""
+        key = (int(key[0]), int(key[1]))
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        tile = self._load(key)
+        self._cache[key] = tile
+        if len(self._cache) > self.CACHE:
+            self._cache.popitem(last=False)
+        return tile
+
+    def _sample_tiles(
+        self, xy: np.ndarray, index: np.ndarray, keys: np.ndarray, values: np.ndarray
+    ) -> np.ndarray:
+        """``values`` with the points ``xy[index]`` sampled from their tiles, ``keys`` (a
+        row per point, or one row when all are in one tile), tile by tile."""
+        if (keys == keys[0]).all():
+            # one tile (a grid of at most TILE x TILE cells, or points within one tile)
+            grid = self._tile(keys[0])
+            if len(index) == len(xy):
+                return grid.sample(xy[:, 0], xy[:, 1], self.method)
+            values[index] = grid.sample(xy[index, 0], xy[index, 1], self.method)
+            return values
+        order = np.lexsort((keys[:, 1], keys[:, 0]))
+        keys, index = keys[order], index[order]
+        starts = np.flatnonzero(np.r_[True, (keys[1:] != keys[:-1]).any(axis=1)])
+        for start, stop in zip(starts, np.r_[starts[1:], len(keys)]):
+            chosen = index[start:stop]
+            grid = self._tile(keys[start])
+            values[chosen] = grid.sample(xy[chosen, 0], xy[chosen, 1], self.method)
+        return values
+
+    def _cells(
+        self,
+        box: tuple[float, float, float, float],
+        first: tuple[int, int],
+        last: tuple[int, int],
+        read: Callable[[], tuple],
+    ) -> CellGrid:
+        """The cells whose centres lie in ``box``: a window of the cached tile when the
+        tiles of the first and last of them (``first``, ``last``) are one, else the block
+        of ``read()`` (array, GDAL geotransform, nodata) at once."""
+        if first == last:
+            return CellGrid.from_prepared(self._tile(first)).window(*box)
+        return CellGrid.from_array(*read())
+
+
+class DemSampler(TiledGrid):
+    """Samples one band of a raster at arrays of points, reading it in cached tiles (a
+    tile's key: its row and column of tiles)."""
 
     def __init__(
         self,
@@ -178,9 +242,9 @@ class DemSampler:
         method: str = "bilinear",
         transform: QgsCoordinateTransform | None = None,
     ) -> None:
+        super().__init__(method)
         self.provider = provider
         self.band = band
-        self.method = method
         self.transform = transform
         extent = provider.extent()
         self.cols, self.rows = provider.xSize(), provider.ySize()
@@ -190,7 +254,6 @@ class DemSampler:
         self.xres = extent.width() / self.cols
         self.yres = extent.height() / self.rows
         self.tiles_x = -(-self.cols // self.TILE)
-        self._cache: OrderedDict[int, PreparedGrid] = OrderedDict()
 
     def sample(self, xy: np.ndarray) -> np.ndarray:
         """Values at (n, 2) points in the layer's CRS; NaN outside the DEM and on nodata."""
@@ -206,26 +269,11 @@ class DemSampler:
         if not len(index):
             return values
         if self.tiles_x == 1 and self.rows <= self.TILE:
-            keys = np.zeros(1, dtype=np.int64)  # a single tile
+            keys = np.zeros((1, 2), dtype=np.int64)  # a single tile
         else:
-            keys = (np.floor(row[index]) // self.TILE).astype(np.int64) * self.tiles_x + (
-                np.floor(col[index]) // self.TILE
-            ).astype(np.int64)
-        if (keys == keys[0]).all():
-            # one tile (a DEM of at most TILE x TILE cells, or a batch within one tile)
-            grid = self._tile(int(keys[0]))
-            if len(index) == len(xy):
-                return grid.sample(xy[:, 0], xy[:, 1], self.method)
-            values[index] = grid.sample(xy[index, 0], xy[index, 1], self.method)
-            return values
-        order = np.argsort(keys, kind="stable")
-        keys, index = keys[order], index[order]
-        starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
-        for start, stop in zip(starts, np.r_[starts[1:], len(keys)]):
-            chosen = index[start:stop]
-            grid = self._tile(int(keys[start]))
-            values[chosen] = grid.sample(xy[chosen, 0], xy[chosen, 1], self.method)
-        return values
+            keys = np.column_stack([np.floor(row[index]), np.floor(col[index])]) // self.TILE
+            keys = keys.astype(np.int64)
+        return self._sample_tiles(xy, index, keys, values)
 
     def cells(self, xmin: float, ymin: float, xmax: float, ymax: float) -> CellGrid:
         """The DEM's cells whose centres lie in the box (in the DEM's CRS; possibly none),
@@ -236,29 +284,26 @@ class DemSampler:
         r1 = min(int(np.floor((self.ymax - ymin) / self.yres - 0.5)), self.rows - 1)
         if c1 < c0 or r1 < r0:
             return CellGrid(self.xmin, self.ymax, self.xres, self.yres, np.zeros((0, 0)))
-        first = (r0 // self.TILE) * self.tiles_x + c0 // self.TILE
-        if first == (r1 // self.TILE) * self.tiles_x + c1 // self.TILE:
-            tile = CellGrid.from_prepared(self._tile(first))
-            return tile.window(xmin, ymin, xmax, ymax)
-        return CellGrid.from_array(*self._read(r0, r1 + 1, c0, c1 + 1))
+        return self._cells(
+            (xmin, ymin, xmax, ymax),
+            (r0 // self.TILE, c0 // self.TILE),
+            (r1 // self.TILE, c1 // self.TILE),
+            lambda: self.read_block(r0, r1 + 1, c0, c1 + 1),
+        )
 
-    def _tile(self, key: int) -> PreparedGrid:
-        if key in self._cache:
-            self._cache.move_to_end(key)
-            return self._cache[key]
-        tile_row, tile_col = divmod(key, self.tiles_x)
+    def _load(self, key: tuple[int, int]) -> PreparedGrid:
+        tile_row, tile_col = key
         r0 = max(tile_row * self.TILE - self.MARGIN, 0)
         r1 = min((tile_row + 1) * self.TILE + self.MARGIN, self.rows)
         c0 = max(tile_col * self.TILE - self.MARGIN, 0)
         c1 = min((tile_col + 1) * self.TILE + self.MARGIN, self.cols)
-        tile = PreparedGrid(*self._read(r0, r1, c0, c1))
-        self._cache[key] = tile
-        if len(self._cache) > self.CACHE:
-            self._cache.popitem(last=False)
-        return tile
+        return PreparedGrid(*self.read_block(r0, r1, c0, c1))
 
-    def _read(self, r0: int, r1: int, c0: int, c1: int) -> tuple:
-        """Rows r0:r1, columns c0:c1 of the band as (array, GDAL geotransform, nodata)."""
+    def read_block(self, r0: int, r1: int, c0: int, c1: int) -> tuple:
+        """Rows r0:r1, columns c0:c1 of the band (0 <= r0 < r1 <= rows, the same for the
+        columns) as (array, GDAL geotransform, nodata): the cells as the provider gives
+        them, those in the user's nodata ranges set to the nodata value (None when there is
+        none). The tiles and ``warped_dem.WarpedDemSampler`` read the DEM through it."""
         left, top = self.xmin + c0 * self.xres, self.ymax - r0 * self.yres
         rect = QgsRectangle(left, self.ymax - r1 * self.yres, self.xmin + c1 * self.xres, top)
         block = self.provider.block(self.band, rect, c1 - c0, r1 - r0)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import concurrent.futures
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 from qgis.core import QgsProcessingFeedback
@@ -25,6 +25,39 @@ MIN_CALL_VERTICES = 50_000
 
 class _CancelledError(Exception):
     """The run was cancelled during an engine call in this process."""
+
+
+def wait_for(
+    future: concurrent.futures.Future,
+    feedback: QgsProcessingFeedback,
+    stop_workers: Callable[[BaseException], None],
+) -> Any | None:
+    """The result of a task in a worker, waited for with a cancel check every ``_POLL``
+    seconds; None when the run is cancelled meanwhile or the task has no result (run it
+    here): a worker that could not start or stopped goes to ``stop_workers`` first; an
+    error raised in the worker is left to the run here (which names the failing feature,
+    or raises as a run without workers does)."""
+    while not feedback.isCanceled():
+        try:
+            return future.result(timeout=_POLL)
+        except concurrent.futures.TimeoutError:
+            continue
+        except (WorkerError, concurrent.futures.CancelledError) as error:
+            stop_workers(error)
+            return None
+        except Exception:  # the task raised in the worker
+            return None
+    return None
+
+
+def share_count(total: int, workers: int, minimum: int) -> int:
+    """How many shares of about equal size ``total`` (vertices, DEM cells) is cut into over
+    ``workers``: two per worker where each keeps at least ``minimum``, else fewer, a
+    multiple of the workers where there are as many (they end together); may be below 2."""
+    count = min(2 * workers, total // max(minimum, 1))
+    if count >= workers:
+        count -= count % workers
+    return count
 
 
 @dataclass
@@ -175,9 +208,7 @@ class EngineRunner:
         they end together), one call under twice that; never above ``chunk_vertices``."""
         if not self.parallel:
             return self.chunk_vertices
-        calls = min(2 * self.workers, total // max(self.min_call_vertices, 1))
-        if calls >= self.workers:
-            calls -= calls % self.workers
+        calls = share_count(total, self.workers, self.min_call_vertices)
         calls = max(calls, 1, -(-total // self.chunk_vertices))
         return max(-(-total // calls), 1)
 
@@ -250,20 +281,7 @@ class EngineRunner:
         """The call's result from its worker; None when it has none (run it here)."""
         if call.future is None:
             return None
-        while not self.feedback.isCanceled():
-            try:
-                return call.future.result(timeout=_POLL)
-            except concurrent.futures.TimeoutError:
-                continue
-            except (WorkerError, concurrent.futures.CancelledError) as error:
-                self._stop_workers(error)
-                return None
-            except Exception:  # the call raised in the worker: here it names the feature
-                return None
-        return None
-
-    def _stop_workers(self, error: BaseException) -> None:
-        self.stop_workers(error)
+        return wait_for(call.future, self.feedback, self.stop_workers)
 
     def stop_workers(self, error: BaseException) -> None:
         """End the use of workers for the run (a worker could not start or stopped): a

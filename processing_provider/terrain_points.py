@@ -18,13 +18,10 @@ from qgis.core import (
 
 from ..bsp_triangulate import triangulate_many
 from ..bsp_triangulate.terrain.refine import CellGrid, Refinement, refine_many
-from ..bsp_triangulate.workers import WorkerError
 from .elevation import DemSampler, transform_xy
-from .engine_runs import EngineOptions, EngineRunner, FeaturePoints
+from .engine_runs import EngineOptions, EngineRunner, FeaturePoints, share_count, wait_for
 from .geometry_io import FeatureRings
 
-# seconds between cancel checks while waiting for a worker
-_POLL = 0.1
 # DEM cells (of the parts' boxes) per share of a batch refined in a worker, at least: a
 # smaller batch is refined in QGIS's process
 MIN_SHARE_CELLS = 50_000
@@ -185,33 +182,24 @@ class InteriorPoints:
         total = len(polygons)
         shares = self._shares(grids, owners)
         pool = self.runner.worker_pool() if self.runner is not None and len(shares) > 1 else None
-        if pool is None:
-            return self._refine_here(polygons, grids, fixed, owners, 0, total, progress)
-        futures = [
-            pool.refine(
-                polygons[first:last],
-                grids[first:last],
-                self.tolerance,
-                self.max_points,
-                fixed=fixed[first:last],
-                groups=owners[first:last],
-                **self.options,
+
+        def arguments(first: int, last: int) -> tuple[tuple, dict]:
+            """``refine_many``'s arguments over parts first:last, its engine and progress
+            aside: (positional, keywords)."""
+            return (
+                (polygons[first:last], grids[first:last], self.tolerance, self.max_points),
+                {"fixed": fixed[first:last], "groups": owners[first:last], **self.options},
             )
-            for first, last in shares
-        ]
+
+        if pool is None:
+            return self._refine_here(*arguments(0, total), 0, total, progress)
+        calls = [arguments(first, last) for first, last in shares]
+        futures = [pool.refine(*positional, **keywords) for positional, keywords in calls]
         results: list[Refinement] = []
-        for (first, last), future in zip(shares, futures):
+        for (first, last), (positional, keywords), future in zip(shares, calls, futures):
             share = self._worker_result(future)
             if share is None:  # no result from the worker: refined here
-                share = self._refine_here(
-                    polygons[first:last],
-                    grids[first:last],
-                    fixed[first:last],
-                    owners[first:last],
-                    first,
-                    total,
-                    progress,
-                )
+                share = self._refine_here(positional, keywords, first, total, progress)
             results += share
             progress(last / total)
         return results
@@ -219,49 +207,30 @@ class InteriorPoints:
     def _worker_result(self, future: concurrent.futures.Future) -> list[Refinement] | None:
         """A share's refinements from its worker, None when it has none (refine it here);
         raises ``CancelledError`` when the run is cancelled meanwhile."""
-        while True:
-            if self.feedback.isCanceled():
-                future.cancel()
-                raise CancelledError
-            try:
-                return future.result(timeout=_POLL)
-            except concurrent.futures.TimeoutError:
-                continue
-            except (WorkerError, concurrent.futures.CancelledError) as error:
-                self.runner.stop_workers(error)
-                return None
-            except Exception:  # raised in the worker: here it raises as in a run without
-                return None
+        share = wait_for(future, self.feedback, self.runner.stop_workers)
+        if share is None and self.feedback.isCanceled():
+            future.cancel()
+            raise CancelledError
+        return share
 
     def _refine_here(
         self,
-        polygons: list,
-        grids: list[CellGrid],
-        fixed: list[np.ndarray],
-        owners: list[int],
+        positional: tuple,
+        keywords: dict,
         first: int,
         total: int,
         progress: Callable[[float], None],
     ) -> list[Refinement]:
-        """``refine_many`` in this process over parts ``first``... of ``total``."""
-        count = len(polygons)
+        """``refine_many`` in this process over parts ``first``... of ``total``, with the
+        share's ``positional`` and ``keywords`` arguments (``_refine``)."""
+        count = len(positional[0])
 
         def rounds(_round: int, active: int) -> None:
             if self.feedback.isCanceled():
                 raise CancelledError
             progress((first + count - active) / total)
 
-        return refine_many(
-            polygons,
-            grids,
-            self.tolerance,
-            self.max_points,
-            engine=triangulate_many,
-            fixed=fixed,
-            groups=owners,
-            progress=rounds,
-            **self.options,
-        )
+        return refine_many(*positional, engine=triangulate_many, progress=rounds, **keywords)
 
     def _shares(self, grids: list[CellGrid], owners: list[int]) -> list[tuple[int, int]]:
         """The parts cut into runs (first, last) of whole features with about equal DEM
@@ -272,9 +241,7 @@ class InteriorPoints:
         if workers < 2:
             return whole
         cells = np.cumsum([grid.values.size for grid in grids])
-        count = min(2 * workers, int(cells[-1]) // MIN_SHARE_CELLS)
-        if count >= workers:  # the workers end together
-            count -= count % workers
+        count = share_count(int(cells[-1]), workers, MIN_SHARE_CELLS)
         if count < 2:
             return whole
         # a feature's parts share its cap of points: cut only between features

@@ -10,8 +10,6 @@ the mesh and the cells it is measured against come from one surface.
 
 from __future__ import annotations
 
-from collections import OrderedDict
-
 import numpy as np
 from osgeo import gdal
 from qgis.core import (
@@ -23,7 +21,7 @@ from qgis.core import (
 
 from ..bsp_triangulate.terrain.raster_sampling import PreparedGrid
 from ..bsp_triangulate.terrain.refine import CellGrid
-from .elevation import DemSampler, transform_xy
+from .elevation import DemSampler, TiledGrid, transform_xy
 from .qgis_compat import CrsWktVariant
 
 # points per tile edge transformed to find the DEM cells under a tile
@@ -43,14 +41,11 @@ def cell_size(corners: np.ndarray) -> tuple[float, float]:
     return float(np.sqrt(area * width / height)), float(np.sqrt(area * height / width))
 
 
-class WarpedDemSampler:
+class WarpedDemSampler(TiledGrid):
     """``DemSampler``'s interface (``sample``, ``cells``) in the layer's CRS over a DEM in
     another CRS: the DEM block under a tile read through ``base`` and warped by GDAL onto
-    the run's grid (cell ``(i, j)`` spans ``[i*dx, (i+1)*dx) x [j*dy, (j+1)*dy)``)."""
-
-    TILE = 1024
-    MARGIN = 2
-    CACHE = 8
+    the run's grid (cell ``(i, j)`` spans ``[i*dx, (i+1)*dx) x [j*dy, (j+1)*dy)``; a
+    tile's key: its ``(i // TILE, j // TILE)``)."""
 
     def __init__(
         self,
@@ -62,15 +57,14 @@ class WarpedDemSampler:
     ) -> None:
         """``reference``: a point of the layer's CRS (the layer's centre) where the grid's
         cells have about the DEM's cell area."""
+        super().__init__(base.method)
         self.base = base
-        self.method = base.method
         self.transform = None  # samples points in the layer's CRS
         self.to_dem = QgsCoordinateTransform(layer_crs, dem_crs, transform_context)
         self.to_layer = QgsCoordinateTransform(dem_crs, layer_crs, transform_context)
         self.dem_wkt = dem_crs.toWkt(CrsWktVariant.Preferred)
         self.layer_wkt = layer_crs.toWkt(CrsWktVariant.Preferred)
         self.dx, self.dy = self._cell_size(reference)
-        self._cache: OrderedDict[tuple[int, int], PreparedGrid] = OrderedDict()
 
     def _cell_size(self, reference: QgsPointXY) -> tuple[float, float]:
         base = self.base
@@ -99,17 +93,8 @@ class WarpedDemSampler:
         index = np.flatnonzero(np.isfinite(i) & np.isfinite(j))
         if not len(index):
             return values
-        ti = (i[index] // self.TILE).astype(np.int64)
-        tj = (j[index] // self.TILE).astype(np.int64)
-        keys = np.column_stack([ti, tj])
-        order = np.lexsort((tj, ti))
-        keys, index = keys[order], index[order]
-        starts = np.flatnonzero(np.r_[True, (keys[1:] != keys[:-1]).any(axis=1)])
-        for start, stop in zip(starts, np.r_[starts[1:], len(keys)]):
-            chosen = index[start:stop]
-            grid = self._tile(int(keys[start, 0]), int(keys[start, 1]))
-            values[chosen] = grid.sample(xy[chosen, 0], xy[chosen, 1], self.method)
-        return values
+        keys = (np.column_stack([i[index], j[index]]) // self.TILE).astype(np.int64)
+        return self._sample_tiles(xy, index, keys, values)
 
     def cells(self, xmin: float, ymin: float, xmax: float, ymax: float) -> CellGrid:
         """The warped cells whose centres lie in the box (possibly none): a window of the
@@ -120,23 +105,18 @@ class WarpedDemSampler:
         r1 = int(np.floor(ymax / self.dy - 0.5))
         if c1 < c0 or r1 < r0:
             return CellGrid(0.0, 0.0, self.dx, self.dy, np.zeros((0, 0)))
-        if (c0 // self.TILE, r0 // self.TILE) == (c1 // self.TILE, r1 // self.TILE):
-            tile = CellGrid.from_prepared(self._tile(c0 // self.TILE, r0 // self.TILE))
-            return tile.window(xmin, ymin, xmax, ymax)
-        return CellGrid.from_array(*self._warp(c0, c1 + 1, r0, r1 + 1))
+        return self._cells(
+            (xmin, ymin, xmax, ymax),
+            (c0 // self.TILE, r0 // self.TILE),
+            (c1 // self.TILE, r1 // self.TILE),
+            lambda: self._warp(c0, c1 + 1, r0, r1 + 1),
+        )
 
-    def _tile(self, ti: int, tj: int) -> PreparedGrid:
-        key = (ti, tj)
-        if key in self._cache:
-            self._cache.move_to_end(key)
-            return self._cache[key]
+    def _load(self, key: tuple[int, int]) -> PreparedGrid:
+        ti, tj = key
         c0, r0 = ti * self.TILE - self.MARGIN, tj * self.TILE - self.MARGIN
         c1, r1 = (ti + 1) * self.TILE + self.MARGIN, (tj + 1) * self.TILE + self.MARGIN
-        tile = PreparedGrid(*self._warp(c0, c1, r0, r1))
-        self._cache[key] = tile
-        if len(self._cache) > self.CACHE:
-            self._cache.popitem(last=False)
-        return tile
+        return PreparedGrid(*self._warp(c0, c1, r0, r1))
 
     def _warp(self, c0: int, c1: int, r0: int, r1: int) -> tuple:
         """Cells c0:c1 (x) and r0:r1 (y, northwards) of the grid as (array with rows going
@@ -148,7 +128,7 @@ class WarpedDemSampler:
         window = self._dem_window(left, bottom, right, top)
         if window is None:
             return empty, geotransform, np.nan
-        array, source_transform, nodata = self.base._read(*window)
+        array, source_transform, nodata = self.base.read_block(*window)
         values = array.astype(np.float64)
         invalid = ~np.isfinite(values)
         if nodata is not None:
