@@ -27,6 +27,7 @@ def triangulate(
     planar_tolerance: float = 0.0,
     invalid: str = "fail",
     plane: str = "auto",
+    mesh: object = None,
 ) -> Triangulation:
     """Triangulate one polygon given as ``[outer ring, island, ...]`` (points (x, y[, z])).
 
@@ -57,6 +58,12 @@ def triangulate(
     order, and ``point_ids`` gives each given point's row there, or -1 for a point outside
     the polygon, on its boundary or repeating an earlier point. Each used point adds two
     triangles.
+
+    ``mesh``: under rule "delaunay" with points, the result's triangles if already known
+    (``terrain.refine.Refinement.mesh``: (t, 3) rows of the result's vertices, any order,
+    counter-clockwise): checked (orientation, edges, locally Delaunay, the tree and the
+    area) and then used instead of inserting the points again; ignored where a check fails.
+    The result is the same with or without it.
     """
     _check_plane(plane)
     # overflow in float filters only routes values to the exact path
@@ -68,6 +75,7 @@ def triangulate(
             invalid=invalid,
             plane=plane,
             points=points,
+            mesh=mesh,
         )
 
 
@@ -81,6 +89,7 @@ def triangulate_many(
     proven: Sequence[bool] | None = None,
     plane: str = "auto",
     points: Sequence[object] | None = None,
+    meshes: Sequence[object] | None = None,
 ) -> list:
     """Triangulate many polygons; results in input order, equal to :func:`triangulate`'s.
 
@@ -89,7 +98,8 @@ def triangulate_many(
     ``TriangulationError`` in its slot instead of stopping the batch. ``proven``: per
     polygon, True where ``validity.proven_valid`` has proven it valid (it spares the batch
     path its own search for touching rings). ``points``: None or, per polygon, its interior
-    points (see :func:`triangulate`) or None.
+    points (see :func:`triangulate`) or None; ``meshes``: None or, per polygon, its ``mesh``
+    (see :func:`triangulate`) or None.
     """
     polygons = list(polygons)
     _check_many_options(rule, invalid, on_error, proven, len(polygons))
@@ -127,6 +137,7 @@ def triangulate_many(
             on_error,
             plane,
             points=None if points is None else points[index],
+            mesh=None if meshes is None else meshes[index],
         )
     return results
 
@@ -157,6 +168,7 @@ def _engine_result(
     plane: str,
     tick: Callable[[float], None] | None = None,
     points: object = None,
+    mesh: object = None,
 ) -> Triangulation | TriangulationError:
     """:func:`triangulate` of one polygon of many: its error is returned (``on_error`` is
     "return") or raised. ``tick``: see ``one_polygon._triangulate``."""
@@ -170,6 +182,7 @@ def _engine_result(
                 plane=plane,
                 tick=tick,
                 points=points,
+                mesh=mesh,
             )
     except TriangulationError as exc:
         if on_error == "raise":
@@ -188,6 +201,7 @@ def triangulate_packed(
     plane: str = "auto",
     progress: Callable[[float], None] | None = None,
     points: tuple[np.ndarray, np.ndarray] | None = None,
+    meshes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> PackedTriangulations:
     """:func:`triangulate_many` of packed polygons, with packed results: the same vertices,
     triangles and trees, in flat arrays (no object per polygon). A polygon that fails with
@@ -196,7 +210,8 @@ def triangulate_packed(
     exception it raises (a cancelled run) stops the call. ``points``: None or interior
     points as ``(coordinates (K, 2 or 3), counts (P,))``, polygon i's being the ``counts[i]``
     rows after the previous polygons' (see :func:`triangulate`); their ids come back in
-    ``point_ids`` and ``point_count`` of the result."""
+    ``point_ids`` and ``point_count`` of the result. ``meshes``: None or known triangulations
+    as ``(triangles (T, 3), counts (P,))``, packed as the points (see :func:`triangulate`)."""
     _check_many_options(rule, invalid, on_error, proven, len(polygons))
     _check_plane(plane)
     coordinates, counts = _packed_points(points, len(polygons))
@@ -221,14 +236,19 @@ def triangulate_packed(
     errors: dict[int, TriangulationError] = {}
     report = _Reporter(progress, len(polygons), int(decided.sum()))
     starts = None if counts is None else np.cumsum(counts) - counts
+    mesh_rows, mesh_counts = (None, None) if meshes is None else meshes
+    mesh_starts = None if mesh_counts is None else np.cumsum(mesh_counts) - mesh_counts
     for index in np.flatnonzero(~decided).tolist():
         report.one_more()
         rings = polygons.rings(index)
         given = None
         if counts is not None and counts[index]:
             given = coordinates[starts[index] : starts[index] + counts[index]]
+        mesh = None
+        if mesh_starts is not None and index < len(mesh_counts) and mesh_counts[index]:
+            mesh = mesh_rows[mesh_starts[index] : mesh_starts[index] + mesh_counts[index]]
         result = _engine_result(
-            rings, rule, planar_tolerance, invalid, on_error, plane, report.tick, given
+            rings, rule, planar_tolerance, invalid, on_error, plane, report.tick, given, mesh
         )
         if isinstance(result, TriangulationError):
             errors[index] = result

@@ -337,7 +337,7 @@ def _refine(
 ) -> list[tuple]:
     """Task "refine": ``refine_many`` over the polygons (``grids`` as the plain values of
     ``CellGrid``), each outcome as plain values (the fields of ``Refinement``, its error as
-    its type's name and message)."""
+    its type's name and message, then its mesh)."""
     from .api import triangulate_many
     from .terrain.refine import CellGrid, refine_many
 
@@ -361,6 +361,7 @@ def _refine(
             r.within,
             r.capped,
             None if r.error is None else (type(r.error).__name__, str(r.error)),
+            r.mesh,
         )
         for r in results
     ]
@@ -370,14 +371,14 @@ def _refinement(*values: Any) -> Refinement:
     """A ``Refinement`` from the plain values of the task "refine"."""
     from .terrain.refine import Refinement
 
-    *fields, error = values
+    *fields, error, mesh = values
     if error is not None:
         kind, message = error
         if kind == TriangulationError.__name__:
             error = TriangulationError(message)
         else:
             error = WorkerCallError(f"{kind}: {message}")
-    return Refinement(*fields, error=error)
+    return Refinement(*fields, error=error, mesh=mesh)
 
 
 def _write_rows(path: str, kind: str, first: int, rows: np.ndarray) -> None:

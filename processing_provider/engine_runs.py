@@ -80,11 +80,27 @@ class EngineOptions:
         }
 
 
-# parts per feature, the parts packed, their proven flags and their interior points as
-# (coordinates, counts per part), or None without points (``_pack``)
-Packed = tuple[np.ndarray, PackedPolygons, np.ndarray, "tuple[np.ndarray, np.ndarray] | None"]
+# parts per feature, the parts packed, their proven flags and the engine's keywords for their
+# interior points (``points``, ``meshes``), or None without points (``_pack``)
+Packed = tuple[np.ndarray, PackedPolygons, np.ndarray, "dict | None"]
 # per feature of a batch: its interior points, one (k, 3) array per part, or None for none
 FeaturePoints = list[list[np.ndarray] | None]
+
+
+class PartPoints(np.ndarray):
+    """A part's interior points (k, 3) that carry, where the refinement made it, the part's
+    triangulation with them (``mesh``, see ``bsp_triangulate.triangulate``)."""
+
+    mesh: np.ndarray | None = None
+
+
+def with_mesh(points: np.ndarray, mesh: np.ndarray | None) -> np.ndarray:
+    """``points`` as :class:`PartPoints` carrying ``mesh`` (the array itself without one)."""
+    if mesh is None:
+        return points
+    carried = np.asarray(points).view(PartPoints)
+    carried.mesh = mesh
+    return carried
 
 
 @dataclass(eq=False)
@@ -122,19 +138,26 @@ def _pack(items: list[FeatureRings], points: FeaturePoints | None = None) -> Pac
     return part_count, polygons, proven, _pack_points(items, points)
 
 
-def _pack_points(
-    items: list[FeatureRings], points: FeaturePoints | None
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """The items' interior points as (coordinates (K, 3), counts per part), or None."""
+def _pack_points(items: list[FeatureRings], points: FeaturePoints | None) -> dict | None:
+    """The engine's keywords for the items' interior points: ``points`` as (coordinates
+    (K, 3), counts per part), and ``meshes`` as (triangles, counts per part) where the
+    refinement made any; None without points."""
     if points is None or all(p is None for p in points):
         return None
     arrays: list[np.ndarray] = []
+    meshes: list[np.ndarray] = []
     for item, of_item in zip(items, points):
         for index in range(len(item.parts)):
             part = of_item[index] if of_item is not None and index < len(of_item) else None
             arrays.append(np.zeros((0, 3)) if part is None else np.asarray(part, np.float64))
+            mesh = getattr(part, "mesh", None)
+            meshes.append(np.zeros((0, 3), np.int64) if mesh is None else mesh)
     counts = np.fromiter((len(a) for a in arrays), np.int64, len(arrays))
-    return (np.concatenate(arrays) if arrays else np.zeros((0, 3))), counts
+    keywords: dict = {"points": ((np.concatenate(arrays) if arrays else np.zeros((0, 3))), counts)}
+    mesh_counts = np.fromiter((len(m) for m in meshes), np.int64, len(meshes))
+    if mesh_counts.any():
+        keywords["meshes"] = (np.concatenate(meshes).astype(np.int64), mesh_counts)
+    return keywords
 
 
 def _call(items: list[FeatureRings], points: FeaturePoints | None = None) -> _Call:
@@ -365,6 +388,6 @@ class EngineRunner:
         return EngineChunk(items, part_count, outcome, item_kept)
 
 
-def _points_option(points: tuple[np.ndarray, np.ndarray] | None) -> dict:
-    """The engine's ``points`` keyword, left out when there are none."""
-    return {} if points is None else {"points": points}
+def _points_option(points: dict | None) -> dict:
+    """The engine's ``points`` (and ``meshes``) keywords, left out when there are none."""
+    return {} if points is None else points

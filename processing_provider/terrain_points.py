@@ -19,7 +19,14 @@ from qgis.core import (
 from ..bsp_triangulate import triangulate_many
 from ..bsp_triangulate.terrain.refine import CellGrid, Refinement, refine_many
 from .elevation import DemSampler, transform_xy
-from .engine_runs import EngineOptions, EngineRunner, FeaturePoints, share_count, wait_for
+from .engine_runs import (
+    EngineOptions,
+    EngineRunner,
+    FeaturePoints,
+    share_count,
+    wait_for,
+    with_mesh,
+)
 from .geometry_io import FeatureRings
 
 # DEM cells (of the parts' boxes) per share of a batch refined in a worker, at least: a
@@ -164,7 +171,7 @@ class InteriorPoints:
         for owner, result in zip(owners, results):
             slot = slots.get(owner, 0)
             slots[owner] = slot + 1
-            points[owner][slot] = result.points
+            points[owner][slot] = with_mesh(result.points, result.mesh)
             self.added += result.added
         self._report(batch, owners, results, warn)
         return points

@@ -235,7 +235,9 @@ class Refinement:
     - ``rounds``: triangulations made; ``within``: every cell within the tolerance;
     - ``capped``: the group's cap of points stopped the refinement;
     - ``error``: the engine's error that stopped it (``points`` are then the last ones that
-      triangulated, or the fixed points).
+      triangulated, or the fixed points);
+    - ``mesh``: under rule delaunay, the last mesh's triangles (rows of the engine's result
+      with ``points``, counter-clockwise), to hand to the engine (``mesh=``), or None.
     """
 
     points: np.ndarray
@@ -246,6 +248,7 @@ class Refinement:
     within: bool = True
     capped: bool = False
     error: Exception | None = None
+    mesh: np.ndarray | None = None
 
 
 def refine(
@@ -434,6 +437,10 @@ def refine_many(
             elif refused[p] or spent[group[p]] >= max_points:
                 outcome[p].capped = True
         active = next_active
+    if meshes is not None:
+        for p in range(count):
+            if meshes.holds(p) and outcome[p].error is None:
+                outcome[p].mesh = meshes.triangles(p)
     return outcome
 
 
@@ -576,6 +583,11 @@ class _Meshes:
         order = np.argsort(poly, kind="stable")  # grouped by polygon for the next round
         self.pairs = (poly[order], tri[order], cand[order], z[order])
         return self.pairs
+
+    def triangles(self, p: int) -> np.ndarray:
+        """Polygon p's triangles, counter-clockwise in the output's XY."""
+        triangles = self.meshes[p].triangles()
+        return triangles[:, [1, 0, 2]] if self.mirror[p] < 0 else triangles
 
     def result(self, p: int) -> object:
         """The polygon's mesh now, shaped as the engine's result."""

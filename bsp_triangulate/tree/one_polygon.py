@@ -16,6 +16,7 @@ from ..geometry.points import as_point_array, first_occurrences, strictly_inside
 from ..geometry.predicates import (
     grid_exact,
     incircle_many,
+    incircle_sos_many,
     orient,
     orient_float,
     orient_many,
@@ -1003,11 +1004,13 @@ def _triangulate(
     repair: bool = True,
     tick: Callable[[float], None] | None = None,
     points: object = None,
+    mesh: object = None,
 ) -> Triangulation:
     """:func:`~bsp_triangulate.api.triangulate` of one polygon; ``repair``: a polygon whose
     rings cross may be repaired (False inside the repair itself); ``tick``: called every 64
     triangles with the share of the tree built (it may raise to stop); ``points``: interior
-    points, each joined as a one-point island."""
+    points, each joined as a one-point island; ``mesh``: under rule delaunay with points, the
+    constrained Delaunay triangulation if known (see :func:`_known_mesh`)."""
     apex_rule = get_rule(rule)
     as_given = _as_given(invalid)
     clean, axes = normalise_rings(rings, plane)
@@ -1049,9 +1052,12 @@ def _triangulate(
 
     # rule delaunay with points: the points inserted into the rings' triangulation first, so
     # that its edges spare the bridges' segment tests (section 5b)
-    mesh = None
+    mesh_ids = None
     if point_rings and type(apex_rule) is DelaunayRule and not as_given:
-        mesh = _delaunay_mesh(prepared, ring_ids, ring_count, apex_rule, tick)
+        mesh_ids = None if mesh is None else _known_mesh(prepared, mesh)
+        if mesh_ids is None:
+            mesh_ids = _delaunay_mesh(prepared, ring_ids, ring_count, apex_rule, tick)
+    mesh = mesh_ids
     edges = None if mesh is None else MeshEdges(mesh, len(prepared.vertices))
     sequence = bridged(edges)
     if len(sequence) < 3:
@@ -1110,6 +1116,41 @@ def _delaunay_mesh(
         )
     except (TriangulationError, ValueError):
         return None
+
+
+def _known_mesh(prepared: PreparedRings, mesh: object) -> np.ndarray | None:
+    """A triangulation given with the polygon (rows of its vertices, counter-clockwise in the
+    output's XY) as (t, 3) vertex ids counter-clockwise in the working plane, if it is one the
+    insertion could have made: every triangle strictly counter-clockwise, every directed edge
+    used once, every interior edge locally Delaunay (exact, with the tie rule); else None.
+    Whether it tiles the polygon with the sequence's edges is checked when the tree is read
+    off it, and the area at the end."""
+    try:
+        tri = np.asarray(mesh, dtype=np.int64)
+    except (TypeError, ValueError):
+        return None
+    n = len(prepared.vertices)
+    if tri.ndim != 2 or tri.shape[1] != 3 or len(tri) == 0 or tri.min() < 0 or tri.max() >= n:
+        return None
+    if prepared.mirrored:
+        tri = tri[:, [1, 0, 2]]
+    x, y = prepared.x, prepared.y
+    corners = [c for k in range(3) for c in (x[tri[:, k]], y[tri[:, k]])]
+    if (orient_many(*corners) <= 0).any():
+        return None
+    start, end, far = tri.ravel(), tri[:, [1, 2, 0]].ravel(), tri[:, [2, 0, 1]].ravel()
+    keys = start * n + end
+    order = np.argsort(keys)
+    sorted_keys = keys[order]
+    if (sorted_keys[1:] == sorted_keys[:-1]).any():
+        return None
+    at = np.minimum(np.searchsorted(sorted_keys, end * n + start), len(keys) - 1)
+    twin = order[at]
+    shared = (sorted_keys[at] == end * n + start) & (start < end)
+    a, b, c, d = start[shared], end[shared], far[shared], far[twin[shared]]
+    if (incircle_sos_many(x[a], y[a], x[b], y[b], x[c], y[c], x[d], y[d]) >= 0).any():
+        return None
+    return tri
 
 
 def _delaunay_by_insertion(

@@ -278,3 +278,40 @@ def test_a_polygon_without_its_mesh_is_triangulated_again_each_round(
     result = refine(rings, grid, 1.0, engine=engine, rule="delaunay", plane="xy")
     assert result.within and result.rounds == expected.rounds > 3
     np.testing.assert_array_equal(result.points, expected.points)
+
+
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_the_refinement_mesh_handed_to_the_engine_gives_the_same_result(
+    clockwise: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from bsp_triangulate.tree import one_polygon
+
+    grid = hill_grid()
+    rings = with_z(square_with_islands(), grid)
+    if clockwise:
+        rings = [ring[::-1] for ring in rings]
+    survey = np.array([[50.0, 60.0, 123.0], [333.3, 222.2, 40.0], [900.0, 900.0, 1.0]])
+    result = refine(rings, grid, 0.7, engine=engine, fixed=survey, rule="delaunay", plane="xy")
+    assert result.mesh is not None
+    options = {"rule": "delaunay", "plane": "xy"}
+    plain = bsp_triangulate.triangulate(rings, points=result.points, **options)
+    inserted = []
+    original = one_polygon._delaunay_mesh
+    monkeypatch.setattr(
+        one_polygon, "_delaunay_mesh", lambda *a: inserted.append(1) or original(*a)
+    )
+    hinted = bsp_triangulate.triangulate(rings, points=result.points, mesh=result.mesh, **options)
+    assert not inserted  # the hint was used
+    for name in ("vertices", "triangles", "parent", "depth", "side", "point_ids"):
+        np.testing.assert_array_equal(getattr(hinted, name), getattr(plain, name), name)
+    # a wrong hint is ignored: flipped triangles, a missing one, another polygon's
+    for bad in (result.mesh[:, [1, 0, 2]], result.mesh[1:], np.array([[0, 1, 2]])):
+        again = bsp_triangulate.triangulate(rings, points=result.points, mesh=bad, **options)
+        np.testing.assert_array_equal(again.triangles, plain.triangles)
+    packed = bsp_triangulate.triangulate_packed(
+        bsp_triangulate.PackedPolygons.of([rings]),
+        points=(result.points, np.array([len(result.points)])),
+        meshes=(result.mesh, np.array([len(result.mesh)])),
+        **options,
+    )
+    np.testing.assert_array_equal(packed.triangles, plain.triangles)
