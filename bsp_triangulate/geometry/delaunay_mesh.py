@@ -286,34 +286,17 @@ class DelaunayMesh:
         order = hilbert_order(xs, ys)
         order = order[holder[order] >= 0]
         previous = 0
-        # _insert_at inlined, with the names it uses held locally (the loop is the whole cost)
-        vertex, owner, vx, vy = self._vertex, self._owner, self.x, self.y
-        walk, restore = self._walk, self._restore
-        split_triangle, split_edge = self._split_triangle, self._split_edge
+        walk, insert_at, owner = self._walk, self._insert_at, self._owner
         found_ids = ids.tolist()
         for i, px, py, t in zip(
             order.tolist(), xs[order].tolist(), ys[order].tolist(), holder[order].tolist()
         ):
-            found = walk(px, py, previous) or walk(px, py, t)
-            if found is None:
-                try:
-                    found = self._scan(px, py)
-                except ValueError:
-                    continue
-            t, edge = found
-            base = 3 * t
-            a, b, c = vertex[base], vertex[base + 1], vertex[base + 2]
-            if (
-                (vx[a] == px and vy[a] == py)
-                or (vx[b] == px and vy[b] == py)
-                or (vx[c] == px and vy[c] == py)
-            ):
-                continue  # the point is a vertex
-            v = len(vx)
-            vx.append(px)
-            vy.append(py)
-            owner.append(t)
-            restore(v, split_triangle(t, v) if edge < 0 else split_edge(t, edge, v))
+            try:
+                v = insert_at(
+                    px, py, *(walk(px, py, previous) or walk(px, py, t) or self._scan(px, py))
+                )
+            except ValueError:
+                continue  # outside after all, or a vertex
             found_ids[i] = v
             previous = owner[v]
         return np.array(found_ids, dtype=np.int64)
