@@ -7,6 +7,7 @@ values, so no result depends on rounding.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from fractions import Fraction
 
 import numpy as np
@@ -315,13 +316,25 @@ def incircle_many(
     signs = np.atleast_1d(np.sign(np.nan_to_num(det)).astype(np.int8))
     sure = np.atleast_1d(sure)
     if not sure.all():
-        arrays = np.broadcast_arrays(ax, ay, bx, by, cx, cy, dx, dy)
-        arrays = [np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in arrays]
-        signs = np.broadcast_to(signs, arrays[0].shape).copy()
-        sure = np.broadcast_to(sure, arrays[0].shape)
-        unsure = np.nonzero(~sure)
-        picked = [a[unsure].tolist() for a in arrays]
-        signs[unsure] = [incircle_exact(*point) for point in zip(*picked)]
+        signs = _one_by_one(signs, ~sure, incircle_exact, (ax, ay, bx, by, cx, cy, dx, dy))
+    return signs
+
+
+def _one_by_one(
+    signs: np.ndarray,
+    where: np.ndarray,
+    decide: Callable[..., int],
+    coordinates: tuple[np.ndarray | float, ...],
+) -> np.ndarray:
+    """``signs`` (broadcast to the coordinates' shape) with the entries ``where`` decided
+    one by one: ``decide`` (a scalar test) on each entry's coordinates."""
+    arrays = [
+        np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in np.broadcast_arrays(*coordinates)
+    ]
+    signs = np.broadcast_to(signs, arrays[0].shape).copy()
+    at = np.nonzero(np.broadcast_to(where, arrays[0].shape))
+    picked = [a[at].tolist() for a in arrays]
+    signs[at] = [decide(*point) for point in zip(*picked)]
     return signs
 
 
@@ -395,13 +408,9 @@ def incircle_sos_many(
 ) -> np.ndarray:
     """Vectorised :func:`incircle_sos` (int8, broadcasting)."""
     signs = incircle_many(ax, ay, bx, by, cx, cy, dx, dy)
-    ties = np.flatnonzero(signs == 0)
-    if len(ties):
-        arrays = np.broadcast_arrays(ax, ay, bx, by, cx, cy, dx, dy)
-        arrays = [np.atleast_1d(np.asarray(a, dtype=np.float64)).ravel() for a in arrays]
-        picked = [a[ties].tolist() for a in arrays]
-        signs = signs.copy()
-        signs[ties] = [cocircular_sign(*point) for point in zip(*picked)]
+    ties = signs == 0
+    if ties.any():
+        signs = _one_by_one(signs, ties, cocircular_sign, (ax, ay, bx, by, cx, cy, dx, dy))
     return signs
 
 
