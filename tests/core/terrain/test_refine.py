@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 import shapely
@@ -201,65 +203,71 @@ def test_locate_cells_finds_every_centre_once_per_triangle():
     assert np.bincount(tri[on_diagonal]).tolist() == [10, 10]
 
 
+def both_ways(monkeypatch: pytest.MonkeyPatch, run: Callable[[], object]) -> list:
+    """``run()`` with the rounds by insertion, then with every round triangulated again."""
+    from bsp_triangulate.terrain import refine as refine_module
+
+    runs = []
+    for insertion in (True, False):
+        monkeypatch.setattr(refine_module, "_by_insertion", lambda options, on=insertion: on)
+        runs.append(run())
+    return runs
+
+
+def assert_same_refinement(inserted, triangulated) -> None:
+    """The same points, rounds and outcome (the error up to the last bits: the corners of a
+    triangle come in another order)."""
+    assert inserted.rounds == triangulated.rounds
+    assert inserted.added == triangulated.added
+    assert inserted.capped == triangulated.capped
+    assert inserted.within == triangulated.within
+    assert inserted.max_error == pytest.approx(triangulated.max_error, rel=1e-12)
+    np.testing.assert_array_equal(inserted.points, triangulated.points)
+
+
 @pytest.mark.parametrize("clockwise", [False, True])
 def test_rule_delaunay_rounds_by_insertion_equal_rounds_by_triangulation(
     clockwise: bool, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # the cell centres are exactly cocircular in fours: the ties must fall alike both ways
-    from bsp_triangulate.terrain import refine as refine_module
-
     grid = hill_grid()
     rings = with_z(square_with_islands(), grid)
     if clockwise:
         rings = [ring[::-1] for ring in rings]
     survey = np.array([[50.0, 60.0, 123.0], [333.3, 222.2, 40.0]])
-    runs = []
-    for insertion in (True, False):
-        monkeypatch.setattr(refine_module, "_by_insertion", lambda options, on=insertion: on)
-        runs.append(
-            refine(rings, grid, 0.5, engine=engine, fixed=survey, rule="delaunay", plane="xy")
-        )
-    inserted, triangulated = runs
-    assert inserted.rounds == triangulated.rounds > 3
-    assert inserted.added == triangulated.added > 50
-    assert inserted.max_error == pytest.approx(triangulated.max_error, rel=1e-12)
-    assert inserted.within and triangulated.within
-    np.testing.assert_array_equal(inserted.points, triangulated.points)
+    inserted, triangulated = both_ways(
+        monkeypatch,
+        lambda: refine(rings, grid, 0.5, engine=engine, fixed=survey, rule="delaunay", plane="xy"),
+    )
+    assert_same_refinement(inserted, triangulated)
+    assert inserted.rounds > 3 and inserted.added > 50 and inserted.within
 
 
 def test_rule_delaunay_by_insertion_with_groups_and_finished_polygons(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     # polygons that finish early, a shared cap and a flat one: the same as triangulating again
-    from bsp_triangulate.terrain import refine as refine_module
-
     grid = hill_grid()
     squares = [
         [np.array([[x, y], [x + w, y], [x + w, y + w], [x, y + w]], dtype=float)]
         for x, y, w in ((5, 5, 60), (250, 5, 200), (5, 250, 220), (300, 300, 30), (80, 80, 90))
     ]
     polygons = [with_z(rings, grid) for rings in squares]
-    runs = []
-    for insertion in (True, False):
-        monkeypatch.setattr(refine_module, "_by_insertion", lambda options, on=insertion: on)
-        runs.append(
-            refine_many(
-                polygons,
-                [grid] * len(polygons),
-                0.7,
-                40,
-                engine=engine,
-                groups=[0, 1, 1, 2, 3],
-                rule="delaunay",
-                plane="xy",
-            )
-        )
+    runs = both_ways(
+        monkeypatch,
+        lambda: refine_many(
+            polygons,
+            [grid] * len(polygons),
+            0.7,
+            40,
+            engine=engine,
+            groups=[0, 1, 1, 2, 3],
+            rule="delaunay",
+            plane="xy",
+        ),
+    )
     for inserted, triangulated in zip(*runs):
-        assert inserted.rounds == triangulated.rounds
-        assert inserted.added == triangulated.added
-        assert inserted.capped == triangulated.capped
-        assert inserted.max_error == pytest.approx(triangulated.max_error, rel=1e-12)
-        np.testing.assert_array_equal(inserted.points, triangulated.points)
+        assert_same_refinement(inserted, triangulated)
     assert sum(r.added for r in runs[0][1:3]) <= 40
     assert any(r.capped for r in runs[0]) and any(r.within for r in runs[0])
 
