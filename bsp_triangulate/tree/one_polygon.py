@@ -348,6 +348,7 @@ class _Tree:
         self.as_given = as_given
         self._prefix: np.ndarray | None = None
         self.used_fallback = False  # some base of invalid input had no correct triangle
+        self.loss_watch: _LossWatch | None = None  # as given: may stop a tree losing area
         self.ids = np.concatenate([sequence, sequence[:1]])
         self.sx = prepared.x[self.ids]
         self.sy = prepared.y[self.ids]
@@ -766,6 +767,7 @@ class _Tree:
             rows = _Rows(max(self.m - 2, 0))
             deferred: list[tuple[int, int, int, bool, int, int, int]] = []
             try:
+                self._restart_watch()
                 self._grow([(1, self.m, True, -1, 0, 0)], rows, deferred)
                 if deferred and not _worth_lockstep(deferred):
                     rows = None
@@ -775,6 +777,7 @@ class _Tree:
                 rows = None
         if rows is None:  # one step at a time throughout (and the errors in pre-order)
             rows = _Rows(max(self.m - 2, 0))
+            self._restart_watch()
             self._grow([(1, self.m, True, -1, 0, 0)], rows, None)
         count = rows.count
         return Triangulation(
@@ -784,6 +787,10 @@ class _Tree:
             depth=rows.depth[:count],
             side=rows.side[:count],
         )
+
+    def _restart_watch(self) -> None:
+        if self.loss_watch is not None:
+            self.loss_watch.reversed2 = 0.0
 
     def _lockstep_rule(self) -> str | None:
         """The rule's name where the small sub-polygons go to the lock-step builder (a long
@@ -870,6 +877,8 @@ class _Tree:
             first, second = (lo, hi) if mirrored else (hi, lo)
             if self.as_given and self._clockwise(first, second, apex):
                 first, second = second, first  # a fallback triangle of invalid input
+                if self.loss_watch is not None:
+                    self.loss_watch.reversed(self.sx, self.sy, lo, hi, apex)
             triangles[node] = (ids[first], ids[second], ids[apex])
             parent[node] = par
             depth[node] = dep
@@ -975,6 +984,53 @@ class _Tree:
         return ring_label(int(self.prepared.ring_of[vid]))
 
 
+class _RepairWinsError(Exception):
+    """An as-given tree stopped: it surely loses more area than the repair."""
+
+
+class _LossWatch:
+    """Stops an as-given tree (:class:`_RepairWinsError`) as soon as its clockwise fallback
+    triangles surely lose more area than the polygon's repair (docs/algorithm.md, section 7).
+
+    The triangles' absolute areas exceed the polygon's by twice the reversed ones' (their
+    signed areas add up to it), so the whole tree's loss is at least twice the reversed area so
+    far, relative to the polygon's. Once that reaches ``_REPAIR_AT`` (far above _AREA_KEPT and
+    the sums' rounding) the repair is made (``repair``, once); the tree stops when its loss
+    reaches twice the repair's, where the comparison of the whole tree with the repair would
+    surely pick the repair.
+    """
+
+    def __init__(
+        self,
+        prepared: PreparedRings,
+        axes: tuple[int, int],
+        repair: Callable[[], Triangulation | None],
+    ) -> None:
+        self.prepared, self.axes, self.repair = prepared, axes, repair
+        self.polygon2 = _polygon_area2(prepared)
+        self.reversed2 = 0.0  # twice the reversed triangles' area (of the tree being built)
+        self.limit = _REPAIR_AT * self.polygon2 if self.polygon2 > 0 else math.inf
+        self.repair_made = False
+
+    def reversed(self, x: np.ndarray, y: np.ndarray, a: int, b: int, c: int) -> None:
+        """Count the clockwise fallback triangle of positions (a, b, c)."""
+        cross = (x[b] - x[a]) * (y[c] - y[a]) - (y[b] - y[a]) * (x[c] - x[a])
+        self.reversed2 += abs(float(cross))
+        if self.reversed2 <= self.limit:
+            return
+        if not self.repair_made:
+            self.repair_made = True
+            fixed = self.repair()
+            if fixed is None:
+                self.limit = math.inf
+                return
+            lost = _area_loss(self.prepared, fixed, self.axes)
+            self.limit = max(self.limit, lost * self.polygon2)
+            if self.reversed2 <= self.limit:
+                return
+        raise _RepairWinsError()
+
+
 # the lock-step builder pays a round per tree level: it is worth it only when this many
 # sub-polygons' worth of positions advance together (a deep chain alone costs a numpy round
 # per triangle)
@@ -1068,15 +1124,29 @@ def _triangulate(
         if inserted is None and edges is not None and edges.used:
             sequence = bridged()  # the recursion over the sequence of section 2a, untouched
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given, tick)
-    result = tree.build() if inserted is None else inserted
+    repaired: list[Triangulation | None] = []  # the repair, once tried
+
+    def repair_now() -> Triangulation | None:
+        if not repaired:
+            repaired.append(_repaired(clean, rule=rule, plane=plane, points=given))
+        return repaired[0]
+
+    if inserted is None and as_given and repair:
+        tree.loss_watch = _LossWatch(prepared, axes, repair_now)
+        try:
+            result = tree.build()
+        except _RepairWinsError:
+            return repaired[0]
+    else:
+        result = tree.build() if inserted is None else inserted
     result.point_ids = point_ids
     if tree.used_fallback and repair:
         lost = _area_loss(prepared, result, axes)
         if lost > _AREA_KEPT:
             # crossing rings: a triangulation of the rings as given cannot keep the area
-            repaired = _repaired(clean, rule=rule, plane=plane, points=given)
-            if repaired is not None and _area_loss(prepared, repaired, axes) < lost:
-                return repaired
+            fixed = repair_now()
+            if fixed is not None and _area_loss(prepared, fixed, axes) < lost:
+                return fixed
     if not as_given:
         check_area(prepared, result, axes)
     return result
@@ -1253,11 +1323,21 @@ _AREA_KEPT = 1e-12
 AREA_TOLERANCE = 1e-9
 
 
-def _area_loss(prepared: PreparedRings, result: Triangulation, axes: tuple[int, int]) -> float:
-    """|sum of triangle areas - (outer ring area - island areas)| relative to the latter."""
+# Share of the polygon's area that an as-given tree's reversed triangles reach before its
+# repair is made (_LossWatch).
+_REPAIR_AT = 1e-6
+
+
+def _polygon_area2(prepared: PreparedRings) -> float:
+    """Twice (outer ring area - island areas), in the working plane."""
     x, y = prepared.x, prepared.y
     rings = [abs(_ring_area2(x[r], y[r])) for r in prepared.rings]
-    polygon = rings[0] - sum(rings[1:])
+    return rings[0] - sum(rings[1:])
+
+
+def _area_loss(prepared: PreparedRings, result: Triangulation, axes: tuple[int, int]) -> float:
+    """|sum of triangle areas - (outer ring area - island areas)| relative to the latter."""
+    polygon = _polygon_area2(prepared)
     t = result.triangles
     if len(t) == 0 or polygon <= 0:
         return 0.0 if len(t) == 0 and polygon <= 0 else float("inf")
