@@ -12,6 +12,7 @@ from fractions import Fraction
 import numpy as np
 
 from ..triangulation import TriangulationError
+from .bridge_plan import plan_targets
 from .points import delaunay_point_bridge, nearest_point_bridge, point_order
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
@@ -337,6 +338,42 @@ class _Bridger:
         o4 = orient_many(x[a], y[a], x[b], y[b], wx, wy)
         return not ((o3.astype(np.int16) * o4) < 0).any()
 
+    def planned(self, vid: int, island: np.ndarray, h_index: int) -> tuple[int, int] | None:
+        """(node, vertex id) of the bridge to the planned target ``vid``
+        (:func:`.bridge_plan.plan_targets`: the nearest vertex passing the tests that do not
+        depend on the sequence), or None where the one-by-one search must decide: ``vid``
+        occurs more than once, or an earlier bridge crosses the segment."""
+        if vid in self.more or self.first[vid] < 0:
+            return None
+        h = int(island[h_index])
+        if self.bridge_count and self._crosses_bridge(vid, h):
+            return None
+        return int(self.first[vid]), vid
+
+    def _crosses_bridge(self, u: int, w: int) -> bool:
+        """A bridge made so far crosses the segment u-w in both open interiors (exact)."""
+        x, y = self.x, self.y
+        ux, uy, wx, wy = float(x[u]), float(y[u]), float(x[w]), float(y[w])
+        extra = self.bridges[: self.bridge_count]
+        bxa, bya, bxb, byb = x[extra[:, 0]], y[extra[:, 0]], x[extra[:, 1]], y[extra[:, 1]]
+        near = np.flatnonzero(
+            (np.maximum(bxa, bxb) >= min(ux, wx))
+            & (np.minimum(bxa, bxb) <= max(ux, wx))
+            & (np.maximum(bya, byb) >= min(uy, wy))
+            & (np.minimum(bya, byb) <= max(uy, wy))
+        )
+        if len(near) == 0:
+            return False
+        bxa, bya, bxb, byb = bxa[near], bya[near], bxb[near], byb[near]
+        o1 = orient_many(ux, uy, wx, wy, bxa, bya)
+        o2 = orient_many(ux, uy, wx, wy, bxb, byb)
+        straddle = (o1.astype(np.int16) * o2) < 0
+        if not straddle.any():
+            return False
+        o3 = orient_many(bxa[straddle], bya[straddle], bxb[straddle], byb[straddle], ux, uy)
+        o4 = orient_many(bxa[straddle], bya[straddle], bxb[straddle], byb[straddle], wx, wy)
+        return bool(((o3.astype(np.int16) * o4) < 0).any())
+
     def _valid_occurrences(self, vid: int, island: np.ndarray, h_index: int) -> list[int]:
         """Occurrences (nodes) k of ``vid`` from which a bridge to the island may leave."""
         x, y = self.x, self.y
@@ -644,6 +681,10 @@ def bridge_islands(
             islands_at.setdefault(key, []).append(slot)
     leftmost.sort()
     rank = {item[2]: number for number, item in enumerate(leftmost)}
+    plan: dict[int, int] = {}
+    if not delaunay and mesh_edges is None and _plannable(x, y, rings):
+        joins = [(slot, h_index) for _, _, slot, h_index in leftmost]
+        plan = plan_targets(x, y, rings, joins, bridger.edges, bridger.edge_a, bridger.edge_b)
     joined = [False] * len(rings)
     touching: list[tuple[int, int]] = []  # heap of (leftmost rank, slot)
 
@@ -702,7 +743,11 @@ def bridge_islands(
                 target, h_index = found[:2], found[2]
                 progress = True
             else:
-                target = bridger.find_bridge(rings[slot], h_index)
+                planned = plan.get(slot)
+                if planned is not None:
+                    target = bridger.planned(planned, rings[slot], h_index)
+                if target is None:
+                    target = bridger.find_bridge(rings[slot], h_index)
         if target is None and relaxed:
             target = bridger.nearest_occurrence(int(rings[slot][h_index]))
         if target is None:
@@ -716,6 +761,23 @@ def bridge_islands(
         if order:
             ready.extend(order.ready(rings[slot].tolist()))
     return bridger.seq
+
+
+# islands from which their bridges are planned all at once (bridge_plan)
+_PLANNED_ISLANDS = 16
+
+
+def _plannable(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> bool:
+    """Many islands, each of 3 vertices or more, and rings that do not touch: no point
+    shared, no vertex on another ring's edge (split_touching would have put it in that
+    ring too)."""
+    if len(rings) <= _PLANNED_ISLANDS or min(len(r) for r in rings) < 3:
+        return False
+    ids = np.concatenate(rings)
+    if len(np.unique(ids)) != len(ids):
+        return False
+    points = np.unique(np.column_stack([x[ids], y[ids]]), axis=0)
+    return len(points) == len(ids)
 
 
 def _touch_index(x: np.ndarray, y: np.ndarray, ring: np.ndarray, bridger: _Bridger) -> int:

@@ -139,6 +139,26 @@ class SegmentGrid:
         rows = np.arange(r0, r1 + 1)
         return self._gather(rows, np.full(len(rows), c0), np.full(len(rows), c1))
 
+    def query_boxes(
+        self, xmin: np.ndarray, ymin: np.ndarray, xmax: np.ndarray, ymax: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(query, item) pairs: the segments in the cells that meet each closed box k
+        (:meth:`query_box` for many boxes at once; may repeat pairs)."""
+        pad = self.pad
+        c0, c1 = self._col(xmin, -pad), self._col(xmax, pad)
+        r0, r1 = self._row(ymin, -pad), self._row(ymax, pad)
+        spans = r1 - r0 + 1
+        query = np.repeat(np.arange(len(xmin), dtype=np.int64), spans)
+        row = np.repeat(r0, spans) + (
+            np.arange(len(query), dtype=np.int64) - np.repeat(np.cumsum(spans) - spans, spans)
+        )
+        first = self.starts[row * self.nx + c0[query]]
+        last = self.starts[row * self.nx + c1[query] + 1]
+        counts = last - first
+        total = int(counts.sum())
+        offsets = np.arange(total, dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
+        return np.repeat(query, counts), self.items[np.repeat(first, counts) + offsets]
+
     def query_segments(
         self, ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,120 @@
+"""Bridges planned for many islands at once are the bridges of the one-by-one search.
+
+The reference is ``bridge_islands`` with the plan switched off; the inputs have many islands
+(the plan's domain), with exact distance ties, islands in a row whose bridges would cross,
+and islands near the shell.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import bsp_triangulate.geometry.bridges as bridges
+from bsp_triangulate.geometry.bridges import bridge_islands
+from bsp_triangulate.geometry.rings import normalise_rings, prepare
+
+
+def bridged(rings: list[np.ndarray], plan: bool, monkeypatch: pytest.MonkeyPatch) -> np.ndarray:
+    clean, axes = normalise_rings(rings, "xy")
+    prepared = prepare(clean, axes)
+    with monkeypatch.context() as patch:
+        if not plan:
+            patch.setattr(bridges, "_plannable", lambda *args: False)
+        return bridge_islands(
+            prepared.x, prepared.y, prepared.rings, list(range(len(prepared.rings)))
+        )
+
+
+def square(x: float, y: float, side: float) -> np.ndarray:
+    return np.array([(x, y), (x + side, y), (x + side, y + side), (x, y + side)])
+
+
+def scattered_squares(seed: int, count: int = 60) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    islands: list[np.ndarray] = []
+    while len(islands) < count:
+        x, y = rng.uniform(2.0, 96.0, 2)
+        side = rng.uniform(0.1, 2.0)
+        if all(abs(x - i[0, 0]) > 2.5 or abs(y - i[0, 1]) > 2.5 for i in islands):
+            islands.append(square(x, y, side))
+    return [square(0.0, 0.0, 100.0), *islands]
+
+
+def count_planned(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    used: list[int] = []
+    planned = bridges._Bridger.planned
+
+    def counting(self, *args):
+        result = planned(self, *args)
+        used.append(result is not None)
+        return result
+
+    monkeypatch.setattr(bridges._Bridger, "planned", counting)
+    return used
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_scattered_square_islands_get_the_bridges_of_the_one_by_one_search(
+    seed: int, monkeypatch: pytest.MonkeyPatch
+):
+    rings = scattered_squares(seed)
+    expected = bridged(rings, False, monkeypatch)
+    used = count_planned(monkeypatch)
+    assert np.array_equal(bridged(rings, True, monkeypatch), expected)
+    assert sum(used) > len(rings) // 2
+
+
+def test_grid_of_islands_with_exact_distance_ties_gets_the_same_bridges(
+    monkeypatch: pytest.MonkeyPatch,
+):
+    # every island's leftmost vertex is equally far from two vertices to its left
+    islands = [square(10.0 * i + 5.0, 10.0 * j + 5.0, 2.0) for i in range(6) for j in range(6)]
+    rings = [square(0.0, 0.0, 70.0), *islands]
+    expected = bridged(rings, False, monkeypatch)
+    assert np.array_equal(bridged(rings, True, monkeypatch), expected)
+
+
+def test_staircase_of_thin_islands_whose_nearest_bridges_cross_gets_the_same_bridges(
+    monkeypatch: pytest.MonkeyPatch,
+):
+    # long thin slabs, each leftmost vertex nearest to a vertex whose segment an earlier
+    # bridge may cross
+    islands = []
+    for k in range(24):
+        x, y = 5.0 + 3.0 * k, 5.0 + 2.5 * k
+        islands.append(np.array([(x, y), (x + 30.0, y + 0.5), (x + 30.0, y + 1.0), (x, y + 0.6)]))
+    rings = [np.array([(0.0, 0.0), (120.0, 0.0), (120.0, 80.0), (0.0, 80.0)]), *islands]
+    expected = bridged(rings, False, monkeypatch)
+    assert np.array_equal(bridged(rings, True, monkeypatch), expected)
+
+
+def test_islands_near_a_wavy_shell_get_the_same_bridges(monkeypatch: pytest.MonkeyPatch):
+    t = np.linspace(0.0, 2.0 * np.pi, 400, endpoint=False)
+    radius = 50.0 + 4.0 * np.sin(9.0 * t)
+    shell = np.column_stack([radius * np.cos(t), radius * np.sin(t)])
+    islands = [
+        square(r * np.cos(a), r * np.sin(a), 1.5)
+        for r in (20.0, 30.0, 40.0)
+        for a in np.linspace(0.0, 2.0 * np.pi, 12, endpoint=False)
+    ]
+    rings = [shell, *islands]
+    expected = bridged(rings, False, monkeypatch)
+    used = count_planned(monkeypatch)
+    assert np.array_equal(bridged(rings, True, monkeypatch), expected)
+    assert sum(used) > 0
+
+
+def test_a_planned_target_behind_an_earlier_bridge_is_left_to_the_one_by_one_search():
+    # outer square, two islands; the bridge (0, 0)-(10, 10) made by hand crosses the planned
+    # segment (10, 0)-(0, 10) but not (10, 0)-(20, 0); (0, 0) now occurs twice
+    x = np.array([0.0, 20.0, 20.0, 0.0, 10.0, 11.0, 11.0, 0.0, 10.0, 10.0, 11.0])
+    y = np.array([0.0, 0.0, 20.0, 20.0, 10.0, 10.0, 11.0, 10.0, 0.0, 1.0, 1.0])
+    outer = np.array([0, 1, 2, 3, 7])
+    island = np.array([4, 5, 6])
+    other = np.array([8, 10, 9])
+    bridger = bridges._Bridger(x, y, [outer, island, other])
+    bridger.splice(0, island, 0)  # the bridge 0-4: (0, 0)-(10, 10)
+    assert bridger.planned(7, other, 0) is None  # (10, 0)-(0, 10) crosses it
+    assert bridger.planned(1, other, 0) == (int(bridger.first[1]), 1)
+    assert bridger.planned(0, other, 0) is None  # a bridge end: which occurrence is open
