@@ -1,18 +1,18 @@
 """The bridge targets of many islands found at once (docs/algorithm.md, section 2).
 
-Where no two rings touch, islands join in the order of their leftmost vertex, each to the
-nearest vertex of the sequence built so far from which a valid bridge leaves. Two of the
-three tests do not depend on the sequence: a ring edge meeting the open segment or a vertex
-on it, and the direction to the island inside the ring's interior angle at the vertex (an
-earlier bridge at that vertex splits the angle in two: the direction lies in one part, or
-along the bridge, where the segment holds the bridge's far end). The third, no earlier bridge
-crossing the segment, is left to the caller, which joins the islands in turn.
+Islands join in a fixed order (those touching the sequence first, then by leftmost vertex),
+each to the nearest vertex of the sequence built so far from which a valid bridge leaves.
+Two of the three tests do not depend on the sequence: a ring edge meeting the open segment or
+a vertex on it, and the direction to the island inside the ring's interior angle at the
+vertex (an earlier bridge at that vertex splits the angle in two: the direction lies in one
+part, or along the bridge, where the segment holds the bridge's far end). The third, no
+earlier bridge crossing the segment, is left to the caller, which joins the islands in turn.
 
 So for every island at once, rounds of numpy tests find the nearest vertex of the outer ring
 or of an island joined before it that passes the two fixed tests. A target is planned only
 where it is clear-cut: the nearest candidates were found in a disk that holds the target
-with a margin, and no other candidate lies within the distance margin of the engine's exact
-tie-break (-1: the island takes the one-by-one search).
+with a margin, no other candidate lies within the distance margin of the engine's exact
+tie-break, and no touching vertex comes first (-1: the island takes the one-by-one search).
 """
 
 from __future__ import annotations
@@ -99,14 +99,18 @@ def plan_targets(
     x: np.ndarray,
     y: np.ndarray,
     rings: list[np.ndarray],
-    joins: list[tuple[int, int]],
+    joins: list[tuple[int, int, bool]],
     edges: SegmentGrid,
     edge_a: np.ndarray,
     edge_b: np.ndarray,
 ) -> dict[int, int]:
     """{island slot: target vertex id} for the islands joined in the order ``joins`` (slot,
-    index of its bridge vertex in its ring), where clear-cut. The rings must not touch (no
-    shared point, no vertex on another ring's edge) and every island have 3 vertices or more.
+    index of its bridge vertex in its ring, planned: False for the islands joined where they
+    touch the sequence), where clear-cut. Every island must have 3 vertices or more.
+
+    A vertex that shares its point with another one or lies in two rings (touching rings)
+    may occur in the sequence beside vertices of another ring: its ring angle says nothing,
+    so an island whose nearest candidates reach one is left to the one-by-one search.
     """
     count = len(joins)
     if count == 0:
@@ -117,7 +121,7 @@ def plan_targets(
     ids = np.concatenate(rings)
     rank = np.full(len(rings), count, dtype=np.int64)
     rank[0] = -1
-    rank[[slot for slot, _ in joins]] = np.arange(count, dtype=np.int64)
+    rank[[slot for slot, _, _ in joins]] = np.arange(count, dtype=np.int64)
     start = np.cumsum(lengths) - lengths
     local = np.arange(len(ids), dtype=np.int64) - np.repeat(start, lengths)
     ring_len = np.repeat(lengths, lengths)
@@ -128,9 +132,22 @@ def plan_targets(
     next_of = np.full(len(x), -1, dtype=np.int64)
     prev_of[ids] = ids[first + (local - 1) % ring_len]
     next_of[ids] = ids[first + (local + 1) % ring_len]
-    h = np.array([int(rings[slot][index]) for slot, index in joins], dtype=np.int64)
-    hx, hy = x[h], y[h]
+    special = np.zeros(len(x), dtype=bool)
+    _, where, seen = np.unique(ids, return_inverse=True, return_counts=True)
+    special[ids[seen[where.reshape(-1)] > 1]] = True
     points = np.unique(ids)
+    _, where, seen = np.unique(
+        np.column_stack([x[points], y[points]]), axis=0, return_inverse=True, return_counts=True
+    )
+    special[points[seen[where.reshape(-1)] > 1]] = True
+    if special.any():
+        # a touching vertex's rank is its earliest ring's: it is a candidate from then on
+        for number, ring in enumerate(rings):
+            shared = ring[special[ring]]
+            vertex_rank[shared] = np.minimum(vertex_rank[shared], rank[number])
+    planned = np.array([plan for _, _, plan in joins], dtype=bool)
+    h = np.array([int(rings[slot][index]) for slot, index, _ in joins], dtype=np.int64)
+    hx, hy = x[h], y[h]
     grid = SegmentGrid(x[points], y[points], x[points], y[points])
     cell = max(grid.size_x, grid.size_y)
     radius = np.full(count, 2.0 * cell)
@@ -138,7 +155,7 @@ def plan_targets(
     reach_limit = min(_FARTHEST * cell, 2.0 * max(grid.size_x * grid.nx, grid.size_y * grid.ny))
     target = np.full(count, -1, dtype=np.int64)
     done = np.zeros(count, dtype=int)  # nearest candidates tested (all invalid) so far
-    open_ = np.arange(count, dtype=np.int64)
+    open_ = np.flatnonzero(planned)
     block = _FIRST_BLOCK
     for _ in range(_ROUNDS):
         if len(open_) == 0:
@@ -169,7 +186,8 @@ def plan_targets(
             gv, gh = tv[go], th[go]
             ok[go] = segments_clear(x, y, edges, edge_a, edge_b, x[gv], y[gv], x[gh], y[gh])
         # every nearer candidate was tested before and is invalid: the first valid one is the
-        # nearest valid vertex
+        # nearest valid vertex; a touching vertex first: left to the one-by-one search
+        ok |= special[tv]
         hit = t[ok]
         leading = np.ones(len(hit), dtype=bool)
         leading[1:] = owner[hit[1:]] != owner[hit[:-1]]
@@ -179,6 +197,7 @@ def plan_targets(
         sure = reach <= radius[island] ** 2  # else a wider disk may hold a nearer one
         following = np.minimum(hit + 1, len(owner) - 1)
         tie = (following > hit) & (owner[following] == island) & (d2[following] <= reach)
+        tie |= special[cand[hit]]
         target[island[sure & ~tie]] = cand[hit[sure & ~tie]]
         decided = np.zeros(count, dtype=bool)
         decided[island[sure]] = True

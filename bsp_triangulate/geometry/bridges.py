@@ -20,6 +20,8 @@ from .spatial_index import PointColumns, SegmentGrid, chunks
 
 # relative margin within which float squared distances are re-compared exactly
 _DISTANCE_MARGIN = 1e-9
+# islands up to this many vertices are spliced element by element (no numpy calls)
+_FEW = 32
 # bridge candidates tested together after the nearest: doubling from the first block size up to
 # the last
 _FIRST_BLOCK = 8
@@ -621,7 +623,11 @@ class _Bridger:
             shared = np.array([sk], dtype=np.int64)
             arrays = [shared, loop, loop[:1]] if k == 0 else [loop, loop[:1], shared]
         # k == 0: the island goes to the end, so that S keeps its first two vertices
-        self._insert_after(int(self.prv[0]) if k == 0 else k, np.concatenate(arrays))
+        node = int(self.prv[0]) if k == 0 else k
+        if len(island) <= _FEW:
+            self._insert_few_after(node, np.concatenate(arrays).tolist())
+        else:
+            self._insert_after(node, np.concatenate(arrays))
         self._add_points(island)
 
     def _add_bridge(self, sk: int, h: int) -> None:
@@ -682,8 +688,8 @@ def bridge_islands(
     leftmost.sort()
     rank = {item[2]: number for number, item in enumerate(leftmost)}
     plan: dict[int, int] = {}
-    if not delaunay and mesh_edges is None and _plannable(x, y, rings):
-        joins = [(slot, h_index) for _, _, slot, h_index in leftmost]
+    if not delaunay and mesh_edges is None and _plannable(rings):
+        joins = _join_order(x, y, rings, leftmost, islands_at, rank)
         plan = plan_targets(x, y, rings, joins, bridger.edges, bridger.edge_a, bridger.edge_b)
     joined = [False] * len(rings)
     touching: list[tuple[int, int]] = []  # heap of (leftmost rank, slot)
@@ -767,17 +773,50 @@ def bridge_islands(
 _PLANNED_ISLANDS = 16
 
 
-def _plannable(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> bool:
-    """Many islands, each of 3 vertices or more, and rings that do not touch: no point
-    shared, no vertex on another ring's edge (split_touching would have put it in that
-    ring too)."""
-    if len(rings) <= _PLANNED_ISLANDS or min(len(r) for r in rings) < 3:
-        return False
-    ids = np.concatenate(rings)
-    if len(np.unique(ids)) != len(ids):
-        return False
-    points = np.unique(np.column_stack([x[ids], y[ids]]), axis=0)
-    return len(points) == len(ids)
+def _plannable(rings: list[np.ndarray]) -> bool:
+    """Many islands, each of 3 vertices or more."""
+    return len(rings) > _PLANNED_ISLANDS and min(len(r) for r in rings) >= 3
+
+
+def _join_order(
+    x: np.ndarray,
+    y: np.ndarray,
+    rings: list[np.ndarray],
+    leftmost: list[tuple[float, float, int, int]],
+    islands_at: dict[tuple[float, float], list[int]],
+    rank: dict[int, int],
+) -> list[tuple[int, int, bool]]:
+    """(slot, bridge vertex index, not touching) of every island in the order
+    :func:`bridge_islands` joins them (rule first or elevation): islands touching the
+    sequence first, by leftmost rank, then the next in leftmost order. Touching joins have
+    no planned target (their bridge vertex index is not used)."""
+    joined = [False] * len(rings)
+    touching: list[tuple[int, int]] = []
+    order: list[tuple[int, int, bool]] = []
+
+    def mark(ring: np.ndarray) -> None:
+        for key in zip(x[ring].tolist(), y[ring].tolist()):
+            for slot in islands_at.get(key, ()):
+                if not joined[slot]:
+                    heapq.heappush(touching, (rank[slot], slot))
+
+    mark(rings[0])
+    pending = iter(leftmost)
+    while True:
+        if touching:
+            _, slot = heapq.heappop(touching)
+            if joined[slot]:
+                continue
+            order.append((slot, 0, False))
+        else:
+            item = next((i for i in pending if not joined[i[2]]), None)
+            if item is None:
+                break
+            slot = item[2]
+            order.append((slot, item[3], True))
+        joined[slot] = True
+        mark(rings[slot])
+    return order
 
 
 def _touch_index(x: np.ndarray, y: np.ndarray, ring: np.ndarray, bridger: _Bridger) -> int:

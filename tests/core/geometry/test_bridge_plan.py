@@ -118,3 +118,20 @@ def test_a_planned_target_behind_an_earlier_bridge_is_left_to_the_one_by_one_sea
     assert bridger.planned(7, other, 0) is None  # (10, 0)-(0, 10) crosses it
     assert bridger.planned(1, other, 0) == (int(bridger.first[1]), 1)
     assert bridger.planned(0, other, 0) is None  # a bridge end: which occurrence is open
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_islands_touching_the_shell_and_each_other_get_the_same_bridges(
+    seed: int, monkeypatch: pytest.MonkeyPatch
+):
+    # chains of squares sharing corners, some touching the shell, among free squares
+    rng = np.random.default_rng(seed)
+    rings = scattered_squares(seed, count=30)
+    for k in range(8):
+        x, y = 10.0 * k + 2.0, float(rng.integers(10, 90))
+        rings.append(square(x, 0.0, 1.0) if k % 3 == 0 else square(x, y, 1.0))
+        rings.append(square(x + 1.0, (1.0 if k % 3 == 0 else y + 1.0), 1.0))
+    expected = bridged(rings, False, monkeypatch)
+    used = count_planned(monkeypatch)
+    assert np.array_equal(bridged(rings, True, monkeypatch), expected)
+    assert sum(used) > 0
