@@ -27,8 +27,10 @@ DISTANCE_MARGIN = 1e-9
 # candidates per island tested in the first round (doubling after), and the rounds
 _FIRST_BLOCK = 4
 _ROUNDS = 6
+# segments tested against the edges per numpy pass
+_SEGMENTS_AT_ONCE = 2048
 # farthest disk searched, in grid cells
-_FARTHEST = 32
+_FARTHEST = 8
 
 
 def segments_clear(
@@ -44,6 +46,20 @@ def segments_clear(
 ) -> np.ndarray:
     """Per segment u-w: no edge (``edge_a[i]``-``edge_b[i]``, in ``grid``) meets it in its
     open interior and no edge end lies in its relative interior (exact)."""
+    if len(ux) > _SEGMENTS_AT_ONCE:  # bounded tables: long segments pass many edges
+        return np.concatenate(
+            [
+                segments_clear(
+                    x,
+                    y,
+                    grid,
+                    edge_a,
+                    edge_b,
+                    *(v[k : k + _SEGMENTS_AT_ONCE] for v in (ux, uy, wx, wy)),
+                )
+                for k in range(0, len(ux), _SEGMENTS_AT_ONCE)
+            ]
+        )
     clear = np.ones(len(ux), dtype=bool)
     if len(ux) == 0:
         return clear
@@ -100,13 +116,13 @@ def plan_targets(
     y: np.ndarray,
     rings: list[np.ndarray],
     joins: list[tuple[int, int, bool]],
-    edges: SegmentGrid,
-    edge_a: np.ndarray,
-    edge_b: np.ndarray,
+    grids: tuple[SegmentGrid, np.ndarray, SegmentGrid, np.ndarray, np.ndarray],
 ) -> dict[int, int]:
     """{island slot: target vertex id} for the islands joined in the order ``joins`` (slot,
     index of its bridge vertex in its ring, planned: False for the islands joined where they
     touch the sequence), where clear-cut. Every island must have 3 vertices or more.
+    ``grids``: a grid over the ring vertices ``points`` (as zero-length segments), and one
+    over the ring edges from ``edge_a`` to ``edge_b``.
 
     A vertex that shares its point with another one or lies in two rings (touching rings)
     may occur in the sequence beside vertices of another ring: its ring angle says nothing,
@@ -115,6 +131,7 @@ def plan_targets(
     count = len(joins)
     if count == 0:
         return {}
+    grid, points, edges, edge_a, edge_b = grids
     # per vertex: its ring's place in the join order (-1: the outer ring), and its ring
     # neighbours in traversal order
     lengths = np.array([len(r) for r in rings], dtype=np.int64)
@@ -132,14 +149,13 @@ def plan_targets(
     next_of = np.full(len(x), -1, dtype=np.int64)
     prev_of[ids] = ids[first + (local - 1) % ring_len]
     next_of[ids] = ids[first + (local + 1) % ring_len]
-    special = np.zeros(len(x), dtype=bool)
-    _, where, seen = np.unique(ids, return_inverse=True, return_counts=True)
-    special[ids[seen[where.reshape(-1)] > 1]] = True
-    points = np.unique(ids)
-    _, where, seen = np.unique(
-        np.column_stack([x[points], y[points]]), axis=0, return_inverse=True, return_counts=True
-    )
-    special[points[seen[where.reshape(-1)] > 1]] = True
+    # vertices in two rings, and vertices sharing their point
+    special = np.bincount(ids, minlength=len(x)) > 1
+    order = points[np.lexsort((y[points], x[points]))]
+    same = (x[order[1:]] == x[order[:-1]]) & (y[order[1:]] == y[order[:-1]])
+    special[order[1:][same]] = True
+    special[order[:-1][same]] = True
+    del order, same
     if special.any():
         # a touching vertex's rank is its earliest ring's: it is a candidate from then on
         for number, ring in enumerate(rings):
@@ -148,7 +164,6 @@ def plan_targets(
     planned = np.array([plan for _, _, plan in joins], dtype=bool)
     h = np.array([int(rings[slot][index]) for slot, index, _ in joins], dtype=np.int64)
     hx, hy = x[h], y[h]
-    grid = SegmentGrid(x[points], y[points], x[points], y[points])
     cell = max(grid.size_x, grid.size_y)
     radius = np.full(count, 2.0 * cell)
     # islands whose target lies farther take the one-by-one search (boxes stay small)

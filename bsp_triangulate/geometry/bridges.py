@@ -690,7 +690,8 @@ def bridge_islands(
     plan: dict[int, int] = {}
     if not delaunay and mesh_edges is None and _plannable(rings):
         joins = _join_order(x, y, rings, leftmost, islands_at, rank)
-        plan = plan_targets(x, y, rings, joins, bridger.edges, bridger.edge_a, bridger.edge_b)
+        grids = (bridger.points, bridger.point_ids, bridger.edges, bridger.edge_a, bridger.edge_b)
+        plan = plan_targets(x, y, rings, joins, grids)
     joined = [False] * len(rings)
     touching: list[tuple[int, int]] = []  # heap of (leftmost rank, slot)
 
