@@ -1007,15 +1007,18 @@ class _LossWatch:
         repair: Callable[[], Triangulation | None],
     ) -> None:
         self.prepared, self.axes, self.repair = prepared, axes, repair
-        self.polygon2 = _polygon_area2(prepared)
         self.reversed2 = 0.0  # twice the reversed triangles' area (of the tree being built)
-        self.limit = _REPAIR_AT * self.polygon2 if self.polygon2 > 0 else math.inf
+        self.limit = -1.0  # set at the first reversed triangle (most trees have none)
+        self.polygon2 = 0.0
         self.repair_made = False
 
     def reversed(self, x: np.ndarray, y: np.ndarray, a: int, b: int, c: int) -> None:
         """Count the clockwise fallback triangle of positions (a, b, c)."""
         cross = (x[b] - x[a]) * (y[c] - y[a]) - (y[b] - y[a]) * (x[c] - x[a])
         self.reversed2 += abs(float(cross))
+        if self.limit < 0:
+            self.polygon2 = _polygon_area2(self.prepared)
+            self.limit = _REPAIR_AT * self.polygon2 if self.polygon2 > 0 else math.inf
         if self.reversed2 <= self.limit:
             return
         if not self.repair_made:
