@@ -431,17 +431,18 @@ class _Bridger:
         a, b = self.edge_a[found], self.edge_b[found]
         if self.bridge_count:
             extra = self.bridges[: self.bridge_count]
-            # only bridges whose bounding box meets the block's can meet one of its segments
+            # only (segment, bridge) pairs whose bounding boxes meet can meet (exact)
             bxa, bya, bxb, byb = x[extra[:, 0]], y[extra[:, 0]], x[extra[:, 1]], y[extra[:, 1]]
-            extra = extra[
-                (np.maximum(bxa, bxb) >= min(wx, float(ux.min())))
-                & (np.minimum(bxa, bxb) <= max(wx, float(ux.max())))
-                & (np.maximum(bya, byb) >= min(wy, float(uy.min())))
-                & (np.minimum(bya, byb) <= max(wy, float(uy.max())))
-            ]
-            row = np.concatenate([row, np.repeat(np.arange(len(us)), len(extra))])
-            a = np.concatenate([a, np.tile(extra[:, 0], len(us))])
-            b = np.concatenate([b, np.tile(extra[:, 1], len(us))])
+            near = (
+                (np.maximum(bxa, bxb) >= np.minimum(ux, wx)[:, None])
+                & (np.minimum(bxa, bxb) <= np.maximum(ux, wx)[:, None])
+                & (np.maximum(bya, byb) >= np.minimum(uy, wy)[:, None])
+                & (np.minimum(bya, byb) <= np.maximum(uy, wy)[:, None])
+            )
+            pair_row, pair_bridge = np.nonzero(near)
+            row = np.concatenate([row, pair_row])
+            a = np.concatenate([a, extra[pair_bridge, 0]])
+            b = np.concatenate([b, extra[pair_bridge, 1]])
         pax, pay, pbx, pby = x[a], y[a], x[b], y[b]
         pux, puy = ux[row], uy[row]
         # only edges whose bounding box meets the segment's can meet it (exact)

@@ -215,6 +215,41 @@ def ring_area_sign(x: np.ndarray, y: np.ndarray) -> int:
     return (twice_area > 0) - (twice_area < 0)
 
 
+def shoelace_products(
+    x: np.ndarray, y: np.ndarray, start: np.ndarray, last: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """x * y[next] and x[next] * y per point of rings laid out one after another (ring i at
+    ``start[i]`` .. ``last[i]``): the next point is the following one, except at each ring's
+    last point, where it is the ring's first."""
+    left = np.empty_like(x)
+    np.multiply(x[:-1], y[1:], out=left[:-1])
+    left[last] = x[last] * y[start]
+    right = np.empty_like(x)
+    np.multiply(x[1:], y[:-1], out=right[:-1])
+    right[last] = x[start] * y[last]
+    return left, right
+
+
+def ring_area_signs(
+    x: np.ndarray, y: np.ndarray, starts: np.ndarray, counts: np.ndarray
+) -> tuple[np.ndarray, bool]:
+    """Sign of each ring's shoelace area (rings laid out one after another, ring i at
+    ``starts[i]``, ``counts[i]`` points; 0 where it is zero or not surely decided in float,
+    see :func:`ring_area_sign` for the exact sign), and whether every ring's sum of product
+    magnitudes is finite (then so is every x and y: a product with a non-finite factor is inf
+    or NaN)."""
+    left, right = shoelace_products(x, y, starts, starts + counts - 1)
+    total = np.add.reduceat(left - right, starts)
+    np.abs(left, out=left)
+    np.abs(right, out=right)
+    left += right
+    magnitude = np.add.reduceat(left, starts)
+    bound = 2.0 * (magnitude * (counts + 4) * 2.0 * _EPS + UNDERFLOW_SLACK * counts)
+    finite = np.isfinite(bound)
+    sure = (np.abs(total) > bound) & np.isfinite(total) & finite
+    return np.where(sure, np.sign(total), 0).astype(np.int64), bool(finite.all())
+
+
 # values per chunk of the exact area sum
 _EXACT_CHUNK = 1 << 16
 

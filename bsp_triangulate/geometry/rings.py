@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..triangulation import TriangulationError
-from .predicates import ring_area_sign
+from .predicates import ring_area_sign, ring_area_signs
 
 
 def ring_label(ring_number: int) -> str:
@@ -147,6 +147,13 @@ def normalise_rings(
     return [_clean(points, axes) for points in raw], axes
 
 
+def _ranks(counts: np.ndarray) -> np.ndarray:
+    """0 .. counts[i] - 1 for each i, concatenated."""
+    return np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(
+        np.cumsum(counts) - counts, counts
+    )
+
+
 def prepare(clean_rings: list[np.ndarray], axes: tuple[int, int]) -> PreparedRings:
     """Working-plane coordinates, orientation and the usable rings of normalised input."""
     sizes = [len(r) for r in clean_rings]
@@ -167,11 +174,20 @@ def prepare(clean_rings: list[np.ndarray], axes: tuple[int, int]) -> PreparedRin
         x = -x  # mirror: exact, keeps the vertex order
     rings = [outer_ids]
     numbers = [0]
-    for number in range(1, len(clean_rings)):
-        if sizes[number] < 3:
+    # the islands' signs in float at once where sure, exactly one by one where not
+    counts = np.array(sizes[1:], dtype=np.int64)
+    signs = np.zeros(len(counts), dtype=np.int64)
+    usable = np.flatnonzero(counts >= 3)
+    if len(usable):
+        kept = counts[usable]
+        laid = np.repeat(starts[1:-1][usable], kept) + _ranks(kept)  # one ring after another
+        signs[usable], _ = ring_area_signs(x[laid], y[laid], np.cumsum(kept) - kept, kept)
+    for index in range(len(counts)):
+        number = index + 1
+        if counts[index] < 3:
             continue
         ids = np.arange(starts[number], starts[number + 1])
-        sign = ring_area_sign(x[ids], y[ids])
+        sign = int(signs[index]) or ring_area_sign(x[ids], y[ids])
         if sign == 0:
             continue
         rings.append(ids[::-1].copy() if sign > 0 else ids)

@@ -14,7 +14,7 @@ from operator import attrgetter
 
 import numpy as np
 
-from .predicates import UNDERFLOW_SLACK, orient_many
+from .predicates import UNDERFLOW_SLACK, orient_many, ring_area_signs, shoelace_products
 from .rings import WALL_RATIO
 
 _EPS = 2.0**-53
@@ -198,39 +198,6 @@ def _xy_is_working_plane(p: np.ndarray, starts: np.ndarray, counts: np.ndarray) 
     return flat | (clear & np.isfinite(nz))
 
 
-def _shoelace_products(
-    x: np.ndarray, y: np.ndarray, start: np.ndarray, last: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """x * y[next] and x[next] * y per point of rings laid out one after another (ring i at
-    ``start[i]`` .. ``last[i]``): the next point is the following one, except at each ring's
-    last point, where it is the ring's first."""
-    left = np.empty_like(x)
-    np.multiply(x[:-1], y[1:], out=left[:-1])
-    left[last] = x[last] * y[start]
-    right = np.empty_like(x)
-    np.multiply(x[1:], y[:-1], out=right[:-1])
-    right[last] = x[start] * y[last]
-    return left, right
-
-
-def _area_signs(
-    x: np.ndarray, y: np.ndarray, starts: np.ndarray, counts: np.ndarray
-) -> tuple[np.ndarray, bool]:
-    """Sign of each ring's shoelace area (0 where it is zero or not surely decided), and
-    whether every ring's sum of product magnitudes is finite (then so is every x and y: a
-    product with a non-finite factor is inf or NaN)."""
-    left, right = _shoelace_products(x, y, starts, starts + counts - 1)
-    total = np.add.reduceat(left - right, starts)
-    np.abs(left, out=left)
-    np.abs(right, out=right)
-    left += right
-    magnitude = np.add.reduceat(left, starts)
-    bound = 2.0 * (magnitude * (counts + 4) * 2.0 * _EPS + UNDERFLOW_SLACK * counts)
-    finite = np.isfinite(bound)
-    sure = (np.abs(total) > bound) & np.isfinite(total) & finite
-    return np.where(sure, np.sign(total), 0).astype(np.int64), bool(finite.all())
-
-
 def flatten_rings(
     polygons: Sequence[Sequence[object]], max_vertices: int, xy: bool = False
 ) -> FlatRings:
@@ -325,11 +292,11 @@ def _flatten(
         handled[ring_poly[too_small & is_island]] = False
         nonempty = ring_len > 0
         if nonempty.all():
-            signs, finite = _area_signs(vx, vy, ring_start, ring_len)
+            signs, finite = ring_area_signs(vx, vy, ring_start, ring_len)
         else:
             signs, finite = np.zeros(len(ring_len), dtype=np.int64), True
             if nonempty.any():
-                signs[nonempty], finite = _area_signs(
+                signs[nonempty], finite = ring_area_signs(
                     vx, vy, ring_start[nonempty], ring_len[nonempty]
                 )
         if zero_z and not finite:
@@ -509,7 +476,7 @@ def net_areas(flat: FlatRings, wx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     x = wx - np.repeat(x0, flat.poly_vcount)
     y = wy - np.repeat(y0, flat.poly_vcount)
     start = flat.ring_start
-    left, right = _shoelace_products(x, y, start, start + flat.ring_len - 1)
+    left, right = shoelace_products(x, y, start, start + flat.ring_len - 1)
     terms = left - right
     # traversal order: reversed islands count with the opposite sign
     if flat.ring_reversed.any():

@@ -21,6 +21,7 @@ from ..geometry.predicates import (
     orient_float,
     orient_many,
     ring_area_sign,
+    shoelace_products,
     strictly_between,
     strictly_between_one,
 )
@@ -1439,6 +1440,25 @@ def _as_given(invalid: str) -> bool:
     return invalid == "as_given"
 
 
+def _clear_area(prepared: PreparedRings, x0: float, y0: float) -> bool:
+    """The area is surely not negligible (:func:`negligible_area`), decided for all rings at
+    once with a margin for any summation order (False: too close to call here)."""
+    ids = np.concatenate(prepared.rings)
+    counts = np.array([len(r) for r in prepared.rings], dtype=np.int64)
+    starts = np.cumsum(counts) - counts
+    x, y = prepared.x[ids] - x0, prepared.y[ids] - y0
+    span = max(float(np.abs(x).max()), float(np.abs(y).max()))
+    if not 0 < span < math.inf:
+        return False
+    scale = np.ldexp(1.0, -int(np.frexp(span)[1]))
+    x, y = x * scale, y * scale
+    left, right = shoelace_products(x, y, starts, starts + counts - 1)
+    net = float(np.sum(left - right))
+    magnitude = float(np.sum(np.abs(left)) + np.sum(np.abs(right)))
+    margin = (8.0 + 8.0 * (len(ids) + 8)) * np.finfo(np.float64).eps * magnitude
+    return math.isfinite(net) and math.isfinite(magnitude) and abs(net) > margin
+
+
 def negligible_area(prepared: PreparedRings) -> bool:
     """The polygon's area (outer ring less islands) is zero to within double rounding.
 
@@ -1447,6 +1467,8 @@ def negligible_area(prepared: PreparedRings) -> bool:
     an island that repeats the outer ring up to 1e-28, and gives no triangles.
     """
     x0, y0 = prepared.x[prepared.rings[0][0]], prepared.y[prepared.rings[0][0]]
+    if len(prepared.rings) > 1 and _clear_area(prepared, x0, y0):
+        return False
     spans = [np.abs(prepared.x[r] - x0).max() for r in prepared.rings]
     spans += [np.abs(prepared.y[r] - y0).max() for r in prepared.rings]
     # a power-of-two scale (exact) keeps the products away from underflow and overflow

@@ -8,8 +8,8 @@ import random
 import numpy as np
 import pytest
 
+from bsp_triangulate.geometry.predicates import ring_area_signs
 from bsp_triangulate.geometry.rings_batch import (
-    _area_signs,
     _joined,
     _with_zero_z,
     clear_area,
@@ -76,13 +76,13 @@ def test_area_signs_and_their_finiteness() -> None:
     x = np.r_[square[0], square[0][::-1], [0.0, 1.0, 2.0]]
     y = np.r_[square[1], square[1][::-1], [0.0, 1.0, 2.0]]
     starts, counts = np.array([0, 4, 8]), np.array([4, 4, 3])
-    signs, finite = _area_signs(x, y, starts, counts)
+    signs, finite = ring_area_signs(x, y, starts, counts)
     assert signs.tolist() == [1, -1, 0] and finite
     x[9] = np.inf
-    signs, finite = _area_signs(x, y, starts, counts)
+    signs, finite = ring_area_signs(x, y, starts, counts)
     assert signs.tolist() == [1, -1, 0] and not finite
     # finite coordinates whose products overflow are not finite sums either
-    signs, finite = _area_signs(
+    signs, finite = ring_area_signs(
         np.array([0.0, 1e300, 1e300]), np.array([0.0, 0.0, 1e300]), np.array([0]), np.array([3])
     )
     assert signs.tolist() == [0] and not finite
