@@ -30,6 +30,7 @@ from ..geometry.spatial_index import ChainBoxes, SegmentGrid
 from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
 from .delaunay_points import points_mesh, tree_of_triangles
+from .elevation_order import ElevationWindows
 from .subtrees import MAX_POSITIONS, build_subtrees
 
 INVALID_MODES = ("fail", "as_given")
@@ -45,6 +46,11 @@ _MAX_BLOCKERS = 256
 _MAX_RECENT_BLOCKERS = 8
 # Candidates per base tested one by one before the facing test switches to chunks.
 _SCALAR_CANDIDATES = 16
+# Sub-polygons longer than this take their candidates closest elevation first from shared
+# sorted windows (rule "elevation").
+_WINDOWED = 512
+# The rule "elevation" error bound's factor (rules.ElevationRule).
+_EPS8 = 8.0 * 2.0**-53
 # Largest chunk of candidates filtered at once by rule "first" on long runs.
 _MAX_FIRST_CHUNK = 1024
 
@@ -360,6 +366,7 @@ class _Tree:
         self.exact = grid_exact(self.sx, self.sy)
         self.sign = orient_float if self.exact else orient
         self._grid: SegmentGrid | None = None
+        self._windows: ElevationWindows | None = None  # rule "elevation", long sub-polygons
         self._points: SegmentGrid | None = None  # positions, for rule "delaunay"
         self.boxes = ChainBoxes(self.sx, self.sy) if self.m > SMALL_SEQUENCE else None
 
@@ -416,6 +423,11 @@ class _Tree:
         """:meth:`_apex` under rule "elevation": the facing candidates are tested closest
         elevation first, until no untested one can be as close as the closest correct one;
         the rule then chooses among the correct ones found, as among all of them."""
+        if self.boxes is not None and hi - lo > _WINDOWED:
+            if self._windows is None:
+                self._windows = ElevationWindows(self.sz)
+            if self._windows.mostly_distinct(lo, hi):
+                return self._closest_apex_windows(lo, hi, v1, v2)
         sx, sy, z = self.sx, self.sy, self.sz
         candidates = np.arange(hi - 1, lo, -1)
         candidates = candidates[facing_candidates(sx, sy, lo, hi, candidates, self.exact)]
@@ -448,6 +460,45 @@ class _Tree:
             return -1
         # in candidate order, as the rule expects
         return self.rule.choose(candidates[np.sort(np.concatenate(found))], v1, v2, z)
+
+    def _closest_apex_windows(self, lo: int, hi: int, v1: int, v2: int) -> int:
+        """:meth:`_closest_apex` for long sub-polygons: the candidates come band by band,
+        closest elevation first, from a window sorted once for many nodes
+        (:class:`.elevation_order.ElevationWindows`), each facing one tested with the scalar
+        exact test (:meth:`_blocked`), until every untested one is surely farther than a
+        correct one found; the rule then chooses among the correct ones found."""
+        windows, z = self._windows, self.sz
+        z1, z2 = float(z[v1]), float(z[v2])
+        # the rule's error bound for any candidate of the window
+        widest = _EPS8 * (2.0 * windows.widest_z(lo, hi) + abs(z1) + abs(z2)) + 1e-300
+        blockers: list[int] = []
+        found: list[int] = []
+        best = math.inf
+        for band, floor in windows.bands(lo, hi, z1 + z2):
+            if len(band):
+                band = band[facing_candidates(self.sx, self.sy, lo, hi, band, self.exact)]
+            if len(band) > _SCALAR_CANDIDATES and blockers:
+                # wide bands (elevations close or equal): the edges that blocked earlier
+                # candidates, against the whole band at once
+                band = self._not_blocked_by(lo, hi, band, blockers)
+            if len(band):
+                zc = z[band]
+                approx = np.abs(2.0 * zc - z1 - z2)
+                error = _EPS8 * (2.0 * np.abs(zc) + abs(z1) + abs(z2)) + 1e-300
+                approx_list, error_list = approx.tolist(), error.tolist()
+                for index in np.argsort(approx, kind="stable").tolist():
+                    if found and approx_list[index] - widest > best:
+                        break  # this band's others too are surely farther than a correct one
+                    c = int(band[index])
+                    if not self._blocked(lo, hi, c, blockers):
+                        found.append(c)
+                        best = min(best, approx_list[index] + error_list[index])
+            if found and floor - widest > best:
+                break  # every later band is surely farther than a correct one
+        if not found:
+            return -1
+        # in candidate order (decreasing position), as the rule expects
+        return self.rule.choose(np.sort(np.array(found, dtype=np.int64))[::-1], v1, v2, z)
 
     def _closest_apex_scalar(
         self,
