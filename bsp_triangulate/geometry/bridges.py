@@ -6,6 +6,7 @@ See docs/algorithm.md section 2 for the exact rules implemented here.
 from __future__ import annotations
 
 import heapq
+import math
 from collections import deque
 from fractions import Fraction
 
@@ -20,6 +21,10 @@ from .spatial_index import PointColumns, SegmentGrid, chunks
 
 # relative margin within which float squared distances are re-compared exactly
 _DISTANCE_MARGIN = 1e-9
+# rule delaunay: rounds of widening the neighbourhood that may bound a bridge's length, and
+# the margin on its angles (radians) and distances (relative)
+_GAP_ROUNDS = 3
+_GAP_MARGIN = 1e-6
 # islands up to this many vertices are spliced element by element (no numpy calls)
 _FEW = 32
 # bridge candidates tested together after the nearest: doubling from the first block size up to
@@ -496,11 +501,14 @@ class _Bridger:
         return result
 
     # -- search ---------------------------------------------------------------------------
-    def find_bridge(self, island: np.ndarray, h_index: int) -> tuple[int, int] | None:
+    def find_bridge(
+        self, island: np.ndarray, h_index: int, give_up: float = math.inf
+    ) -> tuple[int, int] | None:
         """(node, vertex id) of the bridge target for the island, or None.
 
         The sequence's vertices near h are tested nearest first, in blocks at once, until
-        the nearest valid one is known and every one within the tie margin of it.
+        the nearest valid one is known and every one within the tie margin of it. None also
+        where the nearest valid one surely lies beyond ``give_up`` (the search stops there).
         """
         x, y = self.x, self.y
         h = int(island[h_index])
@@ -544,7 +552,7 @@ class _Bridger:
                 position = stop
             if best is not None and (best * (1 + _DISTANCE_MARGIN) <= limit or radius >= full):
                 return self._nearest_exact(tested, h, best)
-            if radius >= full:
+            if radius >= full or radius >= give_up:
                 return None
             radius *= 2.0
 
@@ -588,6 +596,51 @@ class _Bridger:
                 return False
         return True
 
+    def _disk_never_empty_beyond(self, h: int) -> tuple[float, np.ndarray]:
+        """A distance beyond which no vertex v has an empty diametral circle h-v (inf if none
+        is found), and the vertices near h it comes from: where the vertices w within rho of
+        h leave no angular gap of 90 degrees around it, every v farther than sqrt(2) rho lies
+        within 45 degrees of some w, so (w - h) . (v - h) > |w - h| rho >= |w - h|^2: w is
+        strictly inside that circle. Margins cover the float angles and distances."""
+        x, y = self.x, self.y
+        hx, hy = float(x[h]), float(y[h])
+        grid = self.points
+        radius = 2.0 * max(grid.size_x, grid.size_y)
+        for _ in range(_GAP_ROUNDS):
+            found = self.point_ids[
+                np.unique(grid.query_box(hx - radius, hy - radius, hx + radius, hy + radius))
+            ]
+            dx, dy = x[found] - hx, y[found] - hy
+            d2 = dx * dx + dy * dy
+            near = (d2 > 0) & (d2 <= radius * radius)
+            if np.count_nonzero(near) >= 4:
+                angles = np.sort(np.arctan2(dy[near], dx[near]))
+                gaps = np.diff(np.append(angles, angles[0] + 2.0 * math.pi))
+                if float(gaps.max()) < 0.5 * math.pi - _GAP_MARGIN:
+                    reach = math.sqrt(2.0 * float(d2[near].max())) * (1.0 + _GAP_MARGIN)
+                    return reach, found[near]
+            radius *= 2.0
+        return math.inf, found[:0]
+
+    def _no_empty_disk(self, h: int, reach: float, near: np.ndarray) -> bool:
+        """Every vertex of the sequence within ``reach`` of h has a vertex of ``near``
+        strictly inside its diametral circle with h (float values beyond their error bound):
+        whichever of them is the nearest valid target, its bridge is no Delaunay edge."""
+        x, y = self.x, self.y
+        hx, hy = float(x[h]), float(y[h])
+        found = self.point_ids[
+            np.unique(self.points.query_box(hx - reach, hy - reach, hx + reach, hy + reach))
+        ]
+        found = found[self.in_seq[found]]
+        vx, vy = x[found] - hx, y[found] - hy
+        wx, wy = x[near] - hx, y[near] - hy
+        # (w - h) . (v - h) - |w - h|^2 > 0, per (v, w)
+        dot = wx * vx[:, None] + wy * vy[:, None]
+        own = wx * wx + wy * wy
+        size = np.abs(wx) * np.abs(vx[:, None]) + np.abs(wy) * np.abs(vy[:, None]) + own
+        inside = dot - own > 16.0 * 2.0**-53 * size + 1e-300
+        return bool(inside.any(axis=1).all())
+
     def find_delaunay_bridge(self, island: np.ndarray, h_index: int) -> tuple[int, int, int] | None:
         """(node, vertex id, island index) of a bridge that is a constrained Delaunay edge, or
         None: from the island's vertices in ring order starting at ``h_index`` (its leftmost),
@@ -595,7 +648,11 @@ class _Bridger:
         circle (:meth:`diametral_disk_empty`)."""
         for step in range(len(island)):
             index = (h_index + step) % len(island)
-            target = self.find_bridge(island, index)
+            h = int(island[index])
+            reach, near = self._disk_never_empty_beyond(h)
+            if reach < math.inf and self._no_empty_disk(h, reach, near):
+                continue  # this vertex's bridge, wherever it goes, is no Delaunay edge
+            target = self.find_bridge(island, index, reach)
             if target is not None and self.diametral_disk_empty(int(island[index]), target[1]):
                 return target[0], target[1], index
         return None

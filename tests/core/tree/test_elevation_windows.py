@@ -31,7 +31,7 @@ def with_z(rings: list[np.ndarray], kind: str) -> list[np.ndarray]:
         if kind == "plateaus":
             z = np.round(z / 25.0) * 25.0
         elif kind == "near_ties":
-            z = 1000.0 + np.floor(z * 64.0) * 2.0**-42  # neighbours one unit in the last place apart
+            z = 1000.0 + np.floor(z * 64.0) * 2.0**-42  # neighbours one ulp apart
         out.append(np.column_stack([x, y, z]))
     return out
 
