@@ -25,6 +25,8 @@ _DISTANCE_MARGIN = 1e-9
 # the margin on its angles (radians) and distances (relative)
 _GAP_ROUNDS = 3
 _GAP_MARGIN = 1e-6
+# vertices near h tried as the one strictly inside a bridge's diametral circle
+_NEAREST_WITNESSES = 16
 # islands up to this many vertices are spliced element by element (no numpy calls)
 _FEW = 32
 # bridge candidates tested together after the nearest: doubling from the first block size up to
@@ -634,6 +636,9 @@ class _Bridger:
         found = found[self.in_seq[found]]
         vx, vy = x[found] - hx, y[found] - hy
         wx, wy = x[near] - hx, y[near] - hy
+        if len(near) > _NEAREST_WITNESSES:  # the nearest lie in the most circles
+            keep = np.argsort(wx * wx + wy * wy)[:_NEAREST_WITNESSES]
+            wx, wy = wx[keep], wy[keep]
         # (w - h) . (v - h) - |w - h|^2 > 0, per (v, w)
         dot = wx * vx[:, None] + wy * vy[:, None]
         own = wx * wx + wy * wy
