@@ -846,13 +846,15 @@ class _Tree:
 
     def _lockstep_rule(self) -> str | None:
         """The rule's name where the small sub-polygons go to the lock-step builder (a long
-        sequence under rule first or elevation), else None."""
+        sequence under rule first, elevation or delaunay), else None."""
         if self.m <= MAX_POSITIONS:
             return None
         if type(self.rule) is FirstRule:
             return "first"
         if type(self.rule) is ElevationRule:
             return "elevation"
+        if type(self.rule) is DelaunayRule:
+            return "delaunay"
         return None
 
     def _touching_before(self) -> np.ndarray:

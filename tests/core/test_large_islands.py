@@ -78,7 +78,7 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("rule", ["first", "elevation"])
+@pytest.mark.parametrize("rule", ["first", "elevation", "delaunay"])
 @pytest.mark.parametrize(("name", "rings"), CASES, ids=[c[0] for c in CASES])
 def test_subtrees_of_the_lockstep_builder_match_one_step(
     monkeypatch: pytest.MonkeyPatch, name: str, rings: list, rule: str
@@ -132,3 +132,20 @@ def test_lockstep_subtrees_only_where_many_advance_together(
     plain = _one_step(monkeypatch, comb)
     _same(plain, triangulate(comb))
     assert not calls
+
+
+def test_delaunay_subtrees_of_the_lockstep_builder_match_one_step(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Rule delaunay's small sub-polygons of a long sequence go to the lock-step builder
+    too: the same tree, field by field, as one step at a time."""
+    calls: list[str] = []
+    build = one_polygon.build_subtrees
+    monkeypatch.setattr(
+        one_polygon, "build_subtrees", lambda *a, **k: calls.append(a[-1]) or build(*a, **k)
+    )
+    for rings in (_wavy(5000, 100, 1), [r[:, ::-1].copy() for r in _wavy(4000, 80, 6)]):
+        fast = triangulate(rings, rule="delaunay")
+        _same(_one_step(monkeypatch, rings, rule="delaunay"), fast)
+        check_triangulation(rings, fast)
+    assert "delaunay" in calls
