@@ -671,8 +671,9 @@ def _bad_runs(
 _SPAN = 4
 # ... and in sub-polygons tested run by run, where a round costs more than a facing test
 _SPAN_LARGE = 12
-# closest-first tries of rule "elevation" before a node tests all its candidates
-_ELEVATION_TRIES = 16
+# rounds of closest-first tests (1, 2, 4, ... candidates at once) of rule "elevation" before
+# a node tests all its candidates
+_ELEVATION_ROUNDS = 7
 # largest-angle-first tries of rule "delaunay" before a node tests all its candidates left
 _DELAUNAY_TRIES = 8
 # rounds of at least this many nodes test first candidates with _facing_ear
@@ -942,7 +943,8 @@ def _elevation_apex(
     among equally close ones) is tested first: where it is correct and every other candidate
     that passes conditions 1 and 4 is surely farther or at the same elevation, it is the
     rule's choice; where it is not correct it drops out and the next closest is tried, up to
-    ``_ELEVATION_TRIES`` times. Nodes where the choice is not sure test all their candidates.
+    in rounds of 1, 2, 4, ... closest candidates at once (``_ELEVATION_ROUNDS`` rounds).
+    Nodes where the choice is not sure test all their candidates.
     """
     lo, hi = state[_LO], state[_HI]
     n = len(lo)
@@ -956,39 +958,49 @@ def _elevation_apex(
     v2 = np.where(at_hi, lo, hi)
     zc = sz[c]
     approx, error = _elevation_distance(zc, sz[v1][owner], sz[v2][owner])
-    # a few tries of closest-first (a candidate found not correct drops out), then all
+    # per node its candidates closest first (the first in candidate order among equally
+    # close ones); rounds test each node's next 1, 2, 4, ... closest at once (a candidate
+    # found not correct drops out), then all that are left
+    order = np.lexsort((np.arange(len(c)), approx, owner))
+    owner, c, zc, approx, error = owner[order], c[order], zc[order], approx[order], error[order]
     alive = np.ones(len(c), dtype=bool)
     trying = np.ones(len(c), dtype=bool)
-    for _ in range(_ELEVATION_TRIES):
+    take = 1
+    for _ in range(_ELEVATION_ROUNDS):
         left = np.flatnonzero(alive & trying)
         if not len(left):
             break
-        o, a, e, z = owner[left], approx[left], error[left], zc[left]
+        o = owner[left]
         starts = np.flatnonzero(np.r_[True, o[1:] != o[:-1]])
-        group = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(o)]))
-        index = np.arange(len(o))
-        # per node the closest candidate (the first in candidate order among equal
-        # distances)
-        best = np.lexsort((index, a, o))[starts]
-        # sure where every other candidate is surely farther or at the same elevation
-        # (then after the closest in candidate order: the rule's tie-break picks it too)
-        farther = (a - e > (a + e)[best][group]) | (z == z[best][group])
-        sure = np.logical_and.reduceat(farther, starts)
+        sizes = np.diff(np.r_[starts, len(o)])
+        group = np.repeat(np.arange(len(starts)), sizes)
+        rank = np.arange(len(o)) - starts[group]
+        taken = np.flatnonzero(rank < take)
+        t = left[taken]
+        ok = _pass_tables(seqs, lo[owner[t]], hi[owner[t]], c[t])
+        # per node the first correct one among those taken (its rank), or take
+        first = np.full(len(starts), take, dtype=np.int64)
+        np.minimum.at(first, group[taken[ok]], rank[taken[ok]])
+        has = first < take
+        pick = starts + np.minimum(first, sizes - 1)  # index into left
+        a, e, z = approx[left], error[left], zc[left]
+        # sure where every other candidate left after it is surely farther or at the same
+        # elevation (then after it in candidate order: the rule's tie-break picks it too)
+        limit = (a + e)[pick][group]
+        farther = (rank <= first[group]) | (a - e > limit) | (z == z[pick][group])
+        sure = has & np.logical_and.reduceat(farther, starts)
         nodes = o[starts]
-        tested = np.flatnonzero(sure)
-        correct = sure.copy()
-        t = nodes[tested]
-        correct[tested] = _pass_tables(seqs, lo[t], hi[t], c[left[best[tested]]])
-        found[nodes[correct]] = True
-        apex[nodes[correct]] = c[left[best[correct]]]
-        # a decided node's candidates and a closest candidate that is not correct leave;
-        # a node that is not sure keeps its candidates for the full test
-        alive[left[correct[group]]] = False
-        alive[left[best[sure & ~correct]]] = False
-        trying[left[~sure[group]]] = False
-    # the other nodes: every candidate left (each passed conditions 1 and 4 above), then the
-    # rule's choice among the correct ones
-    rest = alive & ~found[owner]
+        found[nodes[sure]] = True
+        apex[nodes[sure]] = c[left[pick[sure]]]
+        alive[left[sure[group]]] = False
+        # near-ties: every candidate left is tested; none correct: those taken drop out
+        trying[left[(has & ~sure)[group]]] = False
+        alive[t[~has[group[taken]]]] = False
+        take *= 2
+    # the other nodes: every candidate left (each passed conditions 1 and 4 above), back in
+    # candidate order, then the rule's choice among the correct ones
+    rest = np.flatnonzero(alive & ~found[owner])
+    rest = rest[np.argsort(order[rest])]
     owner, c = owner[rest], c[rest]
     good = _pass_tables(seqs, lo[owner], hi[owner], c)
     if good.any():
