@@ -31,7 +31,7 @@ from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
 from .delaunay_points import points_mesh, tree_of_triangles
 from .elevation_order import ElevationWindows
-from .subtrees import MAX_POSITIONS, build_subtrees
+from .subtrees import DELAUNAY_POSITIONS, MAX_POSITIONS, build_subtrees
 
 INVALID_MODES = ("fail", "as_given")
 _FIRST = FirstRule()
@@ -847,7 +847,7 @@ class _Tree:
     def _lockstep_rule(self) -> str | None:
         """The rule's name where the small sub-polygons go to the lock-step builder (a long
         sequence under rule first, elevation or delaunay), else None."""
-        if self.m <= MAX_POSITIONS:
+        if self.m <= self._lockstep_positions():
             return None
         if type(self.rule) is FirstRule:
             return "first"
@@ -856,6 +856,11 @@ class _Tree:
         if type(self.rule) is DelaunayRule:
             return "delaunay"
         return None
+
+    def _lockstep_positions(self) -> int:
+        """Largest sub-polygon (positions) handed to the lock-step builder: larger under rule
+        delaunay, whose one-step search per node costs far more than rule first's."""
+        return DELAUNAY_POSITIONS if type(self.rule) is DelaunayRule else MAX_POSITIONS
 
     def _touching_before(self) -> np.ndarray:
         """Per position p: how many positions before p hold a vertex that shares its point
@@ -879,8 +884,8 @@ class _Tree:
         deferred: list[tuple[int, int, int, bool, int, int, int]] | None,
     ) -> None:
         """Build the subtrees of the work items into ``rows``, in pre-order. With
-        ``deferred``, a sub-polygon of at most ``MAX_POSITIONS`` positions is not built but
-        listed there as (row it goes before, lo, hi, v1_at_hi, parent, depth, side)."""
+        ``deferred``, a sub-polygon of fewer than :meth:`_lockstep_positions` positions is not
+        built but listed there as (row it goes before, lo, hi, v1_at_hi, parent, depth, side)."""
         ids = self.ids
         triangles, parent, depth, side = rows.triangles, rows.parent, rows.depth, rows.side
         # as given: loops cut off at a repeated vertex, each triangulated as a tree of its own
@@ -889,15 +894,12 @@ class _Tree:
         mirrored = self.prepared.mirrored
         tick = self.tick
         touching = self._touching_before() if deferred is not None else None
+        limit = self._lockstep_positions()
         while work or loops:
             if not work:
                 work.append(loops.pop(0))
             lo, hi, v1_at_hi, par, dep, sd = work.pop()
-            if (
-                deferred is not None
-                and hi - lo < MAX_POSITIONS
-                and touching[hi + 1] == touching[lo]
-            ):
+            if deferred is not None and hi - lo < limit and touching[hi + 1] == touching[lo]:
                 deferred.append((count, lo, hi, v1_at_hi, par, dep, sd))
                 continue
             if tick is not None and count & 63 == 0:

@@ -19,6 +19,8 @@ from .lockstep import build_trees
 # largest sub-polygon (positions, both base corners included) handed to the lock-step builder
 # (its tests are quadratic in the sub-polygon's size)
 MAX_POSITIONS = 256
+# ... under rule delaunay (its lock-step guess tables stay bounded per call)
+DELAUNAY_POSITIONS = 1024
 # positions per lock-step call
 GROUP_POSITIONS = 200_000
 

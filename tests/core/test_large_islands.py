@@ -144,6 +144,8 @@ def test_delaunay_subtrees_of_the_lockstep_builder_match_one_step(
     monkeypatch.setattr(
         one_polygon, "build_subtrees", lambda *a, **k: calls.append(a[-1]) or build(*a, **k)
     )
+    # sub-polygons of up to 256 positions, as under rule first: many subtrees on these sizes
+    monkeypatch.setattr(one_polygon, "DELAUNAY_POSITIONS", 256)
     for rings in (_wavy(5000, 100, 1), [r[:, ::-1].copy() for r in _wavy(4000, 80, 6)]):
         fast = triangulate(rings, rule="delaunay")
         _same(_one_step(monkeypatch, rings, rule="delaunay"), fast)
