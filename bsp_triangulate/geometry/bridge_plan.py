@@ -64,7 +64,25 @@ def segments_clear(
     if len(ux) == 0:
         return clear
     row, found = grid.query_segments(ux, uy, wx, wy)
-    a, b = edge_a[found], edge_b[found]
+    clear[pairs_blocked(x, y, row, edge_a[found], edge_b[found], ux, uy, wx, wy)] = False
+    return clear
+
+
+def pairs_blocked(
+    x: np.ndarray,
+    y: np.ndarray,
+    row: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    ux: np.ndarray,
+    uy: np.ndarray,
+    wx: np.ndarray | float,
+    wy: np.ndarray | float,
+) -> np.ndarray:
+    """The segments (rows of ``ux``.. ``wy``; ``wx``, ``wy`` may be one point for all) that
+    the edge a-b of some pair (row, a, b) meets in their open interior, or whose relative
+    interior holds a or b (exact); may repeat rows."""
+    wx, wy = np.broadcast_to(wx, ux.shape), np.broadcast_to(wy, uy.shape)
     pax, pay, pbx, pby = x[a], y[a], x[b], y[b]
     pux, puy, pwx, pwy = ux[row], uy[row], wx[row], wy[row]
     # only edges whose bounding box meets the segment's can meet it (exact)
@@ -88,17 +106,21 @@ def segments_clear(
         o3 = orient_many(qax, qay, qbx, qby, pux[straddle], puy[straddle])
         o4 = orient_many(qax, qay, qbx, qby, pwx[straddle], pwy[straddle])
         blocked[straddle] = (o3.astype(np.int16) * o4) < 0
-    clear[row[blocked]] = False
-    return clear
+    return row[blocked]
 
 
 def inside_open_angle(
-    x: np.ndarray, y: np.ndarray, p: np.ndarray, v: np.ndarray, n: np.ndarray, h: np.ndarray
+    x: np.ndarray,
+    y: np.ndarray,
+    p: np.ndarray,
+    v: np.ndarray,
+    n: np.ndarray,
+    tx: np.ndarray | float,
+    ty: np.ndarray | float,
 ) -> np.ndarray:
-    """Per corner (p, v, n) of a ring in traversal order: the direction from v to h lies in
-    its open interior angle (``bridges._Bridger._inside_angle``, vectorised)."""
+    """Per corner (p, v, n) of the sequence: the direction from v to (tx, ty) lies in its
+    open interior angle (``bridges._Bridger._inside_angle``, vectorised)."""
     vx, vy, px, py, nx, ny = x[v], y[v], x[p], y[p], x[n], y[n]
-    tx, ty = x[h], y[h]
     turn = orient_many(px, py, vx, vy, nx, ny)
     toward_next = orient_many(vx, vy, nx, ny, tx, ty)
     after_next = toward_next >= 1
@@ -195,7 +217,7 @@ def plan_targets(
         # the next ones to test: nearest first, not tested yet, in the disk
         t = np.flatnonzero(inside & (place >= done[owner]) & (place < done[owner] + block))
         tv, th = cand[t], h[owner[t]]
-        ok = inside_open_angle(x, y, prev_of[tv], tv, next_of[tv], th)
+        ok = inside_open_angle(x, y, prev_of[tv], tv, next_of[tv], x[th], y[th])
         go = np.flatnonzero(ok)
         if len(go):
             gv, gh = tv[go], th[go]

@@ -13,7 +13,7 @@ from fractions import Fraction
 import numpy as np
 
 from ..triangulation import TriangulationError
-from .bridge_plan import plan_targets
+from .bridge_plan import inside_open_angle, pairs_blocked, plan_targets
 from .points import delaunay_point_bridge, nearest_point_bridge, point_order
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
@@ -412,19 +412,9 @@ class _Bridger:
 
     def _inside_angle_many(self, nodes: np.ndarray, tx: float, ty: float) -> np.ndarray:
         """Vectorised :meth:`_inside_angle` (open angle) of the occurrences ``nodes``."""
-        vid, x, y = self.vid, self.x, self.y
+        vid = self.vid
         v, p, n = vid[nodes], vid[self.prv[nodes]], vid[self.nxt[nodes]]
-        vx, vy, px, py, nx, ny = x[v], y[v], x[p], y[p], x[n], y[n]
-        turn = orient_many(px, py, vx, vy, nx, ny)
-        toward_next = orient_many(vx, vy, nx, ny, tx, ty)
-        after_next = toward_next >= 1
-        after_prev = orient_many(px, py, vx, vy, tx, ty) >= 1
-        straight = (nx - vx) * (px - vx) + (ny - vy) * (py - vy) < 0
-        on_ray = (toward_next == 0) & ((tx - vx) * (nx - vx) + (ty - vy) * (ny - vy) > 0)
-        flat = np.where(straight, after_next, ~on_ray)
-        return np.where(
-            turn > 0, after_next & after_prev, np.where(turn < 0, after_next | after_prev, flat)
-        )
+        return inside_open_angle(self.x, self.y, p, v, n, tx, ty)
 
     def _segments_clear(self, us: np.ndarray, w: int) -> np.ndarray:
         """Vectorised :meth:`_segment_clear` of the segments from each vertex of ``us`` to w."""
@@ -450,30 +440,7 @@ class _Bridger:
             row = np.concatenate([row, pair_row])
             a = np.concatenate([a, extra[pair_bridge, 0]])
             b = np.concatenate([b, extra[pair_bridge, 1]])
-        pax, pay, pbx, pby = x[a], y[a], x[b], y[b]
-        pux, puy = ux[row], uy[row]
-        # only edges whose bounding box meets the segment's can meet it (exact)
-        near = (
-            (np.maximum(pax, pbx) >= np.minimum(pux, wx))
-            & (np.minimum(pax, pbx) <= np.maximum(pux, wx))
-            & (np.maximum(pay, pby) >= np.minimum(puy, wy))
-            & (np.minimum(pay, pby) <= np.maximum(puy, wy))
-        )
-        pick = np.flatnonzero(near)
-        row, pux, puy = row[pick], pux[pick], puy[pick]
-        pax, pay, pbx, pby = pax[pick], pay[pick], pbx[pick], pby[pick]
-        o1 = orient_many(pux, puy, wx, wy, pax, pay)
-        o2 = orient_many(pux, puy, wx, wy, pbx, pby)
-        on_a = (o1 == 0) & strictly_between(pax, pay, pux, puy, wx, wy)
-        on_b = (o2 == 0) & strictly_between(pbx, pby, pux, puy, wx, wy)
-        blocked = on_a | on_b
-        straddle = np.flatnonzero(~blocked & ((o1.astype(np.int16) * o2) < 0))
-        if len(straddle):
-            qax, qay, qbx, qby = pax[straddle], pay[straddle], pbx[straddle], pby[straddle]
-            o3 = orient_many(qax, qay, qbx, qby, pux[straddle], puy[straddle])
-            o4 = orient_many(qax, qay, qbx, qby, wx, wy)
-            blocked[straddle] = (o3.astype(np.int16) * o4) < 0
-        clear[row[blocked]] = False
+        clear[pairs_blocked(x, y, row, a, b, ux, uy, wx, wy)] = False
         return clear
 
     def _valid_many(self, vids: np.ndarray, island: np.ndarray, h_index: int) -> list[list[int]]:
