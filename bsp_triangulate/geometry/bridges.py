@@ -723,15 +723,8 @@ def bridge_islands(
         grids = (bridger.points, bridger.point_ids, bridger.edges, bridger.edge_a, bridger.edge_b)
         plan = plan_targets(x, y, rings, joins, grids)
     joined = [False] * len(rings)
-    touching: list[tuple[int, int]] = []  # heap of (leftmost rank, slot)
-
-    def mark_touching(ring: np.ndarray) -> None:
-        for key in zip(x[ring].tolist(), y[ring].tolist()):
-            for slot in islands_at.get(key, ()):
-                if not joined[slot]:
-                    heapq.heappush(touching, (rank[slot], slot))
-
-    mark_touching(rings[0])
+    touching = _TouchingQueue(x, y, islands_at, rank, joined)
+    touching.mark(rings[0])
     # delaunay: a point is tried as soon as a vertex linked to it is in (points.PointOrder)
     order = point_order(bridger, rings) if delaunay else None
     ready = deque(order.ready(rings[0].tolist()) if order else ())
@@ -739,10 +732,8 @@ def bridge_islands(
     waiting: list[tuple[float, float, int, int]] = []  # delaunay: islands with no bridge yet
     progress = False
     while True:
-        if touching:
-            _, slot = heapq.heappop(touching)
-            if joined[slot]:
-                continue
+        slot = touching.pop()
+        if slot is not None:
             h_index = _touch_index(x, y, rings[slot], bridger)
             target = bridger.find_bridge(rings[slot], h_index)
         elif ready and order:
@@ -794,10 +785,43 @@ def bridge_islands(
             )
         bridger.splice(target[0], rings[slot], h_index)
         joined[slot] = True
-        mark_touching(rings[slot])
+        touching.mark(rings[slot])
         if order:
             ready.extend(order.ready(rings[slot].tolist()))
     return bridger.seq
+
+
+class _TouchingQueue:
+    """The islands not joined yet that share a point with the sequence, by leftmost rank: they
+    are joined before any other (docs/algorithm.md, section 2). ``joined`` is the caller's
+    per-slot flags, read when islands are queued and taken."""
+
+    def __init__(
+        self,
+        x: np.ndarray,
+        y: np.ndarray,
+        islands_at: dict[tuple[float, float], list[int]],
+        rank: dict[int, int],
+        joined: list[bool],
+    ) -> None:
+        self.x, self.y, self.islands_at, self.rank, self.joined = x, y, islands_at, rank, joined
+        self._heap: list[tuple[int, int]] = []
+
+    def mark(self, ring: np.ndarray) -> None:
+        """Queue the islands sharing a point with ``ring`` (now in the sequence)."""
+        heap, rank, joined, islands_at = self._heap, self.rank, self.joined, self.islands_at
+        for key in zip(self.x[ring].tolist(), self.y[ring].tolist()):
+            for slot in islands_at.get(key, ()):
+                if not joined[slot]:
+                    heapq.heappush(heap, (rank[slot], slot))
+
+    def pop(self) -> int | None:
+        """The next queued island not joined yet, or None."""
+        while self._heap:
+            _, slot = heapq.heappop(self._heap)
+            if not self.joined[slot]:
+                return slot
+        return None
 
 
 # islands from which their bridges are planned all at once (bridge_plan)
@@ -822,22 +846,13 @@ def _join_order(
     sequence first, by leftmost rank, then the next in leftmost order. Touching joins have
     no planned target (their bridge vertex index is not used)."""
     joined = [False] * len(rings)
-    touching: list[tuple[int, int]] = []
+    touching = _TouchingQueue(x, y, islands_at, rank, joined)
     order: list[tuple[int, int, bool]] = []
-
-    def mark(ring: np.ndarray) -> None:
-        for key in zip(x[ring].tolist(), y[ring].tolist()):
-            for slot in islands_at.get(key, ()):
-                if not joined[slot]:
-                    heapq.heappush(touching, (rank[slot], slot))
-
-    mark(rings[0])
+    touching.mark(rings[0])
     pending = iter(leftmost)
     while True:
-        if touching:
-            _, slot = heapq.heappop(touching)
-            if joined[slot]:
-                continue
+        slot = touching.pop()
+        if slot is not None:
             order.append((slot, 0, False))
         else:
             item = next((i for i in pending if not joined[i[2]]), None)
@@ -846,7 +861,7 @@ def _join_order(
             slot = item[2]
             order.append((slot, item[3], True))
         joined[slot] = True
-        mark(rings[slot])
+        touching.mark(rings[slot])
     return order
 
 
