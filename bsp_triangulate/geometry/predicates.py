@@ -250,6 +250,16 @@ def ring_area_signs(
     return np.where(sure, np.sign(total), 0).astype(np.int64), bool(finite.all())
 
 
+def area_surely_clear(
+    net: np.ndarray | float, magnitude: np.ndarray | float, count: np.ndarray | int
+) -> np.ndarray | bool:
+    """The net shoelace sum ``net`` of ``count`` points is surely more than 8 eps of its
+    products' magnitudes ``magnitude`` (the engine's negligible-area guard), whatever order
+    it and the guard sum in: a margin for both roundings. False also where unsure."""
+    margin = (8.0 + 8.0 * (count + 8)) * np.finfo(np.float64).eps * magnitude
+    return np.isfinite(net) & np.isfinite(magnitude) & (np.abs(net) > margin)
+
+
 # values per chunk of the exact area sum
 _EXACT_CHUNK = 1 << 16
 

@@ -14,7 +14,13 @@ from operator import attrgetter
 
 import numpy as np
 
-from .predicates import UNDERFLOW_SLACK, orient_many, ring_area_signs, shoelace_products
+from .predicates import (
+    UNDERFLOW_SLACK,
+    area_surely_clear,
+    orient_many,
+    ring_area_signs,
+    shoelace_products,
+)
 from .rings import WALL_RATIO
 
 _EPS = 2.0**-53
@@ -498,6 +504,4 @@ def clear_area(flat: FlatRings, wx: np.ndarray, areas: tuple | None = None) -> n
     if len(wx) == 0:
         return np.zeros(len(flat.handled), dtype=bool)
     net, magnitude = net_areas(flat, wx) if areas is None else areas
-    # both sums are rounded (here and in the engine): a margin for any summation order
-    margin = (8.0 + 8.0 * (flat.poly_vcount + 8)) * np.finfo(np.float64).eps * magnitude
-    return np.isfinite(net) & np.isfinite(magnitude) & (np.abs(net) > margin)
+    return area_surely_clear(net, magnitude, flat.poly_vcount)

@@ -14,6 +14,7 @@ import numpy as np
 from ..geometry.bridges import MeshEdges, bridge_islands, remove_spikes, ring_edges, split_touching
 from ..geometry.points import as_point_array, first_occurrences, strictly_inside
 from ..geometry.predicates import (
+    area_surely_clear,
     grid_exact,
     incircle_many,
     incircle_sos_many,
@@ -1510,8 +1511,7 @@ def _clear_area(prepared: PreparedRings, x0: float, y0: float) -> bool:
     left, right = shoelace_products(x, y, starts, starts + counts - 1)
     net = float(np.sum(left - right))
     magnitude = float(np.sum(np.abs(left)) + np.sum(np.abs(right)))
-    margin = (8.0 + 8.0 * (len(ids) + 8)) * np.finfo(np.float64).eps * magnitude
-    return math.isfinite(net) and math.isfinite(magnitude) and abs(net) > margin
+    return bool(area_surely_clear(net, magnitude, len(ids)))
 
 
 def negligible_area(prepared: PreparedRings) -> bool:
