@@ -176,7 +176,8 @@ def locate_cells(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(triangle, row, col, z) of every cell centre inside a triangle: ``corners`` (t, 3, 3)
     x, y, z of each triangle, ``grid_of`` (t,) the index of its grid in ``grids`` (all the
-    first when None). Each triangle enumerates the centres of its bounding box; barycentric
+    first when None), in the order triangle, row, column. Each row of a triangle's bounding
+    box enumerates the centres near where its centre line crosses the triangle; barycentric
     weights decide containment (a centre on a shared edge is found in both triangles) and
     give the interpolated z."""
     corners = np.asarray(corners, dtype=np.float64)
@@ -191,36 +192,126 @@ def locate_cells(
     )
     rows_n, cols_n = (np.array([g.shape[k] for g in grids], np.int64)[grid_of] for k in (0, 1))
     xs, ys = corners[:, :, 0], corners[:, :, 1]
-    c0 = np.maximum(np.ceil((xs.min(1) - x0) / dx - 0.5), 0).astype(np.int64)
-    c1 = np.minimum(np.floor((xs.max(1) - x0) / dx - 0.5), cols_n - 1).astype(np.int64)
-    r0 = np.maximum(np.ceil((y0 - ys.max(1)) / dy - 0.5), 0).astype(np.int64)
-    r1 = np.minimum(np.floor((y0 - ys.min(1)) / dy - 0.5), rows_n - 1).astype(np.int64)
-    width = np.maximum(c1 - c0 + 1, 0)
-    sizes = width * np.maximum(r1 - r0 + 1, 0)
-    starts = np.concatenate([[0], np.cumsum(sizes)])
+    # per corner columns: numpy reduces along an axis of 3 slowly
+    low_x, high_x, low_y, high_y = _extremes(xs) + _extremes(ys)
+    c0 = np.maximum(np.ceil((low_x - x0) / dx - 0.5), 0).astype(np.int64)
+    c1 = np.minimum(np.floor((high_x - x0) / dx - 0.5), cols_n - 1).astype(np.int64)
+    r0 = np.maximum(np.ceil((y0 - high_y) / dy - 0.5), 0).astype(np.int64)
+    r1 = np.minimum(np.floor((y0 - low_y) / dy - 0.5), rows_n - 1).astype(np.int64)
+    heights = np.maximum(r1 - r0 + 1, 0) * (c1 >= c0)
+    # the weights' terms of each triangle, the same float operations as per centre before
+    ax, ay, az = corners[:, 0, 0], corners[:, 0, 1], corners[:, 0, 2]
+    bax, bay, bz = corners[:, 1, 0] - ax, corners[:, 1, 1] - ay, corners[:, 1, 2]
+    cax, cay, cz = corners[:, 2, 0] - ax, corners[:, 2, 1] - ay, corners[:, 2, 2]
+    det = bax * cay - cax * bay
+    margin = _reach(xs, ys, (low_x, high_x, low_y, high_y))
+    # the boxes' centres bound the pairs of a block
+    starts = np.concatenate([[0], np.cumsum(heights * np.maximum(c1 - c0 + 1, 0))])
     found: list[tuple[np.ndarray, ...]] = []
     first = 0
     while first < count:
         last = int(np.searchsorted(starts, starts[first] + LOCATE_CHUNK, side="right")) - 1
         last = min(max(last, first + 1), count)
-        block = np.arange(first, last)
-        tri = np.repeat(block, sizes[block])
-        offset = np.arange(len(tri)) - np.repeat(starts[block] - starts[first], sizes[block])
-        col = c0[tri] + offset % np.maximum(width[tri], 1)
-        row = r0[tri] + offset // np.maximum(width[tri], 1)
-        px = x0[tri] + (col + 0.5) * dx[tri]
-        py = y0[tri] - (row + 0.5) * dy[tri]
-        a, b, c = corners[tri, 0], corners[tri, 1], corners[tri, 2]
-        det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-        with np.errstate(invalid="ignore", divide="ignore"):
-            wb = ((px - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (py - a[:, 1])) / det
-            wc = ((b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (px - a[:, 0]) * (b[:, 1] - a[:, 1])) / det
-            wa = 1.0 - wb - wc
-            z = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
-        hit = (det != 0) & (wa >= INSIDE_WEIGHT) & (wb >= INSIDE_WEIGHT) & (wc >= INSIDE_WEIGHT)
-        found.append((tri[hit], row[hit], col[hit], z[hit]))
+        found.append(
+            _locate_rows(
+                np.arange(first, last),
+                (heights, r0, c0, c1),
+                (xs, ys, x0, y0, dx, dy, margin),
+                (ax, ay, az, bax, bay, bz, cax, cay, cz, det),
+            )
+        )
         first = last
     return tuple(np.concatenate(column) for column in zip(*found))  # type: ignore[return-value]
+
+
+def _locate_rows(
+    block: np.ndarray,
+    boxes: tuple[np.ndarray, ...],
+    frame: tuple[np.ndarray, ...],
+    terms: tuple[np.ndarray, ...],
+) -> tuple[np.ndarray, ...]:
+    """:func:`locate_cells` of the triangles ``block``, row by row of their boxes:
+    ``boxes`` (rows, first row, first and last column), ``frame`` the corners' x and y,
+    each triangle's grid origin and cell size and :func:`_reach`, ``terms`` the weights'
+    terms."""
+    heights, r0, c0, c1 = boxes
+    xs, ys, x0, y0, dx, dy, margin = frame
+    tri = np.repeat(block, heights[block])
+    row = r0[tri] + _ranges_of(heights[block])
+    yc = y0[tri] - (row + 0.5) * dy[tri]
+    # the centre line's crossing with the triangle: per edge meeting it (closed in y), where
+    # it crosses (clamped to the edge; an edge within 1e-6 of flat gives its whole x range)
+    left = np.full(len(tri), np.inf)
+    right = np.full(len(tri), -np.inf)
+    corner_x = [xs[:, k][tri] for k in range(3)]
+    corner_y = [ys[:, k][tri] for k in range(3)]
+    for k in range(3):
+        px, py = corner_x[k], corner_y[k]
+        qx, qy = corner_x[(k + 1) % 3], corner_y[(k + 1) % 3]
+        low_x, high_x = np.minimum(px, qx), np.maximum(px, qx)
+        meets = (np.minimum(py, qy) <= yc) & (yc <= np.maximum(py, qy))
+        rise = qy - py
+        steep = np.abs(rise) > 1e-6 * (high_x - low_x)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            at = np.clip(px + (yc - py) * ((qx - px) / rise), low_x, high_x)
+        np.minimum(left, np.where(meets, np.where(steep, at, low_x), np.inf), out=left)
+        np.maximum(right, np.where(meets, np.where(steep, at, high_x), -np.inf), out=right)
+    reach = margin[tri]
+    first = np.maximum(np.ceil((left - reach - x0[tri]) / dx[tri] - 0.5), c0[tri])
+    last = np.minimum(np.floor((right + reach - x0[tri]) / dx[tri] - 0.5), c1[tri])
+    ok = np.isfinite(first) & np.isfinite(last)
+    first = np.where(ok, first, 0).astype(np.int64)
+    widths = np.maximum(np.where(ok, last, -1).astype(np.int64) - first + 1, 0)
+    at_row = np.repeat(np.arange(len(tri)), widths)
+    tri, row = tri[at_row], row[at_row]
+    col = first[at_row] + _ranges_of(widths)
+    px = x0[tri] + (col + 0.5) * dx[tri]
+    py = yc[at_row]
+    ax, ay, az, bax, bay, bz, cax, cay, cz, det = (term[tri] for term in terms)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        wb = ((px - ax) * cay - cax * (py - ay)) / det
+        wc = (bax * (py - ay) - (px - ax) * bay) / det
+        wa = 1.0 - wb - wc
+        z = wa * az + wb * bz + wc * cz
+    hit = (det != 0) & (wa >= INSIDE_WEIGHT) & (wb >= INSIDE_WEIGHT) & (wc >= INSIDE_WEIGHT)
+    return tri[hit], row[hit], col[hit], z[hit]
+
+
+def _extremes(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The smallest and largest of the three columns of ``values``."""
+    a, b, c = values[:, 0], values[:, 1], values[:, 2]
+    return np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
+
+
+def _reach(xs: np.ndarray, ys: np.ndarray, box: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Per triangle (corners ``xs``, ``ys``, extents ``box``), how far outside it (in x)
+    the weights of :func:`locate_cells` may accept a centre, with room to spare: the
+    weights' tolerance, their rounding (which grows as the shortest edge shrinks: inf for a
+    repeated corner) and that of the crossings."""
+    low_x, high_x, low_y, high_y = box
+    size = np.maximum(high_x - low_x, high_y - low_y)
+    scale = np.maximum(
+        np.maximum(np.abs(low_x), np.abs(high_x)), np.maximum(np.abs(low_y), np.abs(high_y))
+    )
+    scale += size
+    edges = np.minimum(
+        np.minimum(
+            np.hypot(xs[:, 0] - xs[:, 1], ys[:, 0] - ys[:, 1]),
+            np.hypot(xs[:, 1] - xs[:, 2], ys[:, 1] - ys[:, 2]),
+        ),
+        np.hypot(xs[:, 2] - xs[:, 0], ys[:, 2] - ys[:, 0]),
+    )
+    eps = 2.0**-52
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rounding = 64 * eps * (scale * size / edges + 1e6 * size + scale)
+    reach = 8 * abs(INSIDE_WEIGHT) * size + rounding
+    return np.where(np.isnan(reach), np.inf, reach)
+
+
+def _ranges_of(counts: np.ndarray) -> np.ndarray:
+    """0, 1, ..., counts[i] - 1 for each i, concatenated."""
+    total = int(counts.sum())
+    return np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
 
 
 @dataclass

@@ -203,6 +203,58 @@ def test_locate_cells_finds_every_centre_once_per_triangle():
     assert np.bincount(tri[on_diagonal]).tolist() == [10, 10]
 
 
+def box_weights(corners: np.ndarray, grid: CellGrid) -> tuple[np.ndarray, ...]:
+    """locate_cells' answer from every centre of each triangle's bounding box: the same
+    weights, no row spans."""
+    found = []
+    for t, corner in enumerate(corners):
+        c0, c1 = grid.column_range(corner[:, 0].min(), corner[:, 0].max())
+        r0, r1 = grid.row_range(corner[:, 1].min(), corner[:, 1].max())
+        row, col = (
+            a.ravel()
+            for a in np.meshgrid(np.arange(r0, r1 + 1), np.arange(c0, c1 + 1), indexing="ij")
+        )
+        px, py = grid.x0 + (col + 0.5) * grid.dx, grid.y0 - (row + 0.5) * grid.dy
+        a, b, c = corner
+        det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            wb = ((px - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (py - a[1])) / det
+            wc = ((b[0] - a[0]) * (py - a[1]) - (px - a[0]) * (b[1] - a[1])) / det
+            wa = 1.0 - wb - wc
+            z = wa * a[2] + wb * b[2] + wc * c[2]
+        hit = (det != 0) & (np.minimum(np.minimum(wa, wb), wc) >= -1e-9)
+        found.append((np.full(int(hit.sum()), t), row[hit], col[hit], z[hit]))
+    return tuple(np.concatenate(column) for column in zip(*found))
+
+
+@pytest.mark.parametrize("shape", ["random", "lattice", "flat slivers", "short edges"])
+def test_locate_cells_row_spans_miss_no_centre_of_the_box(shape: str):
+    rng = np.random.default_rng(7)
+    grid = CellGrid(5e5 + 0.25, 6.2e6, 30.0, 30.0, rng.normal(size=(60, 80)))
+    n = 300
+    low = np.array([grid.x0, grid.y0 - 60 * grid.dy])
+    extent = np.array([80 * grid.dx, 60 * grid.dy])
+    if shape == "random":
+        xy = low + rng.uniform(-0.1, 1.1, (n, 3, 2)) * extent
+    elif shape == "lattice":  # corners on centres and cell corners: edges through centres
+        steps = rng.integers(0, 60, (n, 3, 2)) + rng.choice([0.0, 0.5], (n, 3, 2))
+        xy = np.stack([grid.x0 + steps[..., 0] * grid.dx, grid.y0 - steps[..., 1] * grid.dy], -1)
+    elif shape == "flat slivers":
+        a = low + rng.uniform(0, 1, (n, 2)) * extent
+        b = a + np.column_stack([rng.uniform(-1, 1, n) * extent[0], rng.normal(size=n) * 1e-7])
+        c = a + np.column_stack([rng.uniform(-1, 1, n) * extent[0], rng.normal(size=n) * 30])
+        xy = np.stack([a, b, c], 1)
+    else:
+        a = low + rng.uniform(0, 1, (n, 2)) * extent
+        b = a + rng.normal(size=(n, 2)) * 10.0 ** rng.uniform(-9, 1, (n, 1))
+        b[:20] = a[:20]
+        xy = np.stack([a, b, low + rng.uniform(0, 1, (n, 2)) * extent], 1)
+    corners = np.concatenate([xy, rng.normal(size=(n, 3, 1))], -1)
+    got, want = locate_cells(corners, [grid]), box_weights(corners, grid)
+    for column, expected in zip(got, want):
+        np.testing.assert_array_equal(column, expected)
+
+
 def both_ways(monkeypatch: pytest.MonkeyPatch, run: Callable[[], object]) -> list:
     """``run()`` with the rounds by insertion, then with every round triangulated again."""
     from bsp_triangulate.terrain import refine as refine_module
