@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.delaunay_mesh import DelaunayMesh
-from ..geometry.predicates import ring_area_sign
+from ..geometry.delaunay_batch import MeshSet, links
+from ..geometry.predicates import incircle_sos_many, orient_many, ring_area_sign
 from .raster_sampling import PreparedGrid
 
 # (triangle, cell) pairs examined per numpy step of the point location
@@ -180,7 +180,7 @@ def locate_cells(
     box enumerates the centres near where its centre line crosses the triangle; barycentric
     weights decide containment (a centre on a shared edge is found in both triangles) and
     give the interpolated z."""
-    corners = np.asarray(corners, dtype=np.float64)
+    corners = _sorted_corners(np.asarray(corners, dtype=np.float64))
     count = len(corners)
     grid_of = np.zeros(count, np.int64) if grid_of is None else np.asarray(grid_of, np.int64)
     empty = np.zeros(0, np.int64)
@@ -306,6 +306,21 @@ def _reach(xs: np.ndarray, ys: np.ndarray, box: tuple[np.ndarray, ...]) -> np.nd
         rounding = 64 * eps * (scale * size / edges + 1e6 * size + scale)
     reach = 8 * abs(INSIDE_WEIGHT) * size + rounding
     return np.where(np.isnan(reach), np.inf, reach)
+
+
+def _sorted_corners(corners: np.ndarray) -> np.ndarray:
+    """Each triangle's corners in (x, y) order: the weights and z, rounded, then depend on
+    the triangle alone, not on which corner a mesh lists first or on its orientation."""
+    x, y = corners[:, :, 0], corners[:, :, 1]
+    # three corners: a sorting network of three compare-and-swaps
+    index = np.tile(np.arange(3), (len(corners), 1))
+    rows = np.arange(len(corners))
+    for i, j in ((0, 1), (1, 2), (0, 1)):
+        xi, yi = x[rows, index[:, i]], y[rows, index[:, i]]
+        xj, yj = x[rows, index[:, j]], y[rows, index[:, j]]
+        swap = (xj < xi) | ((xj == xi) & (yj < yi))
+        index[swap, i], index[swap, j] = index[swap, j], index[swap, i]
+    return np.take_along_axis(corners, index[:, :, None], axis=1)
 
 
 def _ranges_of(counts: np.ndarray) -> np.ndarray:
@@ -448,10 +463,10 @@ def refine_many(
                 meshes.start(active, results)
         measured = []
         for p, points, result in zip(active, given, results):
-            if isinstance(result, Exception) or not hasattr(result, "triangles"):
+            if isinstance(result, Exception) or not hasattr(result, "point_ids"):
                 outcome[p].error = result if isinstance(result, Exception) else None
                 continue
-            if not len(result.triangles):
+            if not isinstance(result, _HeldResult) and not len(result.triangles):
                 continue
             ids = np.asarray(result.point_ids)[len(fixed_points[p]) :]
             used_cells[p] = int((ids >= 0).sum())
@@ -514,6 +529,7 @@ def refine_many(
         chosen_of = np.bincount(owner[chosen], minlength=count)
         taken[chosen] = True
         next_active = []
+        insertions = []
         for p, _ in measured:
             outcome[p].max_error = float(worst[p])
             outcome[p].within = worst[p] <= limit and missing[p] == 0
@@ -522,16 +538,18 @@ def refine_many(
             if chosen_of[p]:
                 mine = chosen[owner[chosen] == p]
                 added[p] = np.concatenate([added[p], mine])
-                if meshes is not None:
-                    meshes.insert(p, cand_xyz[mine], holder[mine])
+                if meshes is not None and meshes.holds(p):
+                    insertions.append((p, cand_xyz[mine], holder[mine]))
                 next_active.append(p)
             elif refused[p] or spent[group[p]] >= max_points:
                 outcome[p].capped = True
+        if insertions:
+            meshes.insert(insertions)  # type: ignore[union-attr]
         active = next_active
     if meshes is not None:
-        for p in range(count):
-            if meshes.holds(p) and outcome[p].error is None:
-                outcome[p].mesh = meshes.triangles(p)
+        for p, triangles in meshes.triangles().items():
+            if outcome[p].error is None:
+                outcome[p].mesh = triangles
     return outcome
 
 
@@ -585,19 +603,26 @@ def _by_insertion(options: dict) -> bool:
 
 
 class _Meshes:
-    """Per polygon, its mesh of the first round (the engine's, with the fixed points) as a
-    :class:`DelaunayMesh` that later rounds insert their points into. The mesh works in the
-    engine's working plane (x mirrored where the outer ring is clockwise), so that cocircular
-    ties fall as the engine decides them."""
+    """The meshes of the first round (the engine's, with the fixed points) of the polygons
+    that keep theirs, as one :class:`MeshSet` (one region per polygon) that later rounds
+    insert their points into, all polygons at once. The meshes work in the engine's working
+    plane (x mirrored where the outer ring is clockwise), so that cocircular ties fall as the
+    engine decides them. Vertex ids are global; each polygon's local ids (its result's rows)
+    are its engine vertices, then its points in the order given, as the engine numbers them."""
 
     def __init__(self, polygons: Sequence[Sequence[np.ndarray]]) -> None:
         self.polygons = polygons
-        self.meshes: dict[int, DelaunayMesh] = {}
-        self.mirror: dict[int, float] = {}
-        self.z: dict[int, list[float]] = {}
+        self.mesh: MeshSet | None = None
+        self.region_of: dict[int, int] = {}
+        self.polygon_of = np.zeros(0, np.int64)
+        self.mirror = np.zeros(0)
+        self.z = np.zeros(0)
+        self.local = np.zeros(0, np.int64)
+        self.local_count: dict[int, int] = {}
         self.point_ids: dict[int, list[int]] = {}
-        # per polygon: the triangles its cells were located in (and which changed last);
-        # (polygon, triangle, candidate, z) of every located cell, grouped by polygon
+        # polygons triangulated again each round: the triangles their cells were located
+        # in (and which changed last); (polygon, triangle, candidate, z) of every located
+        # cell, grouped by polygon (triangle: a row of the result, or a global mesh id)
         self.known: dict[int, np.ndarray] = {}
         self.changed: dict[int, np.ndarray] = {}
         empty = np.zeros(0, np.int64)
@@ -605,31 +630,40 @@ class _Meshes:
 
     def holds(self, p: int) -> bool:
         """Polygon p has a mesh (the others are triangulated again each round)."""
-        return p in self.meshes
+        return p in self.region_of
 
     def start(self, active: Sequence[int], results: Sequence[object]) -> None:
         """Meshes from the engine's first results. Errors, empty results and a triangulation
         that is not locally Delaunay (an island's fallback bridge, section 5a: the engine's
         next results would not be this mesh with points inserted) get none."""
+        kept = []
         for p, result in zip(active, results):
             if isinstance(result, Exception) or not len(getattr(result, "triangles", ())):
                 continue
             outer = np.asarray(self.polygons[p][0], dtype=np.float64)
-            sign = ring_area_sign(outer[:, 0], outer[:, 1])
-            mirror = -1.0 if sign < 0 else 1.0
+            mirror = -1.0 if ring_area_sign(outer[:, 0], outer[:, 1]) < 0 else 1.0
             triangles = np.asarray(result.triangles, np.int64)
             if mirror < 0:
                 triangles = triangles[:, [1, 0, 2]]
-            vertices = np.asarray(result.vertices, dtype=np.float64)
-            try:
-                mesh = DelaunayMesh(mirror * vertices[:, 0], vertices[:, 1], triangles)
-            except ValueError:
-                continue
-            if mesh.make_delaunay():
-                continue
-            self.meshes[p] = mesh
-            self.mirror[p] = mirror
-            self.z[p] = vertices[:, 2].tolist()
+            kept.append((p, mirror, np.asarray(result.vertices, np.float64), triangles, result))
+        good = _delaunay_regions([(m * v[:, 0], v[:, 1], t) for _, m, v, t, _ in kept])
+        kept = [k for k, ok in zip(kept, good) if ok]
+        if not kept:
+            return
+        sizes = np.array([len(v) for _, _, v, _, _ in kept], np.int64)
+        offsets = np.cumsum(sizes) - sizes
+        mirror = np.repeat([m for _, m, _, _, _ in kept], sizes)
+        vertices = np.concatenate([v for _, _, v, _, _ in kept])
+        triangles = np.concatenate([t + o for (_, _, _, t, _), o in zip(kept, offsets)])
+        region = np.repeat(np.arange(len(kept)), [len(t) for _, _, _, t, _ in kept])
+        self.mesh = MeshSet(mirror * vertices[:, 0], vertices[:, 1], triangles, region)
+        self.polygon_of = np.array([p for p, _, _, _, _ in kept], np.int64)
+        self.mirror = np.array([m for _, m, _, _, _ in kept])
+        self.z = vertices[:, 2].copy()
+        self.local = np.arange(len(vertices)) - np.repeat(offsets, sizes)
+        for r, (p, _, v, _, result) in enumerate(kept):
+            self.region_of[p] = r
+            self.local_count[p] = len(v)
             self.point_ids[p] = np.asarray(result.point_ids, np.int64).tolist()
 
     def located(
@@ -641,8 +675,10 @@ class _Meshes:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:func:`_located`, locating again only the cells of the triangles that changed
         since the last round (the others keep their cells and z)."""
-        fresh: list[tuple[int, np.ndarray, np.ndarray]] = []
+        fresh: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         for p, result in measured:
+            if self.holds(p):
+                continue
             triangles = np.asarray(result.triangles)
             before = self.known.get(p)
             changed = np.ones(len(triangles), bool)
@@ -651,7 +687,22 @@ class _Meshes:
             self.known[p] = triangles
             self.changed[p] = changed
             rows = np.flatnonzero(changed)
-            fresh.append((p, rows, result.vertices[triangles[rows]]))
+            fresh.append((np.full(len(rows), p), rows, result.vertices[triangles[rows]]))
+        mesh_changed = np.zeros(0, bool)
+        if self.mesh is not None:
+            mesh = self.mesh
+            mesh_changed = mesh.changed[: mesh.triangle_count].copy()
+            mesh.changed[:] = False
+            measuring = np.zeros(len(self.polygon_of), bool)
+            measuring[[self.region_of[p] for p, _ in measured if self.holds(p)]] = True
+            ids = np.flatnonzero(mesh_changed & measuring[mesh.region[: mesh.triangle_count]])
+            corners = mesh.vertex[(3 * ids)[:, None] + np.arange(3)]
+            region = mesh.region[ids]
+            xyz = np.stack(
+                [self.mirror[region, None] * mesh.x[corners], mesh.y[corners], self.z[corners]],
+                axis=-1,
+            )
+            fresh.append((self.polygon_of[region], ids, xyz))
         # the pairs of the triangles that did not change stay (polygons no longer refined
         # leave for good)
         poly, tri, cand, z = self.pairs
@@ -659,13 +710,16 @@ class _Meshes:
             stays = np.zeros(len(poly), bool)
             for p, _ in measured:
                 at = slice(*np.searchsorted(poly, [p, p + 1]))
-                stays[at] = ~self.changed[p][tri[at]]
+                changed = mesh_changed if self.holds(p) else self.changed[p]
+                stays[at] = ~changed[tri[at]]
             poly, tri, cand, z = poly[stays], tri[stays], cand[stays], z[stays]
-        polys = np.array([p for p, _, _ in fresh], np.int64)
-        sizes = np.array([len(rows) for _, rows, _ in fresh], np.int64)
-        tri_poly = np.repeat(polys, sizes)
-        tri_row = np.concatenate([rows for _, rows, _ in fresh])
-        corners = np.concatenate([c for _, _, c in fresh]).reshape(-1, 3, 3)
+        tri_poly = np.concatenate([f[0] for f in fresh]) if fresh else np.zeros(0, np.int64)
+        tri_row = np.concatenate([f[1] for f in fresh]) if fresh else np.zeros(0, np.int64)
+        corners = (
+            np.concatenate([f[2] for f in fresh]).reshape(-1, 3, 3)
+            if fresh
+            else np.zeros((0, 3, 3))
+        )
         found = locate_cells(corners, windows, tri_poly)
         new = _candidate_pairs(
             tri_poly[found[0]], tri_row[found[0]], *found[1:], windows, lookup, base
@@ -675,42 +729,99 @@ class _Meshes:
         self.pairs = (poly[order], tri[order], cand[order], z[order])
         return self.pairs
 
-    def triangles(self, p: int) -> np.ndarray:
-        """Polygon p's triangles, counter-clockwise in the output's XY."""
-        triangles = self.meshes[p].triangles()
-        return triangles[:, [1, 0, 2]] if self.mirror[p] < 0 else triangles
+    def triangles(self) -> dict[int, np.ndarray]:
+        """Per polygon with a mesh, its triangles in its local ids, counter-clockwise in
+        the output's XY."""
+        if self.mesh is None:
+            return {}
+        mesh = self.mesh
+        region = mesh.region[: mesh.triangle_count]
+        order = np.argsort(region, kind="stable")
+        local = self.local[mesh.triangles()[order]]
+        flip = self.mirror[region[order]] < 0
+        local[flip] = local[flip][:, [1, 0, 2]]
+        ends = np.searchsorted(region[order], np.arange(len(self.polygon_of) + 1))
+        return {
+            int(p): local[ends[r] : ends[r + 1]] for r, p in enumerate(self.polygon_of.tolist())
+        }
 
-    def result(self, p: int) -> object:
-        """The polygon's mesh now, shaped as the engine's result."""
-        mesh = self.meshes[p]
-        vertices = np.column_stack(
-            [self.mirror[p] * np.array(mesh.x), np.array(mesh.y), np.array(self.z[p])]
-        )
-        return _MeshResult(vertices, mesh.triangles(), np.array(self.point_ids[p], np.int64))
+    def result(self, p: int) -> _HeldResult:
+        """The polygon's result so far: the engine's point ids, then those of the points
+        inserted."""
+        return _HeldResult(np.array(self.point_ids[p], np.int64))
 
-    def insert(self, p: int, xyz: np.ndarray, near: np.ndarray) -> None:
-        """Insert the points (x, y, z) into polygon p's mesh (if it has one), each found from
-        its triangle ``near``; a point the mesh cannot take (on a vertex) is recorded as not
-        used."""
-        mesh = self.meshes.get(p)
-        if mesh is None:
+    def insert(self, insertions: Sequence[tuple[int, np.ndarray, np.ndarray]]) -> None:
+        """Insert the points (x, y, z) of each (polygon, points, near) into its mesh at once,
+        each found from its triangle ``near``; a point the mesh cannot take (on a vertex) is
+        recorded as not used."""
+        mesh = self.mesh
+        if mesh is None or not insertions:
             return
-        mirror, z, ids = self.mirror[p], self.z[p], self.point_ids[p]
-        for (px, py, pz), start in zip(xyz.tolist(), near.tolist()):
-            try:
-                vid = mesh.insert(mirror * px, py, start)
-            except ValueError:
-                ids.append(-1)
-                continue
-            z.append(pz)
-            ids.append(vid)
+        region = np.concatenate([np.full(len(xyz), self.region_of[p]) for p, xyz, _ in insertions])
+        xyz = np.concatenate([xyz for _, xyz, _ in insertions])
+        near = np.concatenate([n for _, _, n in insertions])
+        ids = mesh.insert(self.mirror[region] * xyz[:, 0], xyz[:, 1], near)
+        total = mesh.vertex_count
+        self.z = _grown_to(self.z, total)
+        self.local = _grown_to(self.local, total)
+        used = ids >= 0
+        self.z[ids[used]] = xyz[used, 2]
+        at = 0
+        for p, points, _ in insertions:
+            mine = ids[at : at + len(points)]
+            at += len(points)
+            taken = mine >= 0
+            local = np.full(len(mine), -1, np.int64)
+            local[taken] = self.local_count[p] + np.arange(int(taken.sum()))
+            self.local[mine[taken]] = local[taken]
+            self.local_count[p] += int(taken.sum())
+            self.point_ids[p].extend(local.tolist())
 
 
 @dataclass
-class _MeshResult:
-    vertices: np.ndarray
-    triangles: np.ndarray
+class _HeldResult:
     point_ids: np.ndarray
+
+
+def _grown_to(array: np.ndarray, size: int) -> np.ndarray:
+    """``array`` with zeros appended up to ``size`` entries."""
+    if len(array) >= size:
+        return array
+    grown = np.zeros(max(size, 2 * len(array)), dtype=array.dtype)
+    grown[: len(array)] = array
+    return grown
+
+
+def _delaunay_regions(regions: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list[bool]:
+    """Per (x, y, triangles): whether the triangles are counter-clockwise, use each directed
+    edge once and are locally Delaunay (the rule's tie rule) across every shared edge."""
+    if not regions:
+        return []
+    sizes = np.array([len(x) for x, _, _ in regions], np.int64)
+    offsets = np.cumsum(sizes) - sizes
+    x = np.concatenate([x for x, _, _ in regions])
+    y = np.concatenate([y for _, y, _ in regions])
+    tri = np.concatenate([t + o for (_, _, t), o in zip(regions, offsets)])
+    owner = np.repeat(np.arange(len(regions)), [len(t) for _, _, t in regions])
+    bad = np.zeros(len(regions), bool)
+    signs = orient_many(*(c[tri[:, k]] for k in range(3) for c in (x, y)))
+    bad[owner[signs <= 0]] = True
+    start, end = tri[:, [1, 2, 0]].ravel(), tri[:, [2, 0, 1]].ravel()
+    keys = start * len(x) + end
+    order = np.argsort(keys, kind="stable")
+    twice = order[1:][keys[order[1:]] == keys[order[:-1]]]
+    slot_owner = np.repeat(owner, 3)
+    bad[slot_owner[twice]] = True
+    across = links(tri, len(x))
+    s = np.flatnonzero(across >= 0)
+    n = across[s]
+    k = s % 3
+    base = s - k
+    v = tri.ravel()
+    a, b, c, d = v[s], v[base + (k + 1) % 3], v[base + (k + 2) % 3], v[n]
+    flips = incircle_sos_many(x[a], y[a], x[b], y[b], x[c], y[c], x[d], y[d]) > 0
+    bad[slot_owner[s[flips]]] = True
+    return (~bad).tolist()
 
 
 def _points(points: np.ndarray | None) -> np.ndarray:

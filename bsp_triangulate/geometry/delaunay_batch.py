@@ -1,0 +1,487 @@
+"""Many constrained Delaunay triangulations in flat numpy arrays, points inserted in batches.
+
+The layout of :class:`.delaunay_mesh.DelaunayMesh` (slot ``3t + k``: vertex k of triangle t
+and the edge opposite it; ``across`` the neighbour's slot or -1 on the boundary; ``fixed``:
+never flipped) for many regions at once: vertex and triangle ids are global, regions share
+none. A batch inserts at most one point per triangle at a time (1 -> 3 inside, 2 -> 4 on an
+interior edge, 1 -> 2 on a boundary edge), all together, then flips every edge that is not
+locally Delaunay (:func:`.predicates.incircle_sos_many`) in passes of flips that share no
+triangle, until none is left. The symbolic tie rule makes the constrained Delaunay
+triangulation unique, so the triangles are those that ``DelaunayMesh`` makes one point at a
+time; only their ids differ.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .predicates import incircle_sos_many, orient_many
+
+# slots (k + 1) % 3 and (k + 2) % 3 of local slot k
+_NEXT = np.array([1, 2, 0])
+_PREV = np.array([2, 0, 1])
+
+
+class MeshSet:
+    """Constrained Delaunay triangulations of many regions, to insert points into in batches.
+
+    ``x``, ``y``: vertex coordinates; ``triangles`` (t, 3) vertex ids, counter-clockwise;
+    ``region`` (t,) each triangle's region. Edges with a triangle on one side only are the
+    regions' boundaries; ``fixed_pairs`` (e, 2) further edges never flipped. ``changed``
+    marks the triangles made or altered since it was last cleared (all, at first)."""
+
+    def __init__(
+        self,
+        x: np.ndarray,
+        y: np.ndarray,
+        triangles: np.ndarray,
+        region: np.ndarray,
+        fixed_pairs: np.ndarray | None = None,
+    ) -> None:
+        tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        n, t = len(x), len(tri)
+        self._nv, self._nt = n, t
+        self.x = np.array(x, dtype=np.float64)
+        self.y = np.array(y, dtype=np.float64)
+        self.vertex = tri.ravel().copy()
+        self.across = links(tri, n)
+        self.fixed = np.zeros(3 * t, dtype=bool)
+        if fixed_pairs is not None and len(fixed_pairs):
+            pairs = np.asarray(fixed_pairs, dtype=np.int64).reshape(-1, 2)
+            start, end = tri[:, [1, 2, 0]].ravel(), tri[:, [2, 0, 1]].ravel()
+            keys = np.minimum(start, end) * n + np.maximum(start, end)
+            self.fixed = np.isin(keys, pairs.min(axis=1) * n + pairs.max(axis=1))
+        self.region = np.asarray(region, dtype=np.int64).copy()
+        self.changed = np.ones(t, dtype=bool)
+        # per triangle scratch for claims, kept at _FREE between uses
+        self._claim = np.full(t, _FREE, dtype=np.int64)
+
+    @property
+    def vertex_count(self) -> int:
+        return self._nv
+
+    @property
+    def triangle_count(self) -> int:
+        return self._nt
+
+    def triangles(self) -> np.ndarray:
+        """(t, 3) vertex ids of every triangle, counter-clockwise."""
+        return self.vertex[: 3 * self._nt].reshape(-1, 3)
+
+    def insert(self, px: np.ndarray, py: np.ndarray, start: np.ndarray) -> np.ndarray:
+        """Add the points (px, py), each found from triangle ``start`` (a triangle of its
+        region, best near it), and restore the Delaunay property; returns each point's vertex
+        id, or -1 for a point outside its region (walking from ``start``) or equal to a
+        vertex. Equal points: the first is inserted, the others are vertices by then."""
+        px = np.asarray(px, dtype=np.float64)
+        py = np.asarray(py, dtype=np.float64)
+        ids = np.full(len(px), -1, dtype=np.int64)
+        pending = np.arange(len(px))
+        near = np.asarray(start, dtype=np.int64).copy()
+        if len(near) and (near.min() < 0 or near.max() >= self._nt):
+            raise ValueError("a start triangle does not exist")
+        while len(pending):
+            tri, edge, found = self._locate(px[pending], py[pending], near[pending])
+            pending, tri, edge = pending[found], tri[found], edge[found]
+            if not len(pending):
+                break
+            other = np.where(edge >= 0, self.across[3 * tri + np.maximum(edge, 0)], -1)
+            partner = np.where(other >= 0, other // 3, -1)
+            # one point per triangle (an edge point holds both of its edge's), the first wins
+            rank = np.arange(len(pending))
+            claim = self._claim
+            np.minimum.at(claim, tri, rank)
+            paired = partner >= 0
+            np.minimum.at(claim, partner[paired], rank[paired])
+            wins = claim[tri] == rank
+            wins[paired] &= claim[partner[paired]] == rank[paired]
+            claim[tri] = _FREE
+            claim[partner[paired]] = _FREE
+            ids[pending[wins]] = self._split(
+                px[pending[wins]], py[pending[wins]], tri[wins], edge[wins], other[wins]
+            )
+            near[pending[~wins]] = tri[~wins]
+            pending = pending[~wins]
+        return ids
+
+    def _locate(
+        self, px: np.ndarray, py: np.ndarray, start: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per point: the triangle holding it (closed), the local edge it lies on (-1:
+        strictly inside) and whether it was found and is no vertex. Visibility walks from
+        ``start`` in lock-step; a point whose walk is blocked or long is looked for among
+        all triangles of its region."""
+        count = len(px)
+        tri = start.copy()
+        edge = np.full(count, -1, dtype=np.int64)
+        found = np.zeros(count, dtype=bool)
+        todo = np.arange(count)
+        vertex, across, x, y = self.vertex, self.across, self.x, self.y
+        limit = 64 + 8 * int(np.sqrt(self._nt))
+        for step in range(limit):
+            if not len(todo):
+                break
+            t = tri[todo]
+            corners = vertex[(3 * t)[:, None] + np.arange(3)]
+            qx, qy = px[todo], py[todo]
+            # sign of the point against edge k, from corner k + 1 to corner k + 2
+            signs = np.stack(
+                [
+                    orient_many(
+                        x[corners[:, (k + 1) % 3]],
+                        y[corners[:, (k + 1) % 3]],
+                        x[corners[:, (k + 2) % 3]],
+                        y[corners[:, (k + 2) % 3]],
+                        qx,
+                        qy,
+                    )
+                    for k in range(3)
+                ],
+                axis=1,
+            )
+            inside = (signs >= 0).all(axis=1)
+            done = todo[inside]
+            zeros = signs[inside] == 0
+            on_vertex = (x[corners[inside]] == qx[inside, None]) & (
+                y[corners[inside]] == qy[inside, None]
+            )
+            found[done] = ~on_vertex.any(axis=1)
+            edge[done] = np.where(zeros.any(axis=1), zeros.argmax(axis=1), -1)
+            # step across a negative edge with a neighbour; the first one looked at turns
+            # with the step, so that no walk keeps circling one way
+            out = ~inside
+            moving = todo[out]
+            neg = signs[out] < 0
+            slots = 3 * t[out][:, None] + np.arange(3)
+            beyond = across[slots]
+            usable = neg & (beyond >= 0)
+            turn = (np.arange(3)[None, :] + step + moving[:, None]) % 3
+            pick = np.take_along_axis(usable, turn, axis=1).argmax(axis=1)
+            k = turn[np.arange(len(moving)), pick]
+            can = usable[np.arange(len(moving)), k]
+            tri[moving[can]] = beyond[np.arange(len(moving)), k][can] // 3
+            blocked = moving[~can]
+            for i in blocked.tolist():
+                tri[i], edge[i], found[i] = self._scan(px[i], py[i], int(self.region[tri[i]]))
+            todo = moving[can]
+        for i in todo.tolist():
+            tri[i], edge[i], found[i] = self._scan(px[i], py[i], int(self.region[tri[i]]))
+        return tri, edge, found
+
+    def _scan(self, px: float, py: float, region: int) -> tuple[int, int, bool]:
+        """:meth:`_locate` of one point among every triangle of ``region``."""
+        among = np.flatnonzero(self.region[: self._nt] == region)
+        corners = self.vertex[(3 * among)[:, None] + np.arange(3)]
+        x, y = self.x, self.y
+        signs = np.stack(
+            [
+                orient_many(
+                    x[corners[:, (k + 1) % 3]],
+                    y[corners[:, (k + 1) % 3]],
+                    x[corners[:, (k + 2) % 3]],
+                    y[corners[:, (k + 2) % 3]],
+                    px,
+                    py,
+                )
+                for k in range(3)
+            ],
+            axis=1,
+        )
+        holding = np.flatnonzero((signs >= 0).all(axis=1))
+        if not len(holding):
+            return int(among[0]) if len(among) else 0, -1, False
+        h = holding[0]
+        if ((x[corners[h]] == px) & (y[corners[h]] == py)).any():
+            return int(among[h]), -1, False
+        zero = np.flatnonzero(signs[h] == 0)
+        return int(among[h]), int(zero[0]) if len(zero) else -1, True
+
+    def _reserve(self, vertices: int, triangles: int) -> None:
+        """Room for this many more vertices and triangles."""
+        need_v, need_t = self._nv + vertices, self._nt + triangles
+        if need_v > len(self.x):
+            size = max(need_v, 2 * len(self.x))
+            self.x = _grown(self.x, size)
+            self.y = _grown(self.y, size)
+        if need_t > len(self.region):
+            size = max(need_t, 2 * len(self.region))
+            self.vertex = _grown(self.vertex, 3 * size)
+            self.across = _grown(self.across, 3 * size)
+            self.fixed = _grown(self.fixed, 3 * size)
+            self.region = _grown(self.region, size)
+            self.changed = _grown(self.changed, size)
+            claim = np.full(size, _FREE, dtype=np.int64)
+            claim[: len(self._claim)] = self._claim
+            self._claim = claim
+
+    def _split(
+        self, px: np.ndarray, py: np.ndarray, tri: np.ndarray, edge: np.ndarray, other: np.ndarray
+    ) -> np.ndarray:
+        """Insert one point into each triangle ``tri`` (no two alike, nor neighbours across
+        an ``edge`` a point lies on), then flip; returns the new vertex ids."""
+        count = len(px)
+        inside = edge < 0
+        interior = ~inside & (other >= 0)
+        new_count = 2 * count - int(np.count_nonzero(~inside & ~interior))
+        self._reserve(count, new_count)
+        ids = np.arange(self._nv, self._nv + count)
+        self.x[ids], self.y[ids] = px, py
+        self._nv += count
+        first_new = self._nt
+        self._nt += new_count
+        # new triangle ids: two per point, one per boundary-edge point
+        per_point = np.where(inside | interior, 2, 1)
+        new_start = first_new + np.cumsum(per_point) - per_point
+        rows = _Rows()
+        i = np.flatnonzero(inside)
+        if len(i):
+            self._split_inside(rows, ids[i], tri[i], new_start[i])
+        e = np.flatnonzero(~inside)
+        if len(e):
+            self._split_edges(rows, ids[e], tri[e], edge[e], other[e], new_start[e])
+        touched = rows.write(self)
+        self.region[first_new : self._nt] = self.region[rows.source_of_new(first_new, self._nt)]
+        self.changed[touched // 3] = True
+        # edges opposite the new vertices may not be locally Delaunay
+        self._flip_all(rows.outer_slots())
+        return ids
+
+    def _split_inside(self, rows: _Rows, p: np.ndarray, t: np.ndarray, new: np.ndarray) -> None:
+        """1 -> 3: (p, b, c) keeps id t, (p, c, a) and (p, a, b) are the new ids."""
+        base, s1, s2 = 3 * t, 3 * new, 3 * (new + 1)
+        v = self.vertex
+        a, b, c = v[base], v[base + 1], v[base + 2]
+        f = self.fixed
+        rows.add(t, t, (p, b, c), (base, s1 + 2, s2 + 1), (True, False, False), (f[base], 0, 0))
+        rows.add(
+            new,
+            t,
+            (p, c, a),
+            (base + 1, s2 + 2, base + 1),
+            (True, False, False),
+            (f[base + 1], 0, 0),
+        )
+        rows.add(
+            new + 1,
+            t,
+            (p, a, b),
+            (base + 2, base + 2, s1 + 1),
+            (True, False, False),
+            (f[base + 2], 0, 0),
+        )
+
+    def _split_edges(
+        self,
+        rows: _Rows,
+        p: np.ndarray,
+        t: np.ndarray,
+        k: np.ndarray,
+        other: np.ndarray,
+        new: np.ndarray,
+    ) -> None:
+        """p on edge k = (u, v) of t = (w, u, v): 2 -> 4 with the triangle (z, v, u) across,
+        1 -> 2 on the boundary; the halves of a fixed edge stay fixed."""
+        v_, f = self.vertex, self.fixed
+        base = 3 * t
+        s_vw, s_wu = base + _NEXT[k], base + _PREV[k]
+        w, u, v = v_[base + k], v_[s_vw], v_[s_wu]
+        split = f[base + k]
+        s1, s2 = base, 3 * new
+        inner = other >= 0
+        # the neighbour across: t3 = (z, v, u), slot j holding z; t4 the second new id
+        o = np.where(inner, other, 0)
+        s3 = o - o % 3
+        s_uz, s_zv = s3 + _NEXT[o % 3], s3 + _PREV[o % 3]
+        z = v_[o]
+        s4 = s2 + 3
+        none = np.full(len(t), -1)
+        rows.add(
+            t,
+            t,
+            (p, v, w),
+            (s_vw, s2 + 2, np.where(inner, s4 + 1, none)),
+            (True, False, False),
+            (f[s_vw], 0, split),
+        )
+        rows.add(
+            new,
+            t,
+            (p, w, u),
+            (s_wu, np.where(inner, s3 + 2, none), s1 + 1),
+            (True, False, False),
+            (f[s_wu], split, 0),
+        )
+        i = np.flatnonzero(inner)
+        t3 = s3[i] // 3
+        rows.add(
+            t3,
+            t3,
+            (p[i], u[i], z[i]),
+            (s_uz[i], s4[i] + 2, s2[i] + 1),
+            (True, False, False),
+            (f[s_uz[i]], 0, split[i]),
+        )
+        rows.add(
+            new[i] + 1,
+            t3,
+            (p[i], z[i], v[i]),
+            (s_zv[i], s1[i] + 2, s3[i] + 1),
+            (True, False, False),
+            (f[s_zv[i]], split[i], 0),
+        )
+
+    def _flip_all(self, dirty: np.ndarray) -> None:
+        """Flip edges that are not locally Delaunay, starting from the ``dirty`` slots, in
+        passes of flips that share no triangle, until every edge looked at is."""
+        vertex, across, fixed, x, y = self.vertex, self.across, self.fixed, self.x, self.y
+        claim = self._claim
+        while len(dirty):
+            n = across[dirty]
+            keep = (n >= 0) & ~fixed[dirty]
+            s = np.unique(np.minimum(dirty[keep], n[keep]))
+            n = across[s]
+            k = s % 3
+            base = s - k
+            a, b, c, d = vertex[s], vertex[base + _NEXT[k]], vertex[base + _PREV[k]], vertex[n]
+            bad = incircle_sos_many(x[a], y[a], x[b], y[b], x[c], y[c], x[d], y[d]) > 0
+            s, n = s[bad], n[bad]
+            if not len(s):
+                break
+            t1, t2 = s // 3, n // 3
+            np.minimum.at(claim, t1, s)
+            np.minimum.at(claim, t2, s)
+            wins = (claim[t1] == s) & (claim[t2] == s)
+            claim[t1] = _FREE
+            claim[t2] = _FREE
+            lost = s[~wins]
+            flipped = np.zeros(0, dtype=np.int64)
+            if len(lost):
+                flipped = np.concatenate([t1[wins], t2[wins]])
+            rows = _Rows()
+            self._flip(rows, s[wins], n[wins])
+            rows.write(self)
+            self.changed[t1[wins]] = True
+            self.changed[t2[wins]] = True
+            if len(lost):
+                # a loser whose triangle a winner flipped is one of the winner's outer edges
+                gone = np.isin(lost // 3, flipped) | np.isin(across[lost] // 3, flipped)
+                lost = lost[~gone]
+            dirty = np.concatenate([lost, rows.outer_slots()])
+
+    def _flip(self, rows: _Rows, s: np.ndarray, n: np.ndarray) -> None:
+        """Flip the edge (b, c) of slot s in t = (a, b, c), d across it (slot n): t becomes
+        (a, b, d) and the neighbour (a, d, c)."""
+        v, f = self.vertex, self.fixed
+        k = s % 3
+        base = s - k
+        j = n % 3
+        q = n - j
+        a, b, c, d = v[s], v[base + _NEXT[k]], v[base + _PREV[k]], v[n]
+        s_bd, s_dc = q + _NEXT[j], q + _PREV[j]
+        s_ca, s_ab = base + _NEXT[k], base + _PREV[k]
+        t, t2 = base // 3, q // 3
+        rows.add(t, t, (a, b, d), (s_bd, q + 2, s_ab), (True, False, True), (f[s_bd], 0, f[s_ab]))
+        rows.add(
+            t2, t2, (a, d, c), (s_dc, s_ca, base + 1), (True, True, False), (f[s_dc], f[s_ca], 0)
+        )
+
+
+class _Rows:
+    """Triangles to write at once: per triangle id its three vertices, per slot either an
+    old slot whose edge it now carries (``outer``, linked to wherever that edge's other side
+    is after every rewrite of the batch) or the new slot across (or -1), and its fixed flag."""
+
+    def __init__(self) -> None:
+        self.parts: list[tuple[np.ndarray, ...]] = []
+
+    def add(
+        self,
+        tri: np.ndarray,
+        source: np.ndarray,
+        vertices: tuple[np.ndarray, ...],
+        links: tuple[np.ndarray, ...],
+        outer: tuple[bool, bool, bool],
+        fixed: tuple[np.ndarray | int, ...],
+    ) -> None:
+        tri = np.asarray(tri, dtype=np.int64)
+        m = len(tri)
+        columns = [np.broadcast_to(np.asarray(c), (m,)) for c in (*vertices, *links, *fixed)]
+        self.parts.append((tri, np.broadcast_to(source, (m,)), *columns, np.array(outer)))
+
+    def _stack(self) -> tuple[np.ndarray, ...]:
+        tri = np.concatenate([p[0] for p in self.parts])
+        source = np.concatenate([p[1] for p in self.parts])
+        vertices = np.concatenate([np.column_stack(p[2:5]) for p in self.parts])
+        links = np.concatenate([np.column_stack(p[5:8]).astype(np.int64) for p in self.parts])
+        fixed = np.concatenate([np.column_stack(p[8:11]).astype(bool) for p in self.parts])
+        outer = np.concatenate([np.broadcast_to(p[11], (len(p[0]), 3)) for p in self.parts])
+        return tri, source, vertices, links, fixed, outer
+
+    def write(self, mesh: MeshSet) -> np.ndarray:
+        """Write the triangles into ``mesh``; returns their slots."""
+        if not self.parts:
+            self._outer = np.zeros(0, dtype=np.int64)
+            self._tri = np.zeros(0, dtype=np.int64)
+            self._source = np.zeros(0, dtype=np.int64)
+            return np.zeros(0, dtype=np.int64)
+        tri, source, vertices, links, fixed, outer = self._stack()
+        slots = (3 * tri)[:, None] + np.arange(3)
+        across = mesh.across
+        # where each outer edge's old slot goes: its edge's new slot
+        old = links[outer]
+        new = slots[outer]
+        neighbour = across[old]
+        remap_from = old
+        order = np.argsort(remap_from)
+        sorted_from = remap_from[order]
+        at = np.searchsorted(sorted_from, neighbour)
+        at = np.minimum(at, max(len(sorted_from) - 1, 0))
+        moved = (neighbour >= 0) & (sorted_from[at] == neighbour) if len(sorted_from) else None
+        target = neighbour.copy()
+        if moved is not None:
+            target[moved] = new[order[at[moved]]]
+        mesh.vertex[slots] = vertices
+        mesh.fixed[slots] = fixed
+        inner = ~outer
+        across[slots[inner]] = links[inner]
+        across[new] = target
+        linked = target >= 0
+        across[target[linked]] = new[linked]
+        self._outer = new
+        self._tri, self._source = tri, source
+        return slots.ravel()
+
+    def outer_slots(self) -> np.ndarray:
+        """The slots of the outer edges written (to check for flips)."""
+        return self._outer
+
+    def source_of_new(self, first: int, end: int) -> np.ndarray:
+        """The triangle each new id ``first .. end - 1`` was made from."""
+        source = np.empty(end - first, dtype=np.int64)
+        new = self._tri >= first
+        source[self._tri[new] - first] = self._source[new]
+        return source
+
+
+_FREE = np.iinfo(np.int64).max
+
+
+def links(tri: np.ndarray, n: int) -> np.ndarray:
+    """Per slot of the (t, 3) triangles over n vertices: the slot across its edge, or -1."""
+    start = tri[:, [1, 2, 0]].ravel()
+    end = tri[:, [2, 0, 1]].ravel()
+    keys = start * n + end
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    across = np.full(len(keys), -1, dtype=np.int64)
+    if len(keys):
+        twin = np.minimum(np.searchsorted(sorted_keys, end * n + start), len(keys) - 1)
+        found = sorted_keys[twin] == end * n + start
+        across[found] = order[twin[found]]
+    return across
+
+
+def _grown(array: np.ndarray, size: int) -> np.ndarray:
+    grown = np.zeros(size, dtype=array.dtype)
+    grown[: len(array)] = array
+    return grown
