@@ -14,7 +14,8 @@ import numpy as np
 
 from ..triangulation import TriangulationError
 from .bridge_plan import inside_open_angle, pairs_blocked, plan_targets
-from .points import delaunay_point_bridge, nearest_point_bridge, point_order
+from .point_walk import walk_sequence
+from .points import PointOrder, delaunay_point_bridge, nearest_point_bridge, point_order
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
 from .spatial_index import PointColumns, SegmentGrid, chunks
@@ -727,6 +728,10 @@ def bridge_islands(
     touching.mark(rings[0])
     # delaunay: a point is tried as soon as a vertex linked to it is in (points.PointOrder)
     order = point_order(bridger, rings) if delaunay else None
+    if order is not None and mesh_edges is not None:
+        walked = _walked(x, y, rings, order, mesh_edges)
+        if walked is not None:
+            return walked
     ready = deque(order.ready(rings[0].tolist()) if order else ())
     pending = iter(leftmost)
     waiting: list[tuple[float, float, int, int]] = []  # delaunay: islands with no bridge yet
@@ -789,6 +794,23 @@ def bridge_islands(
         if order:
             ready.extend(order.ready(rings[slot].tolist()))
     return bridger.seq
+
+
+def _walked(
+    x: np.ndarray, y: np.ndarray, rings: list[np.ndarray], order: PointOrder, edges: MeshEdges
+) -> np.ndarray | None:
+    """The sequence of an outer ring and one-point islands only, each point joined by the
+    link that reaches it first (``point_walk``), where every such bridge is an edge of the
+    triangulation: the one the joining below gives; else None."""
+    if any(len(ring) != 1 for ring in rings[1:]):
+        return None
+    pairs = order.joined_by_links(rings[0].tolist())
+    if pairs is None or not all((a, b) in edges for a, b in pairs.tolist()):
+        return None
+    walked = walk_sequence(x, y, rings[0], pairs)
+    if walked is not None:
+        edges.used += len(pairs)
+    return walked
 
 
 class _TouchingQueue:

@@ -7,6 +7,7 @@ y-range holds the point, with the exact signs of :mod:`.predicates`.
 
 from __future__ import annotations
 
+from collections import deque
 from fractions import Fraction
 from typing import Protocol
 
@@ -504,6 +505,27 @@ class PointOrder:
             self.root[ra] = rb
             if ra in self.anchored:
                 self.anchored.add(rb)
+
+    def joined_by_links(self, outer: list[int]) -> np.ndarray | None:
+        """The bridges (point, vertex) that joining the points breadth-first from the
+        ``outer`` ring along the links makes, each point by the first link that reaches it
+        (:meth:`ready` order, the links left as they are); None where a point is not
+        reached."""
+        links, point_of = self.links, {slot: vid for vid, slot in self.slot_of.items()}
+        ready = deque(entry for vid in outer for entry in links.get(vid, ()))
+        joined: set[int] = set()
+        bridges = []
+        while ready:
+            slot, near = ready.popleft()
+            if slot in joined:
+                continue
+            joined.add(slot)
+            point = point_of[slot]
+            bridges.append((point, near))
+            ready.extend(links.get(point, ()))
+        if len(joined) != len(point_of):
+            return None
+        return np.array(bridges, dtype=np.int64).reshape(-1, 2)
 
     def ready(self, vids: list[int]) -> list[tuple[int, int]]:
         """(slot, target vertex id) of the points linked to one of ``vids`` (once each)."""
