@@ -1046,7 +1046,14 @@ def _delaunay_apex(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     nodes = np.flatnonzero(clear)
     passed = _facing(seqs, lo[nodes], hi[nodes], guess[nodes])
     tested = nodes[passed]
-    good = tested[_pass_tables(seqs, lo[tested], hi[tested], guess[tested])]
+    # a sure guess in a proven polygon needs no table: its circle holds no vertex of the
+    # sub-polygon, so the only way it can be wrong is an edge across both new sides, and
+    # then its tree cannot complete and is built again with every table (Trees.again)
+    proven = seqs.proven[lo[tested]]
+    checked = tested[~proven]
+    good = np.concatenate(
+        [tested[proven], checked[_pass_tables(seqs, lo[checked], hi[checked], guess[checked])]]
+    )
     found[good] = True
     apex = np.full(n, -1, dtype=np.int64)
     apex[good] = guess[good]
