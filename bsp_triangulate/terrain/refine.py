@@ -527,6 +527,8 @@ def refine_many(
         np.add.at(spent, pick_group[allowed], 1)
         refused = np.bincount(owner[pick[~allowed]], minlength=count)
         chosen_of = np.bincount(owner[chosen], minlength=count)
+        # candidates are grouped by polygon: each polygon's chosen ones are one slice
+        chosen_start = np.cumsum(chosen_of) - chosen_of
         taken[chosen] = True
         next_active = []
         insertions = []
@@ -536,7 +538,7 @@ def refine_many(
             if outcome[p].within:
                 continue
             if chosen_of[p]:
-                mine = chosen[owner[chosen] == p]
+                mine = chosen[chosen_start[p] : chosen_start[p] + chosen_of[p]]
                 added[p] = np.concatenate([added[p], mine])
                 if meshes is not None and meshes.holds(p):
                     insertions.append((p, cand_xyz[mine], holder[mine]))
@@ -622,7 +624,7 @@ class _Meshes:
         self.point_ids: dict[int, list[int]] = {}
         # polygons triangulated again each round: the triangles their cells were located
         # in (and which changed last); (polygon, triangle, candidate, z) of every located
-        # cell, grouped by polygon (triangle: a row of the result, or a global mesh id)
+        # cell (triangle: a row of the result, or a global mesh id)
         self.known: dict[int, np.ndarray] = {}
         self.changed: dict[int, np.ndarray] = {}
         empty = np.zeros(0, np.int64)
@@ -707,11 +709,20 @@ class _Meshes:
         # leave for good)
         poly, tri, cand, z = self.pairs
         if len(poly):
-            stays = np.zeros(len(poly), bool)
+            count = int(poly.max()) + 1
+            measuring = np.zeros(count, bool)
+            held = np.zeros(count, bool)
             for p, _ in measured:
-                at = slice(*np.searchsorted(poly, [p, p + 1]))
-                changed = mesh_changed if self.holds(p) else self.changed[p]
-                stays[at] = ~changed[tri[at]]
+                if p < count:
+                    measuring[p] = True
+                    held[p] = self.holds(p)
+            stays = measuring[poly]
+            in_mesh = np.flatnonzero(stays & held[poly])
+            stays[in_mesh] = ~mesh_changed[tri[in_mesh]]
+            for p, _ in measured:
+                if p < count and not held[p]:
+                    at = np.flatnonzero(poly == p)
+                    stays[at] = ~self.changed[p][tri[at]]
             poly, tri, cand, z = poly[stays], tri[stays], cand[stays], z[stays]
         tri_poly = np.concatenate([f[0] for f in fresh]) if fresh else np.zeros(0, np.int64)
         tri_row = np.concatenate([f[1] for f in fresh]) if fresh else np.zeros(0, np.int64)
@@ -724,9 +735,7 @@ class _Meshes:
         new = _candidate_pairs(
             tri_poly[found[0]], tri_row[found[0]], *found[1:], windows, lookup, base
         )
-        poly, tri, cand, z = (np.concatenate(pair) for pair in zip((poly, tri, cand, z), new))
-        order = np.argsort(poly, kind="stable")  # grouped by polygon for the next round
-        self.pairs = (poly[order], tri[order], cand[order], z[order])
+        self.pairs = tuple(np.concatenate(pair) for pair in zip((poly, tri, cand, z), new))
         return self.pairs
 
     def triangles(self) -> dict[int, np.ndarray]:
