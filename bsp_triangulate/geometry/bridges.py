@@ -705,6 +705,13 @@ def bridge_islands(
         return rings[0]
     if mesh_edges is not None and not mesh_edges.holds_rings(rings):
         mesh_edges = None
+    order = None
+    if delaunay and mesh_edges is not None and all(len(ring) == 1 for ring in rings[1:]):
+        # the outer ring and points only: one walk, where it applies, without the set-up below
+        order = point_order(x, y, rings, np.unique(np.concatenate(rings)))
+        walked = _walked(x, y, rings, order, mesh_edges)
+        if walked is not None:
+            return walked
     bridger = _Bridger(x, y, rings, mesh_edges)
     leftmost: list[tuple[float, float, int, int]] = []
     islands_at: dict[tuple[float, float], list[int]] = {}
@@ -727,11 +734,8 @@ def bridge_islands(
     touching = _TouchingQueue(x, y, islands_at, rank, joined)
     touching.mark(rings[0])
     # delaunay: a point is tried as soon as a vertex linked to it is in (points.PointOrder)
-    order = point_order(bridger, rings) if delaunay else None
-    if order is not None and mesh_edges is not None:
-        walked = _walked(x, y, rings, order, mesh_edges)
-        if walked is not None:
-            return walked
+    if delaunay and order is None:
+        order = point_order(x, y, rings, bridger.point_ids)
     ready = deque(order.ready(rings[0].tolist()) if order else ())
     pending = iter(leftmost)
     waiting: list[tuple[float, float, int, int]] = []  # delaunay: islands with no bridge yet
@@ -797,12 +801,16 @@ def bridge_islands(
 
 
 def _walked(
-    x: np.ndarray, y: np.ndarray, rings: list[np.ndarray], order: PointOrder, edges: MeshEdges
+    x: np.ndarray,
+    y: np.ndarray,
+    rings: list[np.ndarray],
+    order: PointOrder | None,
+    edges: MeshEdges,
 ) -> np.ndarray | None:
     """The sequence of an outer ring and one-point islands only, each point joined by the
     link that reaches it first (``point_walk``), where every such bridge is an edge of the
     triangulation: the one the joining below gives; else None."""
-    if any(len(ring) != 1 for ring in rings[1:]):
+    if order is None:
         return None
     pairs = order.joined_by_links(rings[0].tolist())
     if pairs is None or not all((a, b) in edges for a, b in pairs.tolist()):

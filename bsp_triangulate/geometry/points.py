@@ -406,8 +406,14 @@ class PointOrder:
     on the other side of the component's boundary).
     """
 
-    def __init__(self, bridger: Bridging, slots: list[int], point_vids: list[int]) -> None:
-        x, y = bridger.x, bridger.y
+    def __init__(
+        self,
+        x: np.ndarray,
+        y: np.ndarray,
+        vertex_ids: np.ndarray,
+        slots: list[int],
+        point_vids: list[int],
+    ) -> None:
         self.slot_of = dict(zip(point_vids, slots))
         # vertex id -> (slot, vertex id): the linked points and where they are bridged to
         self.links: dict[int, list[tuple[int, int]]] = {}
@@ -415,7 +421,7 @@ class PointOrder:
         self.anchored: set[int] = set()  # roots of components linked to a ring vertex
         vids = np.asarray(point_vids, dtype=np.int64)
         # one grid over every vertex for all the searches below
-        grid = _VertexGrid(x, y, bridger.point_ids)
+        grid = _VertexGrid(x, y, vertex_ids)
         nearest = grid.nearest(vids)[0].tolist()
         for vid, near in zip(point_vids, nearest):
             if near >= 0:
@@ -535,12 +541,15 @@ class PointOrder:
         return found
 
 
-def point_order(bridger: Bridging, rings: list[np.ndarray]) -> PointOrder | None:
-    """The :class:`PointOrder` of the one-point islands among ``rings[1:]``, None if none."""
+def point_order(
+    x: np.ndarray, y: np.ndarray, rings: list[np.ndarray], vertex_ids: np.ndarray
+) -> PointOrder | None:
+    """The :class:`PointOrder` of the one-point islands among ``rings[1:]`` (``vertex_ids``:
+    every vertex of ``rings``), None if none."""
     slots = [slot for slot in range(1, len(rings)) if len(rings[slot]) == 1]
     if not slots:
         return None
-    return PointOrder(bridger, slots, [int(rings[slot][0]) for slot in slots])
+    return PointOrder(x, y, vertex_ids, slots, [int(rings[slot][0]) for slot in slots])
 
 
 def nearest_point_bridge(bridger: Bridging, h: int, v: int) -> tuple[int, int] | None:

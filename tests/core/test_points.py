@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import random
 from fractions import Fraction
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -324,8 +323,7 @@ def test_point_order_links_have_empty_diametral_circles(seed: int) -> None:
     xy = np.array(ring + grid + scattered)
     x, y = xy[:, 0], xy[:, 1]
     vids = list(range(len(ring), len(xy)))
-    bridger = SimpleNamespace(x=x, y=y, point_ids=np.arange(len(xy), dtype=np.int64))
-    order = PointOrder(bridger, [vid + 1000 for vid in vids], vids)
+    order = PointOrder(x, y, np.arange(len(xy), dtype=np.int64), [vid + 1000 for vid in vids], vids)
     vid_of = {vid + 1000: vid for vid in vids}
     links = {(vid_of[slot], near) for targets in order.links.values() for slot, near in targets}
     assert {a for a, _ in links} == set(vids)  # every point is linked
