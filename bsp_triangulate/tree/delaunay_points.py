@@ -85,28 +85,32 @@ def tree_of_mesh(
     m = len(sequence)
     if m < 3 or len(triangles) != m - 2:
         return None
-    owner: dict[tuple[int, int], int] = {}
+    # directed edge (a, b) as the integer a * n + b
+    n = max(max(sequence), max(max(t) for t in triangles)) + 1
+    owner: dict[int, int] = {}
     for t, (a, b, c) in enumerate(triangles):
-        owner[a, b] = t
-        owner[b, c] = t
-        owner[c, a] = t
+        owner[a * n + b] = t
+        owner[b * n + c] = t
+        owner[c * n + a] = t
     walls = set()
     for i in range(m):
         u, v = sequence[i], sequence[(i + 1) % m]
-        if (u, v) not in owner and (v, u) not in owner:
+        if u * n + v not in owner and v * n + u not in owner:
             return None
-        walls.add((u, v))
-        walls.add((v, u))
+        walls.add(u * n + v)
+        walls.add(v * n + u)
     used = [False] * len(triangles)
     out: list[tuple[int, int, int]] = []
     parent: list[int] = []
     depth: list[int] = []
     side: list[int] = []
+    get = owner.get
     # (chord a -> b with the sub-polygon on its left, V1 at a, parent, depth, side)
     stack = [(sequence[0], sequence[1], True, -1, 0, 0)]
+    pop, push = stack.pop, stack.append
     while stack:
-        a, b, v1_at_a, par, dep, sd = stack.pop()
-        t = owner.get((a, b))
+        a, b, v1_at_a, par, dep, sd = pop()
+        t = get(a * n + b)
         if t is None or used[t]:
             return None
         used[t] = True
@@ -117,12 +121,17 @@ def tree_of_mesh(
         parent.append(par)
         depth.append(dep)
         side.append(sd)
-        upper = (a, c, True)
-        lower = (c, b, False)
-        left, right = (upper, lower) if v1_at_a else (lower, upper)
-        for (ca, cb, flag), child_side in ((right, 2), (left, 1)):
-            if (ca, cb) not in walls:
-                stack.append((ca, cb, flag, node, dep + 1, child_side))
+        # the right child (pushed first, taken last), then the left; upper: (a, c), V1 at a
+        if v1_at_a:
+            if c * n + b not in walls:
+                push((c, b, False, node, dep + 1, 2))
+            if a * n + c not in walls:
+                push((a, c, True, node, dep + 1, 1))
+        else:
+            if a * n + c not in walls:
+                push((a, c, True, node, dep + 1, 2))
+            if c * n + b not in walls:
+                push((c, b, False, node, dep + 1, 1))
     if len(out) != m - 2:
         return None
     return out, parent, depth, side
