@@ -116,6 +116,7 @@ class MeshSet:
         edge = np.full(count, -1, dtype=np.int64)
         found = np.zeros(count, dtype=bool)
         todo = np.arange(count)
+        stuck: list[np.ndarray] = []  # walks blocked or too long: scanned at the end
         vertex, across, x, y = self.vertex, self.across, self.x, self.y
         limit = 64 + 8 * int(np.sqrt(self._nt))
         for step in range(limit):
@@ -160,17 +161,20 @@ class MeshSet:
             k = turn[np.arange(len(moving)), pick]
             can = usable[np.arange(len(moving)), k]
             tri[moving[can]] = beyond[np.arange(len(moving)), k][can] // 3
-            blocked = moving[~can]
-            for i in blocked.tolist():
-                tri[i], edge[i], found[i] = self._scan(px[i], py[i], int(self.region[tri[i]]))
+            stuck.append(moving[~can])
             todo = moving[can]
-        for i in todo.tolist():
-            tri[i], edge[i], found[i] = self._scan(px[i], py[i], int(self.region[tri[i]]))
+        stuck.append(todo)
+        lost = np.concatenate(stuck)
+        if len(lost):
+            region = self.region[tri[lost]]
+            for r in np.unique(region).tolist():
+                among = np.flatnonzero(self.region[: self._nt] == r)
+                for i in lost[region == r].tolist():
+                    tri[i], edge[i], found[i] = self._scan(px[i], py[i], among)
         return tri, edge, found
 
-    def _scan(self, px: float, py: float, region: int) -> tuple[int, int, bool]:
-        """:meth:`_locate` of one point among every triangle of ``region``."""
-        among = np.flatnonzero(self.region[: self._nt] == region)
+    def _scan(self, px: float, py: float, among: np.ndarray) -> tuple[int, int, bool]:
+        """:meth:`_locate` of one point among the triangles ``among`` (its region's)."""
         corners = self.vertex[(3 * among)[:, None] + np.arange(3)]
         x, y = self.x, self.y
         signs = np.stack(
