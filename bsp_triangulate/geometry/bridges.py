@@ -175,6 +175,9 @@ class _Bridger:
         self.x, self.y = x, y
         # None once a bridge is not a mesh edge (or none given)
         self.mesh_edges = mesh_edges
+        # the constrained Delaunay edges when known (rule delaunay with points): a bridge must
+        # be one of them, for a tie on a bridge's diametral circle can fall either way
+        self.known_edges = mesh_edges
         starts, ends = ring_edges(rings)
         self.edge_a, self.edge_b = starts, ends
         self.edges = SegmentGrid(x[starts], y[starts], x[ends], y[ends])
@@ -626,7 +629,11 @@ class _Bridger:
             if reach < math.inf and self._no_empty_disk(h, reach, near):
                 continue  # this vertex's bridge, wherever it goes, is no Delaunay edge
             target = self.find_bridge(island, index, reach)
-            if target is not None and self.diametral_disk_empty(int(island[index]), target[1]):
+            if (
+                target is not None
+                and self.diametral_disk_empty(h, target[1])
+                and (self.known_edges is None or (h, target[1]) in self.known_edges)
+            ):
                 return target[0], target[1], index
         return None
 

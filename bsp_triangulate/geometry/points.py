@@ -112,13 +112,17 @@ class Bridging(Protocol):
     edge_a: np.ndarray
     edge_b: np.ndarray
     label: np.ndarray
+    known_edges: object  # bridges.MeshEdges of the constrained Delaunay triangulation, or None
 
     def _valid_occurrences(self, vid: int, island: np.ndarray, h_index: int) -> list[int]: ...
 
 
 def delaunay_point_bridge(bridger: Bridging, h: int, more: int = 8) -> tuple[int, int] | None:
     """(node, vertex id) of a bridge from the one-point island ``h`` that is a constrained
-    Delaunay edge of the rings, or None (the point waits for other islands).
+    Delaunay edge of the rings, or None (the point waits for other islands). Where the
+    constrained Delaunay triangulation with every point is known (``known_edges``), the
+    bridge must also be one of its edges: a vertex exactly on the circle (a tie) may leave
+    h-v out of it.
 
     The targets of section 2 are tried nearest first (float distance), up to ``more`` of
     them after the nearest valid one. Target ``v`` is taken when no vertex strictly inside
@@ -158,7 +162,8 @@ def delaunay_point_bridge(bridger: Bridging, h: int, more: int = 8) -> tuple[int
             ks = bridger._valid_occurrences(vid, island, 0)
             if not ks:
                 continue
-            if _disk_hidden(bridger, h, vid):
+            known = bridger.known_edges
+            if _disk_hidden(bridger, h, vid) and (known is None or (h, vid) in known):
                 return min(ks, key=lambda k: int(bridger.label[k])), vid
             if budget is None:
                 budget = more

@@ -388,3 +388,36 @@ def test_the_refinement_mesh_handed_to_the_engine_gives_the_same_result(
         **options,
     )
     np.testing.assert_array_equal(packed.triangles, plain.triangles)
+
+
+def test_rule_delaunay_by_insertion_on_random_polygons_with_islands(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # many polygons refined at once (one mesh set), clockwise rings among them: inserting
+    # each round's points gives what triangulating again gives. The cell centres are
+    # cocircular in fours: a point's bridge with another vertex exactly on its diametral
+    # circle must still be an edge of the triangulation (seed 1032 has one)
+    import random
+
+    from tests.core.random_polygons import random_polygon
+
+    rnd = random.Random(1032)
+    grid = hill_grid()
+    polygons = []
+    for k in range(12):
+        rings = random_polygon(rnd, islands=k % 3, touching=1 if k % 4 == 0 else 0)
+        shift = np.array([rnd.uniform(80.0, 400.0), rnd.uniform(80.0, 400.0)])
+        if k % 4 == 0:
+            continue  # touching islands: their shared point is two vertices of one place
+        polygons.append(
+            with_z([np.asarray(r, dtype=float)[:, :2] * 3.0 + shift for r in rings], grid)
+        )
+    runs = both_ways(
+        monkeypatch,
+        lambda: refine_many(
+            polygons, [grid] * len(polygons), 0.4, 300, engine=engine, rule="delaunay", plane="xy"
+        ),
+    )
+    for inserted, triangulated in zip(*runs):
+        assert_same_refinement(inserted, triangulated)
+    assert sum(r.added for r in runs[0]) > 300
