@@ -138,3 +138,31 @@ def test_fixed_edges_are_not_flipped():
             frozenset(e) for row in mesh.triangles().tolist() for e in zip(row, row[1:] + row[:1])
         }
         assert (frozenset((0, 2)) in edges) == (fixed is not None)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_random_polygons_random_starts_several_batches(seed: int):
+    # islands, lattice points (on edges, on vertices, repeated) or random ones, each batch
+    # from random start triangles: the same triangles and the same points refused
+    import random
+
+    from tests.core.random_polygons import random_polygon
+
+    rnd, rng = random.Random(seed), np.random.default_rng(seed)
+    t = triangulate(random_polygon(rnd, islands=seed % 4, integer=seed % 2 == 0), rule="delaunay")
+    v = t.vertices[:, :2]
+    one_by_one = DelaunayMesh(v[:, 0], v[:, 1], t.triangles)
+    mesh = MeshSet(v[:, 0], v[:, 1], t.triangles, np.zeros(len(t.triangles), int))
+    low, high = v.min(axis=0), v.max(axis=0)
+    for _ in range(3):
+        xy = rng.uniform(low, high, (80, 2))
+        if seed % 3 == 0:
+            xy = np.round(xy)
+        single = one_by_one.insert_many(xy[:, 0], xy[:, 1])
+        start = rng.integers(0, mesh.triangle_count, len(xy))
+        np.testing.assert_array_equal(mesh.insert(xy[:, 0], xy[:, 1], start) >= 0, single >= 0)
+    check_links(mesh)
+    n = mesh.vertex_count
+    assert coordinate_triangles(mesh.x[:n], mesh.y[:n], mesh.triangles()) == (
+        coordinate_triangles(np.array(one_by_one.x), np.array(one_by_one.y), one_by_one.triangles())
+    )
