@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .delaunay_mesh import edge_links
 from .predicates import incircle_sos_many, orient_many
 
 # slots (k + 1) % 3 and (k + 2) % 3 of local slot k
@@ -44,7 +45,7 @@ class MeshSet:
         self.x = np.array(x, dtype=np.float64)
         self.y = np.array(y, dtype=np.float64)
         self.vertex = tri.ravel().copy()
-        self.across = links(tri, n)
+        self.across = edge_links(tri, n)[0]
         self.fixed = np.zeros(3 * t, dtype=bool)
         if fixed_pairs is not None and len(fixed_pairs):
             pairs = np.asarray(fixed_pairs, dtype=np.int64).reshape(-1, 2)
@@ -117,29 +118,14 @@ class MeshSet:
         found = np.zeros(count, dtype=bool)
         todo = np.arange(count)
         stuck: list[np.ndarray] = []  # walks blocked or too long: scanned at the end
-        vertex, across, x, y = self.vertex, self.across, self.x, self.y
+        across, x, y = self.across, self.x, self.y
         limit = 64 + 8 * int(np.sqrt(self._nt))
         for step in range(limit):
             if not len(todo):
                 break
             t = tri[todo]
-            corners = vertex[(3 * t)[:, None] + np.arange(3)]
             qx, qy = px[todo], py[todo]
-            # sign of the point against edge k, from corner k + 1 to corner k + 2
-            signs = np.stack(
-                [
-                    orient_many(
-                        x[corners[:, (k + 1) % 3]],
-                        y[corners[:, (k + 1) % 3]],
-                        x[corners[:, (k + 2) % 3]],
-                        y[corners[:, (k + 2) % 3]],
-                        qx,
-                        qy,
-                    )
-                    for k in range(3)
-                ],
-                axis=1,
-            )
+            corners, signs = self._sides(t, qx, qy)
             inside = (signs >= 0).all(axis=1)
             done = todo[inside]
             zeros = signs[inside] == 0
@@ -175,22 +161,8 @@ class MeshSet:
 
     def _scan(self, px: float, py: float, among: np.ndarray) -> tuple[int, int, bool]:
         """:meth:`_locate` of one point among the triangles ``among`` (its region's)."""
-        corners = self.vertex[(3 * among)[:, None] + np.arange(3)]
         x, y = self.x, self.y
-        signs = np.stack(
-            [
-                orient_many(
-                    x[corners[:, (k + 1) % 3]],
-                    y[corners[:, (k + 1) % 3]],
-                    x[corners[:, (k + 2) % 3]],
-                    y[corners[:, (k + 2) % 3]],
-                    px,
-                    py,
-                )
-                for k in range(3)
-            ],
-            axis=1,
-        )
+        corners, signs = self._sides(among, px, py)
         holding = np.flatnonzero((signs >= 0).all(axis=1))
         if not len(holding):
             return int(among[0]) if len(among) else 0, -1, False
@@ -200,20 +172,37 @@ class MeshSet:
         zero = np.flatnonzero(signs[h] == 0)
         return int(among[h]), int(zero[0]) if len(zero) else -1, True
 
+    def _sides(
+        self, t: np.ndarray, px: np.ndarray | float, py: np.ndarray | float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The corners (n, 3) of the triangles ``t`` and the exact signs (n, 3) of the points
+        against their edges: column k for the edge from corner k + 1 to corner k + 2."""
+        corners = self.vertex[(3 * t)[:, None] + np.arange(3)]
+        x, y = self.x, self.y
+        signs = [
+            orient_many(
+                x[corners[:, (k + 1) % 3]],
+                y[corners[:, (k + 1) % 3]],
+                x[corners[:, (k + 2) % 3]],
+                y[corners[:, (k + 2) % 3]],
+                px,
+                py,
+            )
+            for k in range(3)
+        ]
+        return corners, np.stack(signs, axis=1)
+
     def _reserve(self, vertices: int, triangles: int) -> None:
         """Room for this many more vertices and triangles."""
         need_v, need_t = self._nv + vertices, self._nt + triangles
-        if need_v > len(self.x):
-            size = max(need_v, 2 * len(self.x))
-            self.x = _grown(self.x, size)
-            self.y = _grown(self.y, size)
+        self.x, self.y = grown(self.x, need_v), grown(self.y, need_v)
         if need_t > len(self.region):
-            size = max(need_t, 2 * len(self.region))
-            self.vertex = _grown(self.vertex, 3 * size)
-            self.across = _grown(self.across, 3 * size)
-            self.fixed = _grown(self.fixed, 3 * size)
-            self.region = _grown(self.region, size)
-            self.changed = _grown(self.changed, size)
+            self.region = grown(self.region, need_t)
+            size = len(self.region)
+            self.vertex = grown(self.vertex, 3 * size)
+            self.across = grown(self.across, 3 * size)
+            self.fixed = grown(self.fixed, 3 * size)
+            self.changed = grown(self.changed, size)
             claim = np.full(size, _FREE, dtype=np.int64)
             claim[: len(self._claim)] = self._claim
             self._claim = claim
@@ -470,22 +459,11 @@ class _Rows:
 _FREE = np.iinfo(np.int64).max
 
 
-def links(tri: np.ndarray, n: int) -> np.ndarray:
-    """Per slot of the (t, 3) triangles over n vertices: the slot across its edge, or -1."""
-    start = tri[:, [1, 2, 0]].ravel()
-    end = tri[:, [2, 0, 1]].ravel()
-    keys = start * n + end
-    order = np.argsort(keys, kind="stable")
-    sorted_keys = keys[order]
-    across = np.full(len(keys), -1, dtype=np.int64)
-    if len(keys):
-        twin = np.minimum(np.searchsorted(sorted_keys, end * n + start), len(keys) - 1)
-        found = sorted_keys[twin] == end * n + start
-        across[found] = order[twin[found]]
-    return across
-
-
-def _grown(array: np.ndarray, size: int) -> np.ndarray:
-    grown = np.zeros(size, dtype=array.dtype)
-    grown[: len(array)] = array
-    return grown
+def grown(array: np.ndarray, size: int) -> np.ndarray:
+    """``array`` if it has ``size`` entries, else it with zeros appended to ``size`` entries
+    or twice its length, whichever is more (appending then costs amortised constant time)."""
+    if len(array) >= size:
+        return array
+    more = np.zeros(max(size, 2 * len(array)), dtype=array.dtype)
+    more[: len(array)] = array
+    return more

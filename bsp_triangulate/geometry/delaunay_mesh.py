@@ -25,6 +25,7 @@ from .predicates import (
     ICC_ERRBOUND,
     UNDERFLOW_SLACK,
     incircle_sos,
+    incircle_sos_many,
     orient,
     orient_many,
 )
@@ -72,21 +73,12 @@ class DelaunayMesh:
             if (signs <= 0).any():
                 raise ValueError(f"triangle {int(np.argmax(signs <= 0))} is not counter-clockwise")
         flat = tri.ravel()
-        # directed edge of slot s: from vertex k + 1 to vertex k + 2
+        across, repeated = edge_links(tri, n)
+        if repeated.any():
+            raise ValueError("an edge is used twice in the same direction (overlapping triangles)")
         start = tri[:, [1, 2, 0]].ravel()
         end = tri[:, [2, 0, 1]].ravel()
-        keys = start * n + end
-        order = np.argsort(keys, kind="stable")
-        sorted_keys = keys[order]
-        if len(keys) > 1 and (sorted_keys[1:] == sorted_keys[:-1]).any():
-            raise ValueError("an edge is used twice in the same direction (overlapping triangles)")
-        across = np.full(len(keys), -1, dtype=np.int64)
-        if len(keys):
-            twin = np.searchsorted(sorted_keys, end * n + start)
-            twin = np.minimum(twin, len(keys) - 1)
-            found = sorted_keys[twin] == end * n + start
-            across[found] = order[twin[found]]
-        fixed = np.zeros(len(keys), dtype=bool)
+        fixed = np.zeros(len(across), dtype=bool)
         pairs = np.asarray(list(constrained), dtype=np.int64).reshape(-1, 2)
         if len(pairs):
             low, high = pairs.min(axis=1), pairs.max(axis=1)
@@ -568,6 +560,46 @@ class DelaunayMesh:
         owner[a] = owner[b] = owner[d] = t
         owner[c] = t2
         return t, t2
+
+
+def edge_links(tri: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per slot of the (t, 3) counter-clockwise triangles over n vertices (slot 3t + k: the
+    directed edge from vertex k + 1 to vertex k + 2): the slot across its edge, or -1; and
+    whether an earlier slot already has that directed edge (overlapping triangles)."""
+    start = tri[:, [1, 2, 0]].ravel()
+    end = tri[:, [2, 0, 1]].ravel()
+    keys = start * n + end
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    repeated = np.zeros(len(keys), dtype=bool)
+    repeated[order[1:][sorted_keys[1:] == sorted_keys[:-1]]] = True
+    across = np.full(len(keys), -1, dtype=np.int64)
+    if len(keys):
+        twin = np.minimum(np.searchsorted(sorted_keys, end * n + start), len(keys) - 1)
+        found = sorted_keys[twin] == end * n + start
+        across[found] = order[twin[found]]
+    return across, repeated
+
+
+def delaunay_faults(x: np.ndarray, y: np.ndarray, tri: np.ndarray, ties: bool) -> np.ndarray:
+    """Per triangle of the (t, 3) vertex ids: it is not strictly counter-clockwise, it uses
+    a directed edge another triangle uses too, or across one of its edges lies a vertex
+    strictly inside its circle under the tie rule (exact, :func:`predicates.incircle_sos`);
+    ``ties``: a vertex at a corner's point (the tie rule's 0) counts as a fault too."""
+    bad = orient_many(*(c[tri[:, k]] for k in range(3) for c in (x, y))) <= 0
+    across, repeated = edge_links(tri, len(x))
+    bad[np.flatnonzero(repeated) // 3] = True
+    # each shared edge once, from its lower slot (the test is the same from either side)
+    s = np.flatnonzero(across > np.arange(len(across)))
+    k = s % 3
+    base = s - k
+    v = tri.ravel()
+    a, b, c, d = v[s], v[base + (k + 1) % 3], v[base + (k + 2) % 3], v[across[s]]
+    sign = incircle_sos_many(x[a], y[a], x[b], y[b], x[c], y[c], x[d], y[d])
+    fault = s[(sign >= 0) if ties else (sign > 0)]
+    bad[fault // 3] = True
+    bad[across[fault] // 3] = True
+    return bad
 
 
 def hilbert_order(x: np.ndarray, y: np.ndarray, bits: int = 16) -> np.ndarray:

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.delaunay_batch import MeshSet, links
-from ..geometry.predicates import incircle_sos_many, orient_many, ring_area_sign
+from ..geometry.delaunay_batch import MeshSet, grown
+from ..geometry.delaunay_mesh import delaunay_faults
+from ..geometry.predicates import ring_area_sign
 from .raster_sampling import PreparedGrid
 
 # (triangle, cell) pairs examined per numpy step of the point location
@@ -771,8 +772,8 @@ class _Meshes:
         near = np.concatenate([n for _, _, n in insertions])
         ids = mesh.insert(self.mirror[region] * xyz[:, 0], xyz[:, 1], near)
         total = mesh.vertex_count
-        self.z = _grown_to(self.z, total)
-        self.local = _grown_to(self.local, total)
+        self.z = grown(self.z, total)
+        self.local = grown(self.local, total)
         used = ids >= 0
         self.z[ids[used]] = xyz[used, 2]
         at = 0
@@ -792,15 +793,6 @@ class _HeldResult:
     point_ids: np.ndarray
 
 
-def _grown_to(array: np.ndarray, size: int) -> np.ndarray:
-    """``array`` with zeros appended up to ``size`` entries."""
-    if len(array) >= size:
-        return array
-    grown = np.zeros(max(size, 2 * len(array)), dtype=array.dtype)
-    grown[: len(array)] = array
-    return grown
-
-
 def _delaunay_regions(regions: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list[bool]:
     """Per (x, y, triangles): whether the triangles are counter-clockwise, use each directed
     edge once and are locally Delaunay (the rule's tie rule) across every shared edge."""
@@ -813,23 +805,7 @@ def _delaunay_regions(regions: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray
     tri = np.concatenate([t + o for (_, _, t), o in zip(regions, offsets)])
     owner = np.repeat(np.arange(len(regions)), [len(t) for _, _, t in regions])
     bad = np.zeros(len(regions), bool)
-    signs = orient_many(*(c[tri[:, k]] for k in range(3) for c in (x, y)))
-    bad[owner[signs <= 0]] = True
-    start, end = tri[:, [1, 2, 0]].ravel(), tri[:, [2, 0, 1]].ravel()
-    keys = start * len(x) + end
-    order = np.argsort(keys, kind="stable")
-    twice = order[1:][keys[order[1:]] == keys[order[:-1]]]
-    slot_owner = np.repeat(owner, 3)
-    bad[slot_owner[twice]] = True
-    across = links(tri, len(x))
-    s = np.flatnonzero(across >= 0)
-    n = across[s]
-    k = s % 3
-    base = s - k
-    v = tri.ravel()
-    a, b, c, d = v[s], v[base + (k + 1) % 3], v[base + (k + 2) % 3], v[n]
-    flips = incircle_sos_many(x[a], y[a], x[b], y[b], x[c], y[c], x[d], y[d]) > 0
-    bad[slot_owner[s[flips]]] = True
+    bad[owner[delaunay_faults(x, y, tri, ties=False)]] = True
     return (~bad).tolist()
 
 

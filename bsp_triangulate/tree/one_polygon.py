@@ -12,12 +12,12 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..geometry.bridges import MeshEdges, bridge_islands, remove_spikes, ring_edges, split_touching
+from ..geometry.delaunay_mesh import delaunay_faults
 from ..geometry.points import as_point_array, first_occurrences, strictly_inside
 from ..geometry.predicates import (
     area_surely_clear,
     grid_exact,
     incircle_many,
-    incircle_sos_many,
     orient,
     orient_float,
     orient_many,
@@ -1264,21 +1264,7 @@ def _known_mesh(prepared: PreparedRings, mesh: object) -> np.ndarray | None:
         return None
     if prepared.mirrored:
         tri = tri[:, [1, 0, 2]]
-    x, y = prepared.x, prepared.y
-    corners = [c for k in range(3) for c in (x[tri[:, k]], y[tri[:, k]])]
-    if (orient_many(*corners) <= 0).any():
-        return None
-    start, end, far = tri.ravel(), tri[:, [1, 2, 0]].ravel(), tri[:, [2, 0, 1]].ravel()
-    keys = start * n + end
-    order = np.argsort(keys)
-    sorted_keys = keys[order]
-    if (sorted_keys[1:] == sorted_keys[:-1]).any():
-        return None
-    at = np.minimum(np.searchsorted(sorted_keys, end * n + start), len(keys) - 1)
-    twin = order[at]
-    shared = (sorted_keys[at] == end * n + start) & (start < end)
-    a, b, c, d = start[shared], end[shared], far[shared], far[twin[shared]]
-    if (incircle_sos_many(x[a], y[a], x[b], y[b], x[c], y[c], x[d], y[d]) >= 0).any():
+    if delaunay_faults(prepared.x, prepared.y, tri, ties=True).any():
         return None
     return tri
 
