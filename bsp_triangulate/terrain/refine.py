@@ -573,7 +573,20 @@ def _located(
     sizes = np.array([len(c) for c in corners], np.int64)
     tri_poly = np.repeat(polys, sizes)
     tri_row = np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)
-    tri, row, col, z = locate_cells(np.concatenate(corners), windows, tri_poly)
+    return _cells_in(tri_poly, tri_row, np.concatenate(corners), windows, lookup, base)
+
+
+def _cells_in(
+    tri_poly: np.ndarray,
+    tri_row: np.ndarray,
+    corners: np.ndarray,
+    windows: Sequence[CellGrid],
+    lookup: np.ndarray,
+    base: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(polygon, triangle, candidate, z) of the candidate cell centres inside the triangles
+    (``corners`` (t, 3, 3), each of polygon ``tri_poly`` and named ``tri_row``)."""
+    tri, row, col, z = locate_cells(corners, windows, tri_poly)
     return _candidate_pairs(tri_poly[tri], tri_row[tri], row, col, z, windows, lookup, base)
 
 
@@ -696,9 +709,10 @@ class _Meshes:
             mesh = self.mesh
             mesh_changed = mesh.changed[: mesh.triangle_count].copy()
             mesh.changed[:] = False
-            measuring = np.zeros(len(self.polygon_of), bool)
-            measuring[[self.region_of[p] for p, _ in measured if self.holds(p)]] = True
-            ids = np.flatnonzero(mesh_changed & measuring[mesh.region[: mesh.triangle_count]])
+            regions_measured = np.zeros(len(self.polygon_of), bool)
+            regions_measured[[self.region_of[p] for p, _ in measured if self.holds(p)]] = True
+            region_of_triangle = mesh.region[: mesh.triangle_count]
+            ids = np.flatnonzero(mesh_changed & regions_measured[region_of_triangle])
             corners = mesh.vertex[(3 * ids)[:, None] + np.arange(3)]
             region = mesh.region[ids]
             xyz = np.stack(
@@ -732,10 +746,7 @@ class _Meshes:
             if fresh
             else np.zeros((0, 3, 3))
         )
-        found = locate_cells(corners, windows, tri_poly)
-        new = _candidate_pairs(
-            tri_poly[found[0]], tri_row[found[0]], *found[1:], windows, lookup, base
-        )
+        new = _cells_in(tri_poly, tri_row, corners, windows, lookup, base)
         self.pairs = tuple(np.concatenate(pair) for pair in zip((poly, tri, cand, z), new))
         return self.pairs
 
