@@ -62,7 +62,7 @@ def tree_of_triangles(
     ``vertices``), or None."""
     if tick is not None:
         tick(0.9)
-    rows = tree_of_mesh(triangles.tolist(), sequence.tolist(), mirrored)
+    rows = tree_of_mesh(triangles.tolist(), sequence.tolist(), mirrored, len(vertices))
     if rows is None:
         return None
     tri, parent, depth, side = rows
@@ -76,17 +76,17 @@ def tree_of_triangles(
 
 
 def tree_of_mesh(
-    triangles: list[list[int]], sequence: list[int], mirrored: bool
+    triangles: list[list[int]], sequence: list[int], mirrored: bool, n: int
 ) -> tuple[list[tuple[int, int, int]], list[int], list[int], list[int]] | None:
     """The BSP tree of a triangulation of the bridged ``sequence`` (triangles counter-
-    clockwise in the working plane): rows (triangle, parent, depth, side) in pre-order, as
-    the recursion of docs/algorithm.md section 3 records them; None when the triangulation
-    does not have every edge of the sequence or its triangles do not form one tree."""
+    clockwise in the working plane, over ``n`` vertices): rows (triangle, parent, depth,
+    side) in pre-order, as the recursion of docs/algorithm.md section 3 records them; None
+    when the triangulation does not have every edge of the sequence or its triangles do not
+    form one tree."""
     m = len(sequence)
     if m < 3 or len(triangles) != m - 2:
         return None
     # directed edge (a, b) as the integer a * n + b
-    n = max(max(sequence), max(max(t) for t in triangles)) + 1
     owner: dict[int, int] = {}
     for t, (a, b, c) in enumerate(triangles):
         owner[a * n + b] = t
