@@ -32,6 +32,7 @@ from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
 from .delaunay_points import points_mesh, tree_of_triangles
 from .elevation_order import ElevationWindows
+from .shadows import Shadows
 from .subtrees import DELAUNAY_POSITIONS, MAX_POSITIONS, build_subtrees
 
 INVALID_MODES = ("fail", "as_given")
@@ -54,6 +55,8 @@ _WINDOWED = 512
 _EPS8 = 8.0 * 2.0**-53
 # Largest chunk of candidates filtered at once by rule "first" on long runs.
 _MAX_FIRST_CHUNK = 1024
+# Candidates left after the scalar ones beyond which rule "first" skips shadowed chain boxes.
+_SHADOWED = 64
 
 
 def _rows(length: int, *rows: np.ndarray | float) -> np.ndarray:
@@ -656,6 +659,8 @@ class _Tree:
         for c in range(hi - 1, start, -1):
             if facing_one(xs, ys, lo, hi, c) and not self._blocked(lo, hi, c, blockers):
                 return c
+        if self.boxes is not None and start - lo > _SHADOWED:
+            return self._first_apex_shadowed(lo, hi, start, blockers)
         # long runs of candidates that do not face the base or that the same few edges block:
         # filter them in chunks
         size = _SCALAR_CANDIDATES
@@ -669,6 +674,28 @@ class _Tree:
             for c in chunk.tolist():
                 if not self._blocked(lo, hi, c, blockers):
                     return c
+        return -1
+
+    def _first_apex_shadowed(self, lo: int, hi: int, start: int, blockers: list[int]) -> int:
+        """:meth:`_first_apex` for the candidates from ``start`` back in a long sub-polygon:
+        chain boxes right of the chord or in the shadow of a vertex (``Shadows``) are
+        skipped whole; the vertices near the base, those of the candidates tested and the
+        ends of the edges that blocked them cast the shadows."""
+        xs, ys = self.xs, self.ys
+        shadows = Shadows(xs, ys, self.boxes, lo, hi)
+        for c in range(hi - 1, start, -1):
+            shadows.add(c)
+        for e in blockers:
+            shadows.add(e)
+            shadows.add(e + 1)
+        shadows.seed()
+        for c in shadows.candidates(start):
+            if not facing_one(xs, ys, lo, hi, c):
+                continue
+            if not self._blocked(lo, hi, c, blockers):
+                return c
+            shadows.add(blockers[0])
+            shadows.add(blockers[0] + 1)
         return -1
 
     def _not_blocked_by(

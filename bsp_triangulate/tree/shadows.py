@@ -1,0 +1,164 @@
+"""Rule "first" on long sub-polygons: candidates proven to fail, skipped by whole chain boxes.
+
+Seen from the base (A, B) of a sub-polygon, a point ``q`` strictly left of the chord A -> B has
+two angles in (0, pi): ``alpha`` at A from A -> B counter-clockwise to A -> q, and ``beta`` at
+B from B -> q counter-clockwise to B -> A. A vertex ``p`` lies strictly inside the triangle on
+the base with apex ``c`` exactly when ``alpha(p) < alpha(c)`` and ``beta(p) < beta(c)``: ``c``
+lies in the *shadow* of ``p``, and fails condition 2 of the correct triangle
+(docs/algorithm.md, section 4). Candidates not strictly left of the chord fail condition 1.
+
+:class:`Shadows` keeps the staircase of the vertices met so far that no other one shadows,
+first from the chain boxes nearest the base, then while it walks the boxes from the last
+candidate back. It yields, in that order, only the candidates that no box or point test rules
+out; the caller tests those exactly, so the first correct candidate is the one the full scan
+finds. Angles are compared with a margin far above their rounding: a doubtful case is
+yielded, never skipped.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from bisect import bisect_left
+from collections.abc import Iterator
+
+from ..geometry.spatial_index import ChainBoxes
+
+# Leaf boxes read nearest the base first, to start the staircase.
+_SEED_LEAVES = 24
+# Angles (radians) closer than this are not trusted to compare.
+_MARGIN = 1e-9
+_TWO_PI = 2.0 * math.pi
+
+
+class Shadows:
+    """The staircase of shadows on the base (positions ``hi`` -> ``lo``) of a sub-polygon."""
+
+    def __init__(
+        self, xs: list[float], ys: list[float], boxes: ChainBoxes, lo: int, hi: int
+    ) -> None:
+        self.xs, self.ys, self.boxes, self.lo, self.hi = xs, ys, boxes, lo, hi
+        ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
+        self.ax, self.ay, self.bx, self.by = ax, ay, bx, by
+        self.to_b = math.atan2(by - ay, bx - ax)
+        self.to_a = math.atan2(ay - by, ax - bx)
+        # staircase: alphas increasing, betas decreasing
+        self.alphas: list[float] = []
+        self.betas: list[float] = []
+        self.side: tuple[float, float, float, float] | None = None
+        nx, ny = ay - by, bx - ax  # left of the chord A -> B
+        norm = math.hypot(nx, ny)
+        if 0 < norm < math.inf:
+            nx, ny = nx / norm, ny / norm
+            self.side = (nx, ny, nx * ax + ny * ay + boxes.pad, nx * ax + ny * ay - boxes.pad)
+
+    def angles(self, x: float, y: float) -> tuple[float, float]:
+        """(alpha, beta) of the point (x, y), each in [0, 2 pi)."""
+        alpha = (math.atan2(y - self.ay, x - self.ax) - self.to_b) % _TWO_PI
+        beta = (self.to_a - math.atan2(y - self.by, x - self.bx)) % _TWO_PI
+        return alpha, beta
+
+    def add(self, position: int) -> None:
+        """Cast the shadow of the vertex at ``position`` if it surely lies strictly left of
+        the chord (a vertex of the sub-polygon other than the base's ends)."""
+        if self.lo < position < self.hi and self.side is not None:
+            self._add(*self.angles(self.xs[position], self.ys[position]))
+
+    def _add(self, alpha: float, beta: float) -> None:
+        if not (_MARGIN < alpha < math.pi - _MARGIN and _MARGIN < beta < math.pi - _MARGIN):
+            return
+        alphas, betas = self.alphas, self.betas
+        at = bisect_left(alphas, alpha)
+        if at and betas[at - 1] <= beta:
+            return
+        end = at
+        while end < len(alphas) and betas[end] >= beta:
+            end += 1
+        alphas[at:end] = [alpha]
+        betas[at:end] = [beta]
+
+    def shadowed(self, alpha: float, beta: float) -> bool:
+        """Some vertex of the staircase surely lies strictly inside the triangle whose apex
+        has these angles."""
+        at = bisect_left(self.alphas, alpha - _MARGIN)
+        return at > 0 and self.betas[at - 1] < beta - _MARGIN
+
+    def _box(self, box: tuple[float, ...]) -> tuple[int, float, float]:
+        """(kind, least alpha, least beta) of a chain box: kind 1 if the box lies strictly
+        left of the chord, -1 if strictly right, 0 otherwise (angles then 0)."""
+        nx, ny, above, below = self.side
+        ox, oy, ux, uy, hu, hv = box[4:]
+        centre = nx * ox + ny * oy
+        reach = hu * abs(nx * ux + ny * uy) + hv * abs(ny * ux - nx * uy)
+        if centre + reach < below:
+            return -1, 0.0, 0.0
+        if centre - reach <= above:
+            return 0, 0.0, 0.0
+        least_alpha = least_beta = math.inf
+        for su, sv in ((hu, hv), (hu, -hv), (-hu, hv), (-hu, -hv)):
+            alpha, beta = self.angles(ox + su * ux - sv * uy, oy + su * uy + sv * ux)
+            least_alpha = min(least_alpha, alpha)
+            least_beta = min(least_beta, beta)
+        return 1, least_alpha, least_beta
+
+    def seed(self) -> None:
+        """Start the staircase from the leaf boxes nearest the base (least alpha + beta)."""
+        if self.side is None:
+            return
+        levels, sizes, m = self.boxes.levels, self.boxes.sizes, self.boxes.m
+        low_end, high_end = self.lo + 1, self.hi - 1
+        top = len(levels) - 1
+        heap = [(-1.0, top, k) for k in range(len(levels[top]))]
+        leaves = 0
+        while heap and leaves < _SEED_LEAVES:
+            _, level, k = heapq.heappop(heap)
+            first = k * sizes[level]
+            last = min(first + sizes[level], m)
+            if first > high_end or last < low_end:
+                continue
+            if level == 0:
+                leaves += 1
+                for position in range(max(first, low_end), min(last, high_end) + 1):
+                    self.add(position)
+                continue
+            below = levels[level - 1]
+            for child in (2 * k, 2 * k + 1):
+                if child < len(below):
+                    kind, alpha, beta = self._box(below[child])
+                    if kind == 0:
+                        heapq.heappush(heap, (-1.0, level - 1, child))
+                    elif kind > 0 and not self.shadowed(alpha, beta):
+                        heapq.heappush(heap, (alpha + beta, level - 1, child))
+
+    def candidates(self, top: int) -> Iterator[int]:
+        """Candidate positions in ``[lo + 1, top]``, from the last back, that no box or point
+        test rules out; vertices met (and shadows added by the caller) join the staircase."""
+        if self.side is None:
+            yield from range(top, self.lo, -1)
+            return
+        xs, ys = self.xs, self.ys
+        levels, sizes, m = self.boxes.levels, self.boxes.sizes, self.boxes.m
+        low_end = self.lo + 1
+        top_level = len(levels) - 1
+        stack = [(top_level, k) for k in range(len(levels[top_level]))]
+        while stack:
+            level, k = stack.pop()
+            first = k * sizes[level]
+            last = min(first + sizes[level], m)
+            if first > top or last < low_end:
+                continue
+            kind, alpha, beta = self._box(levels[level][k])
+            if kind < 0 or (kind > 0 and self.shadowed(alpha, beta)):
+                continue
+            if level:
+                stack.append((level - 1, 2 * k))
+                if 2 * k + 1 < len(levels[level - 1]):
+                    stack.append((level - 1, 2 * k + 1))
+                continue
+            # the box's last point opens the next box, which covers it
+            high = min(last if last == m else last - 1, top)
+            for position in range(high, max(first, low_end) - 1, -1):
+                alpha, beta = self.angles(xs[position], ys[position])
+                if not self.shadowed(alpha, beta):
+                    self._add(alpha, beta)
+                    yield position

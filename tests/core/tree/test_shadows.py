@@ -1,0 +1,116 @@
+"""Rule first on long sub-polygons skips candidates in the shadow of a vertex
+(``tree/shadows.py``): every skipped candidate truly fails, and the trees are those of the
+plain scan of every candidate."""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from bsp_triangulate import triangulate
+from bsp_triangulate.geometry.spatial_index import ChainBoxes
+from bsp_triangulate.tree import one_polygon
+from bsp_triangulate.tree.shadows import Shadows
+
+FIELDS = ("vertices", "triangles", "parent", "depth", "side")
+
+
+def _river(half: int, islands: int, seed: int, grid: float = 0.0) -> list[np.ndarray]:
+    """A meandering band (``half`` vertices per bank) with small star islands in it;
+    ``grid`` > 0 rounds every coordinate to that step (collinear and repeated positions)."""
+    rng = np.random.default_rng(seed)
+    length, width = 4000.0, 100.0
+    t = np.linspace(0.0, 1.0, half)
+    mid_x, mid_y = length * t, 0.1 * length * np.sin(2 * np.pi * 3 * t)
+    dx, dy = np.gradient(mid_x), np.gradient(mid_y)
+    norm = np.hypot(dx, dy)
+    nx, ny = -dy / norm, dx / norm
+    wiggle = 1.0 + 0.05 * rng.uniform(-1, 1, (2, half))
+    left = np.column_stack([mid_x + nx * width / 2 * wiggle[0], mid_y + ny * width / 2 * wiggle[0]])
+    right = np.column_stack(
+        [mid_x - nx * width / 2 * wiggle[1], mid_y - ny * width / 2 * wiggle[1]]
+    )
+    rings = [np.concatenate([right, left[::-1]])]
+    for at in np.linspace(0.05, 0.95, islands):
+        index = int(at * (half - 1))
+        offset = rng.uniform(-0.6, 0.6) * width / 2
+        cx, cy = mid_x[index] + nx[index] * offset, mid_y[index] + ny[index] * offset
+        count = int(rng.integers(4, 12))
+        angles = -np.linspace(0.0, 2 * np.pi, count, endpoint=False) + rng.uniform(0, 1)
+        radius = width * rng.uniform(0.04, 0.12)
+        rings.append(np.column_stack([cx + radius * np.cos(angles), cy + radius * np.sin(angles)]))
+    if grid:
+        rings = [np.round(ring / grid) * grid for ring in rings]
+    return rings
+
+
+def _same(first: object, second: object) -> None:
+    for field in FIELDS:
+        assert np.array_equal(getattr(first, field), getattr(second, field)), field
+
+
+@pytest.mark.parametrize(
+    "rings",
+    [_river(600, 30, 1), _river(800, 40, 2), _river(500, 25, 3, grid=5.0)],
+    ids=["river", "river 2", "river on a 5 m grid"],
+)
+def test_shadowed_scan_gives_the_trees_of_the_plain_scan(
+    monkeypatch: pytest.MonkeyPatch, rings: list[np.ndarray]
+) -> None:
+    used: list[int] = []
+    shadowed = one_polygon._Tree._first_apex_shadowed
+    monkeypatch.setattr(
+        one_polygon._Tree,
+        "_first_apex_shadowed",
+        lambda self, *args: used.append(1) or shadowed(self, *args),
+    )
+    for invalid in ("fail", "as_given"):
+        fast = triangulate(rings, invalid=invalid)
+        with monkeypatch.context() as patch:
+            patch.setattr(one_polygon, "_SHADOWED", math.inf)
+            _same(fast, triangulate(rings, invalid=invalid))
+    assert used
+
+
+def _strictly_inside(a: tuple, b: tuple, c: tuple, p: tuple) -> bool:
+    def orient(u: tuple, v: tuple, w: tuple) -> Fraction:
+        return (v[0] - u[0]) * (w[1] - u[1]) - (v[1] - u[1]) * (w[0] - u[0])
+
+    return orient(a, b, p) > 0 and orient(b, c, p) > 0 and orient(c, a, p) > 0
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_skipped_candidates_fail_exactly(seed: int) -> None:
+    """On random chains (lattice points: vertices on the chord and on the shadows' edges),
+    each candidate not yielded lies on or right of the chord, or some vertex of the
+    sub-polygon lies strictly inside its triangle (exact rational test)."""
+    rng = np.random.default_rng(seed)
+    scale = 1.0 if seed % 2 else 1e-3
+    offset = 1e5 * (seed % 3)
+    points = rng.integers(-12, 13, (700, 2)) * scale + offset
+    points[0], points[-1] = (offset - 3 * scale, offset), (offset + 3 * scale, offset)
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    boxes = ChainBoxes(x, y, leaf=4)
+    lo, hi = 0, len(x) - 1
+    xs, ys = x.tolist(), y.tolist()
+    shadows = Shadows(xs, ys, boxes, lo, hi)
+    for position in rng.integers(1, hi, 5).tolist():
+        shadows.add(int(position))
+    shadows.seed()
+    top = hi - 1
+    yielded = list(shadows.candidates(top))
+    assert yielded == sorted(yielded, reverse=True)
+    exact = [(Fraction(u), Fraction(v)) for u, v in zip(xs, ys)]
+    a, b = exact[hi], exact[lo]
+    skipped = set(range(lo + 1, top + 1)) - set(yielded)
+    assert skipped
+    shadowed = 0
+    for c in skipped:
+        facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
+        if facing > 0:
+            assert any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)), c
+            shadowed += 1
+    assert shadowed > 10
