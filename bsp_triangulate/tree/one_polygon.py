@@ -472,15 +472,22 @@ class _Tree:
         exact test (:meth:`_blocked`), until every untested one is surely farther than a
         correct one found; the rule then chooses among the correct ones found."""
         windows, z = self._windows, self.sz
+        xs, ys = self.xs, self.ys
         z1, z2 = float(z[v1]), float(z[v2])
         # the rule's error bound for any candidate of the window
         widest = _EPS8 * (2.0 * windows.widest_z(lo, hi) + abs(z1) + abs(z2)) + 1e-300
         blockers: list[int] = []
         found: list[int] = []
         best = math.inf
+        shadows: Shadows | None = None
+        tested = 0
         for band, floor in windows.bands(lo, hi, z1 + z2):
             if len(band):
                 band = band[facing_candidates(self.sx, self.sy, lo, hi, band, self.exact)]
+            if shadows is None and tested > _SCALAR_CANDIDATES:
+                shadows = self._shadows(lo, hi, blockers)
+            if shadows is not None and len(band):
+                band = band[~shadows.shadowed_many(self.sx, self.sy, band)]
             if len(band) > _SCALAR_CANDIDATES and blockers:
                 # wide bands (elevations close or equal): the edges that blocked earlier
                 # candidates, against the whole band at once
@@ -494,9 +501,15 @@ class _Tree:
                     if found and approx_list[index] - widest > best:
                         break  # this band's others too are surely farther than a correct one
                     c = int(band[index])
+                    if shadows is not None and shadows.shadowed(*shadows.angles(xs[c], ys[c])):
+                        continue
+                    tested += 1
                     if not self._blocked(lo, hi, c, blockers):
                         found.append(c)
                         best = min(best, approx_list[index] + error_list[index])
+                    elif shadows is not None:
+                        shadows.add(blockers[0])
+                        shadows.add(blockers[0] + 1)
             if found and floor - widest > best:
                 break  # every later band is surely farther than a correct one
         if not found:
@@ -675,6 +688,15 @@ class _Tree:
                 if not self._blocked(lo, hi, c, blockers):
                     return c
         return -1
+
+    def _shadows(self, lo: int, hi: int, blockers: list[int]) -> Shadows:
+        """The shadows on the base of [lo, hi] of the vertices nearest it and of the ends of
+        the edges ``blockers``."""
+        shadows = Shadows(self.xs, self.ys, self.boxes, lo, hi)
+        for e in blockers:
+            shadows.add(e)
+            shadows.add(e + 1)
+        return shadows
 
     def _first_apex_shadowed(self, lo: int, hi: int, start: int, blockers: list[int]) -> int:
         """:meth:`_first_apex` for the candidates from ``start`` back in a long sub-polygon:

@@ -22,6 +22,8 @@ import math
 from bisect import bisect_left
 from collections.abc import Iterator
 
+import numpy as np
+
 from ..geometry.spatial_index import ChainBoxes
 
 # Leaf boxes read nearest the base first, to start the staircase.
@@ -82,6 +84,17 @@ class Shadows:
         has these angles."""
         at = bisect_left(self.alphas, alpha - _MARGIN)
         return at > 0 and self.betas[at - 1] < beta - _MARGIN
+
+    def shadowed_many(self, sx: np.ndarray, sy: np.ndarray, positions: np.ndarray) -> np.ndarray:
+        """:meth:`shadowed` of the points at ``positions`` (coordinates ``sx``, ``sy``)."""
+        if not self.alphas:
+            return np.zeros(len(positions), dtype=bool)
+        x, y = sx[positions], sy[positions]
+        alpha = (np.arctan2(y - self.ay, x - self.ax) - self.to_b) % _TWO_PI
+        beta = (self.to_a - np.arctan2(y - self.by, x - self.bx)) % _TWO_PI
+        at = np.searchsorted(np.array(self.alphas), alpha - _MARGIN, side="left")
+        stair = np.array([math.inf, *self.betas])
+        return stair[at] < beta - _MARGIN
 
     def _box(self, box: tuple[float, ...]) -> tuple[int, float, float]:
         """(kind, least alpha, least beta) of a chain box: kind 1 if the box lies strictly

@@ -114,3 +114,26 @@ def test_skipped_candidates_fail_exactly(seed: int) -> None:
             assert any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)), c
             shadowed += 1
     assert shadowed > 10
+
+
+def test_rule_elevation_skips_shadowed_candidates_with_the_same_trees(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Rule elevation tests candidates closest in z first; those in a shadow are skipped
+    without the exact test, and the trees are those of testing every one."""
+    used: list[int] = []
+    shadows = one_polygon._Tree._shadows
+    monkeypatch.setattr(
+        one_polygon._Tree, "_shadows", lambda self, *args: used.append(1) or shadows(self, *args)
+    )
+    rings = _river(700, 30, 4)
+    rings = [np.column_stack([r, np.sin(r[:, 0] / 97) * 40 + r[:, 1] / 50]) for r in rings]
+    for invalid in ("fail", "as_given"):
+        fast = triangulate(rings, rule="elevation", invalid=invalid)
+        with monkeypatch.context() as patch:
+            patch.setattr(Shadows, "shadowed", lambda self, alpha, beta: False)
+            patch.setattr(
+                Shadows, "shadowed_many", lambda self, sx, sy, p: np.zeros(len(p), dtype=bool)
+            )
+            _same(fast, triangulate(rings, rule="elevation", invalid=invalid))
+    assert used
