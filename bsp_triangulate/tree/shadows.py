@@ -1,4 +1,4 @@
-"""Rule "first" on long sub-polygons: candidates proven to fail, skipped by whole chain boxes.
+"""Long sub-polygons: candidates proven to fail, skipped without the exact test.
 
 Seen from the base (A, B) of a sub-polygon, a point ``q`` strictly left of the chord A -> B has
 two angles in (0, pi): ``alpha`` at A from A -> B counter-clockwise to A -> q, and ``beta`` at
@@ -11,8 +11,9 @@ lies in the *shadow* of ``p``, and fails condition 2 of the correct triangle
 first from the chain boxes nearest the base, then while it walks the boxes from the last
 candidate back. It yields, in that order, only the candidates that no box or point test rules
 out; the caller tests those exactly, so the first correct candidate is the one the full scan
-finds. Angles are compared with a margin far above their rounding: a doubtful case is
-yielded, never skipped.
+finds (rule "first"). Rule "elevation" asks only whether a candidate lies in a shadow
+(:meth:`Shadows.shadowed`, :meth:`Shadows.shadowed_many`). Angles are compared with a margin
+far above their rounding: a doubtful case is tested, never skipped.
 """
 
 from __future__ import annotations
