@@ -690,8 +690,8 @@ class _Tree:
         return -1
 
     def _shadows(self, lo: int, hi: int, blockers: list[int]) -> Shadows:
-        """The shadows on the base of [lo, hi] of the vertices nearest it and of the ends of
-        the edges ``blockers``."""
+        """The shadows on the base of [lo, hi] of the ends of the edges ``blockers`` (the
+        caller adds more as it finds them)."""
         shadows = Shadows(self.xs, self.ys, self.boxes, lo, hi)
         for e in blockers:
             shadows.add(e)
@@ -704,12 +704,9 @@ class _Tree:
         skipped whole; the vertices near the base, those of the candidates tested and the
         ends of the edges that blocked them cast the shadows."""
         xs, ys = self.xs, self.ys
-        shadows = Shadows(xs, ys, self.boxes, lo, hi)
+        shadows = self._shadows(lo, hi, blockers)
         for c in range(hi - 1, start, -1):
             shadows.add(c)
-        for e in blockers:
-            shadows.add(e)
-            shadows.add(e + 1)
         shadows.seed()
         for c in shadows.candidates(start):
             if not facing_one(xs, ys, lo, hi, c):
