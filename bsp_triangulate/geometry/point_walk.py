@@ -56,12 +56,13 @@ def walk_sequence(
     # position of each half-edge in the sorted order, and of its reverse
     where = np.empty(len(order), dtype=np.int64)
     where[order] = np.arange(len(order))
-    keys = tail * (int(max(tail.max(), head.max())) + 1) + head
+    base = int(max(tail.max(), head.max())) + 1  # directed edge (u, v) as u * base + v
+    keys = tail * base + head
     by_key = np.argsort(keys, kind="stable")
     sorted_keys = keys[by_key]
     if (sorted_keys[1:] == sorted_keys[:-1]).any():
         return None  # an edge twice: a link along the ring or a repeated link
-    reverse_keys = head * (int(max(tail.max(), head.max())) + 1) + tail
+    reverse_keys = head * base + tail
     reverse = by_key[np.searchsorted(sorted_keys, reverse_keys)]
     # arriving by h = (u -> v), leave by the edge before (v -> u) in counter-clockwise order
     at = where[reverse]
