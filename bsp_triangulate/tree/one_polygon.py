@@ -15,6 +15,8 @@ from ..geometry.bridges import MeshEdges, bridge_islands, remove_spikes, ring_ed
 from ..geometry.delaunay_mesh import delaunay_faults
 from ..geometry.points import as_point_array, first_occurrences, strictly_inside
 from ..geometry.predicates import (
+    CCW_ERRBOUND,
+    UNDERFLOW_SLACK,
     area_surely_clear,
     grid_exact,
     incircle_many,
@@ -567,7 +569,7 @@ class _Tree:
         outside that circle can see the base under a larger angle, and cocircular ones lie
         on it), so the choice is the one the test of every candidate would give.
         """
-        sx, sy, rule = self.sx, self.sy, self.rule
+        sx, sy, xs, ys, rule = self.sx, self.sy, self.xs, self.ys, self.rule
         if self.grid is None or hi - lo <= SMALL_SEQUENCE:
             return self._delaunay_small(lo, hi, np.arange(hi - 1, lo, -1))
         if self._points is None:
@@ -577,22 +579,32 @@ class _Tree:
         ax, ay, bx, by = float(sx[hi]), float(sy[hi]), float(sx[lo]), float(sy[lo])
         mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
         half = 0.5 * math.hypot(bx - ax, by - ay)
-        radius = max(half, points.size_x, points.size_y)
+        # a first box of twice the base (or a grid cell) holds most bases' circles at once
+        radius = 2.0 * max(half, points.size_x, points.size_y)
         full = 2.0 * max(points.size_x * points.nx, points.size_y * points.ny) + radius
         nx, ny = ay - by, bx - ax  # the base's normal towards the candidates
         half2 = half * half
         seen = np.zeros(0, dtype=np.int64)
         untested = np.zeros(0, dtype=np.int64)
+        sure = np.zeros(0, dtype=bool)  # per untested position: surely left of the chord
         pool: list[np.ndarray] = []
         best = -1
-        blockers: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+        blockers: list[int] = []
         while True:
             found = np.unique(points.query_box(mx - radius, my - radius, mx + radius, my + radius))
             found = found[(found > lo) & (found < hi)]
             fresh = np.setdiff1d(found, seen, assume_unique=True)
             seen = found
-            fresh = fresh[facing_candidates(sx, sy, lo, hi, fresh, self.exact)]
-            untested = np.concatenate([untested, fresh])
+            # the positions surely right of the chord leave (float signs beyond their error
+            # bound); the rest are ordered, and each is tested exactly (conditions 1 and 4,
+            # then the edges) only when its turn comes
+            dx, dy = sx[fresh] - ax, sy[fresh] - ay
+            left, right = (bx - ax) * dy, (by - ay) * dx
+            det = left - right
+            bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
+            keep = det >= -bound
+            untested = np.concatenate([untested, fresh[keep]])
+            sure = np.concatenate([sure, det[keep] > bound[keep]])
             size = 1
             while len(untested):
                 if best >= 0:
@@ -601,18 +613,29 @@ class _Tree:
                     inside = incircle_many(
                         ax, ay, bx, by, sx[best], sy[best], sx[untested], sy[untested]
                     )
-                    untested = untested[inside >= 0]
+                    untested, sure = untested[inside >= 0], sure[inside >= 0]
                     if len(untested) == 0:
                         break
-                # most promising first: smallest centre offset (largest angle), in float
+                # most promising first: smallest centre offset (largest angle), in float;
+                # those not surely left of the chord last
                 ux, uy = sx[untested] - mx, sy[untested] - my
                 with np.errstate(divide="ignore", invalid="ignore"):  # an order, checked after
                     key = (ux * ux + uy * uy - half2) / (ux * nx + uy * ny)
+                key[~sure] = np.inf
                 order = np.argsort(key, kind="stable")
                 chunk = np.sort(untested[order[:size]])[::-1]  # candidate order
-                untested = untested[order[size:]]
+                untested, sure = untested[order[size:]], sure[order[size:]]
                 size = min(2 * size, _MAX_CHUNK)
-                correct = self._grid_correct(lo, hi, chunk, True, blockers)
+                # the exact tests of each (the chain boxes find the few edges near a long
+                # thin triangle that a grid query would gather by the thousand)
+                correct = np.array(
+                    [
+                        c
+                        for c in chunk.tolist()
+                        if facing_one(xs, ys, lo, hi, c) and not self._blocked(lo, hi, c, blockers)
+                    ],
+                    dtype=np.int64,
+                )
                 if len(correct):
                     pool.append(correct)
                     everything = np.sort(np.concatenate(pool))[::-1]
