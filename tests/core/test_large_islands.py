@@ -7,6 +7,8 @@ ones.
   rings (left to the one-step builder), and with the lock-step calls split into groups.
 - The bridge search that tests blocks of candidates at once (``_Bridger.find_bridge``) picks
   the bridge that testing one candidate at a time picks.
+- Rule delaunay's outward search on long sub-polygons picks the apex that testing every
+  candidate picks.
 """
 
 from __future__ import annotations
@@ -151,3 +153,56 @@ def test_delaunay_subtrees_of_the_lockstep_builder_match_one_step(
         _same(_one_step(monkeypatch, rings, rule="delaunay"), fast)
         check_triangulation(rings, fast)
     assert "delaunay" in calls
+
+
+def _grid_comb(teeth: int) -> list[np.ndarray]:
+    """A comb on the integer grid (teeth of width 1 and 2, collinear runs along every edge,
+    many cocircular quadruples), with square islands between the teeth's roots."""
+    outer = [(0.0, 0.0)]
+    for k in range(teeth):
+        x = 3.0 * k
+        outer += [(x + 1.0, 0.0), (x + 1.0, 5.0 + k % 3), (x + 2.0, 5.0 + k % 3), (x + 2.0, 0.0)]
+    width = 3.0 * teeth + 1.0
+    outer += [(width, 0.0)]
+    outer += [(width, -float(y)) for y in range(1, 7)]
+    outer += [(float(x), -6.0) for x in range(int(width) - 1, -1, -1)]
+    outer += [(0.0, -float(y)) for y in range(5, 0, -1)]
+    rings = [np.array(outer)]
+    for k in range(0, teeth - 1, 2):
+        x = 3.0 * k + 2.0
+        rings.append(np.array([(x, -4.0), (x, -2.0), (x + 2.0, -2.0), (x + 2.0, -4.0)]))
+    return rings
+
+
+@pytest.mark.parametrize(
+    ("name", "rings"),
+    [
+        ("wavy", _wavy(1500, 40, 7)),
+        ("wavy mirrored", [r[:, ::-1].copy() for r in _wavy(1200, 30, 8)]),
+        ("grid comb", _grid_comb(60)),
+    ],
+    ids=["wavy", "wavy mirrored", "grid comb"],
+)
+def test_delaunay_outward_search_matches_every_candidate(
+    monkeypatch: pytest.MonkeyPatch, name: str, rings: list
+) -> None:
+    """Rule delaunay on long sub-polygons searches outwards from the base (positions surely
+    right of the chord dropped in float, the rest tested exactly in turn): the same tree as
+    testing every candidate, also where many positions lie on chords (the grid comb)."""
+    searched: list[int] = []
+    search = one_polygon._Tree._delaunay_apex
+
+    def counted(self, lo, hi):
+        searched.append(hi - lo)
+        return search(self, lo, hi)
+
+    monkeypatch.setattr(one_polygon._Tree, "_delaunay_apex", counted)
+    fast = _one_step(monkeypatch, rings, rule="delaunay")
+    assert max(searched) > one_polygon.SMALL_SEQUENCE
+    monkeypatch.setattr(
+        one_polygon._Tree,
+        "_delaunay_apex",
+        lambda self, lo, hi: self._delaunay_small(lo, hi, np.arange(hi - 1, lo, -1)),
+    )
+    _same(_one_step(monkeypatch, rings, rule="delaunay"), fast)
+    check_triangulation(rings, fast)
