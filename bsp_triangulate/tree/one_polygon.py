@@ -596,13 +596,14 @@ class _Tree:
             fresh = np.setdiff1d(found, seen, assume_unique=True)
             seen = found
             # the positions surely right of the chord leave (float signs beyond their error
-            # bound); the rest are ordered, and each is tested exactly (conditions 1 and 4,
-            # then the edges) only when its turn comes
+            # bound; an overflow is not sure); the rest are ordered, and each is tested
+            # exactly (conditions 1 and 4, then the edges) only when its turn comes
             dx, dy = sx[fresh] - ax, sy[fresh] - ay
-            left, right = (bx - ax) * dy, (by - ay) * dx
-            det = left - right
-            bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
-            keep = det >= -bound
+            with np.errstate(over="ignore", invalid="ignore"):
+                left, right = (bx - ax) * dy, (by - ay) * dx
+                det = left - right
+                bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
+            keep = ~(det < -bound)
             untested = np.concatenate([untested, fresh[keep]])
             sure = np.concatenate([sure, det[keep] > bound[keep]])
             size = 1
