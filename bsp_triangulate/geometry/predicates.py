@@ -89,6 +89,19 @@ def orient_float(ax: float, ay: float, bx: float, by: float, cx: float, cy: floa
     return (det > 0) - (det < 0)
 
 
+def orient_sure_many(
+    ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray, cx: np.ndarray, cy: np.ndarray
+) -> np.ndarray:
+    """int8 sign of orient(a, b, c) where the float value is surely right (beyond the static
+    bound of :func:`orient_many`), 0 where it is not sure (c on the line, near it, or an
+    overflow); callers with huge coordinates silence numpy's warnings."""
+    left = (ax - cx) * (by - cy)
+    right = (ay - cy) * (bx - cx)
+    det = left - right
+    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
+    return (det > bound).astype(np.int8) - (-det > bound).astype(np.int8)
+
+
 def grid_exact(*coordinates: np.ndarray) -> bool:
     """True if every orientation determinant of these coordinates is exact in float64.
 

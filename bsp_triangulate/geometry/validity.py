@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..formats.wkb import PolygonTable
-from .predicates import CCW_ERRBOUND, UNDERFLOW_SLACK
+from .predicates import CCW_ERRBOUND, UNDERFLOW_SLACK, orient_sure_many
 from .rings_batch import covers_in_order
 
 # Coordinates beyond this stay finite in every product below.
@@ -43,16 +43,6 @@ MAX_PAIRS = 1 << 20
 SMALL_RING_EDGES = 16
 
 
-def _orientation(ax, ay, bx, by, cx, cy) -> np.ndarray:
-    """Sign of orient(a, b, c) (+1 counter-clockwise) where the float value is surely right,
-    0 where it is not sure (or c is on the line)."""
-    left = (ax - cx) * (by - cy)
-    right = (ay - cy) * (bx - cx)
-    det = left - right
-    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
-    return (det > bound).astype(np.int8) - (-det > bound).astype(np.int8)
-
-
 def _segments_apart(p1x, p1y, p2x, p2y, q1x, q1y, q2x, q2y) -> np.ndarray:
     """The closed segments p1p2 and q1q2 surely have no point in common."""
     apart = (np.maximum(p1x, p2x) < np.minimum(q1x, q2x)) | (
@@ -61,10 +51,10 @@ def _segments_apart(p1x, p1y, p2x, p2y, q1x, q1y, q2x, q2y) -> np.ndarray:
     apart |= (np.maximum(p1y, p2y) < np.minimum(q1y, q2y)) | (
         np.maximum(q1y, q2y) < np.minimum(p1y, p2y)
     )
-    first = _orientation(p1x, p1y, p2x, p2y, q1x, q1y)
-    apart |= (first != 0) & (first == _orientation(p1x, p1y, p2x, p2y, q2x, q2y))
-    third = _orientation(q1x, q1y, q2x, q2y, p1x, p1y)
-    apart |= (third != 0) & (third == _orientation(q1x, q1y, q2x, q2y, p2x, p2y))
+    first = orient_sure_many(p1x, p1y, p2x, p2y, q1x, q1y)
+    apart |= (first != 0) & (first == orient_sure_many(p1x, p1y, p2x, p2y, q2x, q2y))
+    third = orient_sure_many(q1x, q1y, q2x, q2y, p1x, p1y)
+    apart |= (third != 0) & (third == orient_sure_many(q1x, q1y, q2x, q2y, p2x, p2y))
     return apart
 
 
@@ -281,7 +271,7 @@ def _small_rings_simple(rings: _Rings, chosen: np.ndarray) -> np.ndarray:
     b = a + 1
     c = np.where(i + 1 < edges[ring], b + 1, first[ring] + 1)
     simple = np.logical_and.reduceat(
-        _orientation(x[a], y[a], x[b], y[b], x[c], y[c]) != 0, np.cumsum(edges) - edges
+        orient_sure_many(x[a], y[a], x[b], y[b], x[c], y[c]) != 0, np.cumsum(edges) - edges
     )
     # every pair i < j of edges that are not neighbours: j from i + 2 to the last edge, but
     # not the last edge when i is the first (they meet at the ring's first point)
@@ -326,7 +316,7 @@ def _check_islands(rings: _Rings, proven: np.ndarray) -> None:
     # ray crossings to the right of the point: only straddling edges need an orientation
     straddle = np.flatnonzero((ay > py) != (by > py))
     a_straddle = a[straddle]
-    side = _orientation(
+    side = orient_sure_many(
         x[a_straddle],
         ay[straddle],
         x[1:][a_straddle],

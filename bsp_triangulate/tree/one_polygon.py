@@ -15,14 +15,13 @@ from ..geometry.bridges import MeshEdges, bridge_islands, remove_spikes, ring_ed
 from ..geometry.delaunay_mesh import delaunay_faults
 from ..geometry.points import as_point_array, first_occurrences, strictly_inside
 from ..geometry.predicates import (
-    CCW_ERRBOUND,
-    UNDERFLOW_SLACK,
     area_surely_clear,
     grid_exact,
     incircle_many,
     orient,
     orient_float,
     orient_many,
+    orient_sure_many,
     ring_area_sign,
     shoelace_products,
     strictly_between,
@@ -598,14 +597,11 @@ class _Tree:
             # the positions surely right of the chord leave (float signs beyond their error
             # bound; an overflow is not sure); the rest are ordered, and each is tested
             # exactly (conditions 1 and 4, then the edges) only when its turn comes
-            dx, dy = sx[fresh] - ax, sy[fresh] - ay
             with np.errstate(over="ignore", invalid="ignore"):
-                left, right = (bx - ax) * dy, (by - ay) * dx
-                det = left - right
-                bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
-            keep = ~(det < -bound)
+                side = orient_sure_many(ax, ay, bx, by, sx[fresh], sy[fresh])
+            keep = side >= 0
             untested = np.concatenate([untested, fresh[keep]])
-            sure = np.concatenate([sure, det[keep] > bound[keep]])
+            sure = np.concatenate([sure, side[keep] > 0])
             size = 1
             while len(untested):
                 if best >= 0:
