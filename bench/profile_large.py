@@ -10,8 +10,8 @@ Times the engine on each case and, with ``--profile``, runs it under cProfile (b
 tree building then show up separately). ``--save`` stores the triangulations and ``--check``
 compares a run with a saved one field by field (the speed work must not change results).
 
-Usage: python bench/profile_large.py [--cases water,islands_10000] [--profile] [--top 25]
-       [--save DIR | --check DIR]
+Usage: python bench/profile_large.py [--cases water,islands_10000] [--rule first] [--profile]
+       [--top 25] [--save DIR | --check DIR]
 """
 
 from __future__ import annotations
@@ -65,6 +65,7 @@ def same(result: Triangulation, path: Path) -> bool:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", default="water,islands_10000")
+    parser.add_argument("--rule", default="first", help="apex rule: first, elevation, delaunay")
     parser.add_argument("--profile", action="store_true", help="run under cProfile")
     parser.add_argument("--top", type=int, default=25, help="functions to list")
     parser.add_argument("--save", type=Path, help="directory to store the results in")
@@ -77,7 +78,7 @@ def main() -> None:
         start, cpu = time.perf_counter(), time.process_time()
         if profiler:
             profiler.enable()
-        result = triangulate(rings)
+        result = triangulate(rings, rule=arguments.rule)
         if profiler:
             profiler.disable()
         seconds, cpu = time.perf_counter() - start, time.process_time() - cpu

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..triangulation import TriangulationError
 from .bridge_plan import inside_open_angle, pairs_blocked, plan_targets
+from .delaunay_links import LINKED_ISLANDS, delaunay_links
 from .point_walk import walk_sequence
 from .points import PointOrder, delaunay_point_bridge, nearest_point_bridge, point_order
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
@@ -362,6 +363,17 @@ class _Bridger:
         if self.bridge_count and self._crosses_bridge(vid, h):
             return None
         return int(self.first[vid]), vid
+
+    def linked(self, vid: int, island: np.ndarray, h_index: int) -> tuple[int, int] | None:
+        """(node, vertex id) of the bridge along a link (:mod:`.delaunay_links`: a Gabriel
+        edge crossing no ring edge) to ``vid``, now in the sequence: its one occurrence whose
+        open angle holds the island's vertex, where no bridge made so far crosses it."""
+        h = int(island[h_index])
+        hx, hy = float(self.x[h]), float(self.y[h])
+        ks = [k for k in self.occurrences(vid) if self._inside_angle(k, hx, hy)]
+        if len(ks) != 1 or (self.bridge_count and self._crosses_bridge(vid, h)):
+            return None
+        return ks[0], vid
 
     def _crosses_bridge(self, u: int, w: int) -> bool:
         """A bridge made so far crosses the segment u-w in both open interiors (exact)."""
@@ -744,6 +756,13 @@ def bridge_islands(
     if delaunay and order is None:
         order = point_order(x, y, rings, bridger.point_ids)
     ready = deque(order.ready(rings[0].tolist()) if order else ())
+    # delaunay: islands along links that are constrained Delaunay edges, breadth-first
+    links = None
+    if delaunay and len(rings) - 1 > LINKED_ISLANDS:
+        links = delaunay_links(
+            x, y, rings, bridger.point_ids, bridger.edges, bridger.edge_a, bridger.edge_b
+        )
+    linked = deque(links.ready(rings[0].tolist()) if links else ())
     pending = iter(leftmost)
     waiting: list[tuple[float, float, int, int]] = []  # delaunay: islands with no bridge yet
     progress = False
@@ -760,6 +779,14 @@ def bridge_islands(
             target = nearest_point_bridge(bridger, h, near)
             target = target or delaunay_point_bridge(bridger, h)
             if target is None:  # it waits in pending or waiting
+                continue
+            progress = True
+        elif linked:
+            slot, h_index, near = linked.popleft()
+            if joined[slot]:
+                continue
+            target = bridger.linked(near, rings[slot], h_index)
+            if target is None:  # another link, or pending, may join it
                 continue
             progress = True
         else:
@@ -804,6 +831,8 @@ def bridge_islands(
         touching.mark(rings[slot])
         if order:
             ready.extend(order.ready(rings[slot].tolist()))
+        if links:
+            linked.extend(links.ready(rings[slot].tolist()))
     return bridger.seq
 
 

@@ -285,10 +285,10 @@ def nearest_vertices(
 ) -> np.ndarray:
     """For each vertex id of ``queries``, the nearest other vertex among ``ids`` (exact
     squared distance, ties to the smallest id; -1 when there is none)."""
-    return _VertexGrid(x, y, ids).nearest(queries)[0]
+    return VertexGrid(x, y, ids).nearest(queries)[0]
 
 
-class _VertexGrid:
+class VertexGrid:
     """A uniform grid over the vertex ids ``ids``, built once for many nearest searches."""
 
     def __init__(self, x: np.ndarray, y: np.ndarray, ids: np.ndarray) -> None:
@@ -315,6 +315,26 @@ class _VertexGrid:
         self.starts = np.searchsorted(key[order], np.arange(nx * ny + 1))
         self.x0, self.y0, self.cell, self.nx, self.ny = x0, y0, cell, nx, ny
         self.pad = 1e-12 * max(abs(x0), abs(y0), abs(x0 + width), abs(y0 + height))
+
+    def pairs_in_boxes(
+        self, xmin: np.ndarray, ymin: np.ndarray, xmax: np.ndarray, ymax: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(box index, vertex id) of the vertices in the cells under each box (a superset of
+        those in the box: the caller tests them)."""
+        if self.empty or len(xmin) == 0:
+            none = np.zeros(0, dtype=np.int64)
+            return none, none
+        x0, y0, cell, nx, ny, pad = self.x0, self.y0, self.cell, self.nx, self.ny, self.pad
+        lo_col = np.clip((xmin - pad - x0) // cell, 0, nx - 1).astype(np.int64)
+        hi_col = np.clip((xmax + pad - x0) // cell, 0, nx - 1).astype(np.int64)
+        lo_row = np.clip((ymin - pad - y0) // cell, 0, ny - 1).astype(np.int64)
+        rows = np.clip((ymax + pad - y0) // cell, 0, ny - 1).astype(np.int64) - lo_row + 1
+        # one contiguous run of the sorted vertices per (box, row of cells)
+        box = np.repeat(np.arange(len(xmin), dtype=np.int64), rows)
+        row_of = np.repeat(lo_row, rows) + _ranks(rows)
+        first = self.starts[row_of * nx + lo_col[box]]
+        spans = self.starts[row_of * nx + hi_col[box] + 1] - first
+        return np.repeat(box, spans), self.sorted_ids[np.repeat(first, spans) + _ranks(spans)]
 
     def nearest(
         self,
@@ -426,7 +446,7 @@ class PointOrder:
         self.anchored: set[int] = set()  # roots of components linked to a ring vertex
         vids = np.asarray(point_vids, dtype=np.int64)
         # one grid over every vertex for all the searches below
-        grid = _VertexGrid(x, y, vertex_ids)
+        grid = VertexGrid(x, y, vertex_ids)
         nearest = grid.nearest(vids)[0].tolist()
         for vid, near in zip(point_vids, nearest):
             if near >= 0:

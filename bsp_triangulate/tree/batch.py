@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.bridges_batch import bridge_sequences
+from ..geometry.delaunay_links import LINKED_ISLANDS
 from ..geometry.rings_batch import (
     FlatRings,
     as_xyz,
@@ -316,6 +317,8 @@ def _triangulate(flat: FlatRings, rule: str, known: np.ndarray, shortcut: bool =
     # the engine gives slivers of negligible net area no triangles: left to it
     areas = net_areas(flat, wx)
     handled &= clear_area(flat, wx, areas) | flat.empty
+    if rule == "delaunay":  # their bridges follow links (geometry/delaunay_links.py)
+        handled &= flat.poly_rings - 1 <= LINKED_ISLANDS
     empties = np.flatnonzero(handled & flat.empty)
     polys = np.flatnonzero(handled & ~flat.empty)
     if len(polys) == 0:
