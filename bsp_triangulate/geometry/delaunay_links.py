@@ -103,10 +103,12 @@ def delaunay_links(
     h, v = pairs[:, 0], pairs[:, 1]
     hv, vv = vids[h], vids[v]
     hx, hy, vx, vy = x[hv], y[hv], x[vv], y[vv]
-    # both ends: the segment leaves inside the ring's open interior angle
+    # both ends: the segment leaves inside the ring's open interior angle (two rings at one
+    # point touch: they join there, not along a link)
     ok = inside_open_angle(x, y, prv[h], hv, nxt[h], vx, vy) & inside_open_angle(
         x, y, prv[v], vv, nxt[v], hx, hy
     )
+    ok &= (hx != vx) | (hy != vy)
     h, v, hv, vv = h[ok], v[ok], hv[ok], vv[ok]
     ok = np.concatenate(
         [
@@ -133,16 +135,20 @@ def _gabriel(
     """Per segment h-v: every other vertex is surely outside its closed diametral circle
     (float values beyond their error bound; an unsure one counts as inside)."""
     hx, hy, vx, vy = x[h], y[h], x[v], y[v]
-    mx, my = 0.5 * (hx + vx), 0.5 * (hy + vy)
-    r = 0.5 * np.hypot(vx - hx, vy - hy) * (1 + 1e-9)
-    box, w = grid.pairs_in_boxes(mx - r, my - r, mx + r, my + r)
+    with np.errstate(over="ignore", invalid="ignore"):
+        mx, my = 0.5 * (hx + vx), 0.5 * (hy + vy)
+        r = 0.5 * np.hypot(vx - hx, vy - hy) * (1 + 1e-9)
+    # a circle beyond the float range is not tested: no link
+    clear = np.isfinite(r) & np.isfinite(mx) & np.isfinite(my)
+    box, w = grid.pairs_in_boxes(mx - r, my - r, mx + r, my + r, clear)
     other = (w != h[box]) & (w != v[box])
     box, w = box[other], w[other]
-    ax, ay = x[w] - hx[box], y[w] - hy[box]
-    bx, by = x[w] - vx[box], y[w] - vy[box]
-    dot = ax * bx + ay * by
-    bound = _DOT_BOUND * (np.abs(ax * bx) + np.abs(ay * by)) + 1e-300
-    inside = dot <= bound
-    clear = np.ones(len(h), dtype=bool)
+    with np.errstate(over="ignore", invalid="ignore"):
+        ax, ay = x[w] - hx[box], y[w] - hy[box]
+        bx, by = x[w] - vx[box], y[w] - vy[box]
+        dot = ax * bx + ay * by
+        bound = _DOT_BOUND * (np.abs(ax * bx) + np.abs(ay * by)) + 1e-300
+        # inside, on the circle, unsure or not a number: the segment is no sure link
+        inside = ~(dot > bound)
     clear[box[inside]] = False
     return clear

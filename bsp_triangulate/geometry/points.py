@@ -317,23 +317,32 @@ class VertexGrid:
         self.pad = 1e-12 * max(abs(x0), abs(y0), abs(x0 + width), abs(y0 + height))
 
     def pairs_in_boxes(
-        self, xmin: np.ndarray, ymin: np.ndarray, xmax: np.ndarray, ymax: np.ndarray
+        self,
+        xmin: np.ndarray,
+        ymin: np.ndarray,
+        xmax: np.ndarray,
+        ymax: np.ndarray,
+        wanted: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(box index, vertex id) of the vertices in the cells under each box (a superset of
-        those in the box: the caller tests them)."""
-        if self.empty or len(xmin) == 0:
-            none = np.zeros(0, dtype=np.int64)
+        """(box index, vertex id) of the vertices in the cells under each box whose flag in
+        ``wanted`` is set (finite boxes only): a superset of those in the box, which the
+        caller tests."""
+        none = np.zeros(0, dtype=np.int64)
+        if self.empty or not wanted.any():
             return none, none
         x0, y0, cell, nx, ny, pad = self.x0, self.y0, self.cell, self.nx, self.ny, self.pad
+        index = np.flatnonzero(wanted)
+        xmin, ymin, xmax, ymax = xmin[index], ymin[index], xmax[index], ymax[index]
         lo_col = np.clip((xmin - pad - x0) // cell, 0, nx - 1).astype(np.int64)
         hi_col = np.clip((xmax + pad - x0) // cell, 0, nx - 1).astype(np.int64)
         lo_row = np.clip((ymin - pad - y0) // cell, 0, ny - 1).astype(np.int64)
         rows = np.clip((ymax + pad - y0) // cell, 0, ny - 1).astype(np.int64) - lo_row + 1
         # one contiguous run of the sorted vertices per (box, row of cells)
-        box = np.repeat(np.arange(len(xmin), dtype=np.int64), rows)
+        box = np.repeat(index, rows)
         row_of = np.repeat(lo_row, rows) + _ranks(rows)
-        first = self.starts[row_of * nx + lo_col[box]]
-        spans = self.starts[row_of * nx + hi_col[box] + 1] - first
+        local = np.repeat(np.arange(len(index), dtype=np.int64), rows)
+        first = self.starts[row_of * nx + lo_col[local]]
+        spans = self.starts[row_of * nx + hi_col[local] + 1] - first
         return np.repeat(box, spans), self.sorted_ids[np.repeat(first, spans) + _ranks(spans)]
 
     def nearest(

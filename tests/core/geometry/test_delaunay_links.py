@@ -143,3 +143,15 @@ def test_an_island_outside_the_shell_fails_or_is_joined_as_under_rule_first():
         len(triangulate(rings, rule=rule, invalid="as_given")) for rule in ("first", "delaunay")
     ]
     assert as_given[0] == as_given[1]
+
+
+@pytest.mark.parametrize("scale", [2.0**-500, 2.0**500, 2.0**1000])
+def test_scaled_islands_give_the_same_triangles(scale: float):
+    # powers of two keep every sign; near the float range's ends the float tests only get
+    # more careful (fewer links), never wrong
+    rings = scattered_squares(5, count=30)
+    want = triangulate(rings, rule="delaunay")
+    got = triangulate([ring * scale for ring in rings], rule="delaunay")
+    assert {tuple(sorted(t)) for t in got.triangles.tolist()} == {
+        tuple(sorted(t)) for t in want.triangles.tolist()
+    }
