@@ -9,6 +9,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+import shapely
 
 import bsp_triangulate.geometry.bridges as bridges
 from bsp_triangulate import TriangulationError, triangulate, triangulate_many
@@ -155,3 +156,19 @@ def test_scaled_islands_give_the_same_triangles(scale: float):
     assert {tuple(sorted(t)) for t in got.triangles.tolist()} == {
         tuple(sorted(t)) for t in want.triangles.tolist()
     }
+
+
+def test_islands_touching_each_other_and_the_shell_are_constrained_delaunay():
+    # chains of islands sharing corners, two of them at shell corners, among free squares:
+    # the touching ones join at their shared points, the others along links
+    shell = np.array([(0.0, 0.0), (40.0, 0.0), (40.0, 40.0), (0.0, 40.0)])
+    chains = [np.array([(0.0, 0.0), (2.0, 1.0), (2.0, 2.0), (1.0, 2.0)])]  # at (0, 0)
+    chains += [square(2.0 + k, 2.0 + k, 1.0) for k in range(2)]
+    chains += [square(20.0 + k, 10.0 + k, 1.0) for k in range(4)]
+    chains += [np.array([(40.0, 40.0), (38.0, 39.0), (39.0, 38.0)])]  # at (40, 40)
+    chains += [np.array([(39.0, 38.0), (38.0, 37.0), (39.0, 36.0)])]
+    free = [square(5.0 + 6.0 * i, 25.0 + 5.0 * j, 2.0) for i in range(5) for j in range(2)]
+    rings = [shell, *chains, *free]
+    assert len(rings) - 1 > LINKED_ISLANDS
+    assert shapely.Polygon(shell, chains + free).is_valid
+    check_delaunay(rings)
