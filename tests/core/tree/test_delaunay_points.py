@@ -157,3 +157,20 @@ def test_sq_distance_exact_orders_as_the_exact_distance() -> None:
     for (e1, k1), (e2, k2) in zip(pairs, pairs[1:]):
         assert (e1 < e2) == (k1 < k2) and (e1 == e2) == (k1 == k2)
     assert sq_distance_exact(0.5, 0.5, 0.5, 1.5) == 2**2148
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_many_islands_and_points_equal_the_recursion(
+    seed: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # more than 16 islands: their bridges follow links (geometry/delaunay_links.py), which
+    # must be edges of the mesh with the points as well
+    from ..geometry.test_bridge_plan import scattered_squares
+
+    rnd = random.Random(seed)
+    rings = [ring.tolist() for ring in scattered_squares(seed, count=24)]
+    points = random_points(rnd, rings, rnd.choice((40, 300)))
+    inserted, recursion, by_insertion = both_ways(rings, points, monkeypatch)
+    assert by_insertion
+    assert_same(inserted, recursion)
+    check_with_points(rings, points, inserted, "delaunay")
