@@ -9,8 +9,8 @@
 Prints wall time, counts and peak memory (ru_maxrss of this process, or of qgis_process under
 `/usr/bin/time -v`). Minutes long: not part of the test suite.
 
-    .venv/bin/python bench/scale_run.py [--polygon [--islands]] [--layer] [--vertices N]
-        [--features N]
+    .venv/bin/python bench/scale_run.py [--polygon [--islands] [--rule R]] [--layer]
+        [--vertices N] [--features N]
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def star_ring(vertices: int, seed: int = 1) -> np.ndarray:
     return np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
 
 
-def run_polygon(vertices: int, islands: bool = False) -> None:
+def run_polygon(vertices: int, islands: bool = False, rule: str = "first") -> None:
     from bsp_triangulate import triangulate
 
     if islands:
@@ -53,11 +53,12 @@ def run_polygon(vertices: int, islands: bool = False) -> None:
         rings = [star_ring(vertices)]
     holes = len(rings) - 1
     start = time.perf_counter()
-    result = triangulate(rings)
+    result = triangulate(rings, rule=rule)
     elapsed = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(
-        f"one polygon, {vertices:,} vertices, {holes:,} islands: {len(result):,} triangles "
+        f"one polygon, {vertices:,} vertices, {holes:,} islands, rule {rule}: "
+        f"{len(result):,} triangles "
         f"(expected {vertices + 2 * holes - 2:,}) in {elapsed:.1f} s, peak {peak:,.0f} MiB"
     )
 
@@ -139,12 +140,13 @@ def main() -> None:
     parser.add_argument(
         "--islands", action="store_true", help="the coast polygon with islands, not the star"
     )
+    parser.add_argument("--rule", default="first", help="apex rule of the polygon run")
     parser.add_argument("--vertices", type=int, default=1_000_000)
     parser.add_argument("--features", type=int, default=1_000_000)
     args = parser.parse_args()
     both = not (args.polygon or args.layer)
     if args.polygon or both:
-        run_polygon(args.vertices, args.islands)
+        run_polygon(args.vertices, args.islands, args.rule)
     if args.layer or both:
         run_layer(args.features)
 
