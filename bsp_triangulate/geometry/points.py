@@ -337,13 +337,21 @@ class VertexGrid:
         hi_col = np.clip((xmax + pad - x0) // cell, 0, nx - 1).astype(np.int64)
         lo_row = np.clip((ymin - pad - y0) // cell, 0, ny - 1).astype(np.int64)
         rows = np.clip((ymax + pad - y0) // cell, 0, ny - 1).astype(np.int64) - lo_row + 1
-        # one contiguous run of the sorted vertices per (box, row of cells)
-        box = np.repeat(index, rows)
+        box, vertex = self._blocks(lo_col, hi_col, lo_row, rows)
+        return index[box], vertex
+
+    def _blocks(
+        self, lo_col: np.ndarray, hi_col: np.ndarray, lo_row: np.ndarray, rows: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(block index, vertex id) of the vertices in each block of cells (columns lo_col to
+        hi_col, ``rows`` rows from lo_row): one contiguous run of the sorted vertices per
+        (block, row of cells)."""
+        nx, starts = self.nx, self.starts
+        block = np.repeat(np.arange(len(lo_col), dtype=np.int64), rows)
         row_of = np.repeat(lo_row, rows) + _ranks(rows)
-        local = np.repeat(np.arange(len(index), dtype=np.int64), rows)
-        first = self.starts[row_of * nx + lo_col[local]]
-        spans = self.starts[row_of * nx + hi_col[local] + 1] - first
-        return np.repeat(box, spans), self.sorted_ids[np.repeat(first, spans) + _ranks(spans)]
+        first = starts[row_of * nx + lo_col[block]]
+        spans = starts[row_of * nx + hi_col[block] + 1] - first
+        return np.repeat(block, spans), self.sorted_ids[np.repeat(first, spans) + _ranks(spans)]
 
     def nearest(
         self,
@@ -364,7 +372,7 @@ class VertexGrid:
             return result, np.inf
         x, y = self.x, self.y
         x0, y0, cell, nx, ny = self.x0, self.y0, self.cell, self.nx, self.ny
-        sorted_ids, starts, pad = self.sorted_ids, self.starts, self.pad
+        pad = self.pad
         qx, qy = x[queries], y[queries]
         qcol = np.clip((qx - x0) // cell, 0, nx - 1).astype(np.int64)
         qrow = np.clip((qy - y0) // cell, 0, ny - 1).astype(np.int64)
@@ -376,20 +384,7 @@ class VertexGrid:
             hi_col = np.minimum(qcol[todo] + reach, nx - 1)
             lo_row = np.maximum(qrow[todo] - reach, 0)
             rows = np.minimum(qrow[todo] + reach, ny - 1) - lo_row + 1
-            # one contiguous run of the sorted vertices per (query, row of the block)
-            query = np.repeat(np.arange(len(todo), dtype=np.int64), rows)
-            row_of = np.repeat(lo_row, rows) + (
-                np.arange(len(query), dtype=np.int64) - np.repeat(np.cumsum(rows) - rows, rows)
-            )
-            first = starts[row_of * nx + lo_col[query]]
-            spans = starts[row_of * nx + hi_col[query] + 1] - first
-            total = int(spans.sum())
-            pair_query = np.repeat(query, spans)
-            vertex = sorted_ids[
-                np.repeat(first, spans)
-                + np.arange(total, dtype=np.int64)
-                - np.repeat(np.cumsum(spans) - spans, spans)
-            ]
+            pair_query, vertex = self._blocks(lo_col, hi_col, lo_row, rows)
             own = queries[todo][pair_query]
             keep = vertex != own if labels is None else labels[vertex] != labels[own]
             pair_query, vertex, own = pair_query[keep], vertex[keep], own[keep]
