@@ -15,7 +15,7 @@ import bsp_triangulate.geometry.bridges as bridges
 from bsp_triangulate import TriangulationError, triangulate, triangulate_many
 from bsp_triangulate.geometry.delaunay_links import LINKED_ISLANDS, delaunay_links
 from bsp_triangulate.geometry.rings import normalise_rings, prepare
-from tests.core.geometry.test_bridge_plan import scattered_squares, square
+from tests.core.geometry.test_bridge_plan import count_found, scattered_squares, square
 from tests.core.random_polygons import add_islands, star_ring
 from tests.core.test_rule_delaunay import check_delaunay
 
@@ -110,15 +110,7 @@ def test_links_on_a_grid_of_cocircular_corners_are_gabriel_edges():
 def test_islands_join_along_links_and_the_result_is_constrained_delaunay(
     seed: int, monkeypatch: pytest.MonkeyPatch
 ):
-    joined: list[bool] = []
-    linked = bridges._Bridger.linked
-
-    def counting(self, *args):
-        result = linked(self, *args)
-        joined.append(result is not None)
-        return result
-
-    monkeypatch.setattr(bridges._Bridger, "linked", counting)
+    joined = count_found(monkeypatch, "linked")
     rings = scattered_squares(seed, count=40)
     check_delaunay(rings)
     assert sum(joined) >= 20
