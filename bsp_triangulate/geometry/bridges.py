@@ -15,8 +15,7 @@ import numpy as np
 from ..triangulation import TriangulationError
 from .bridge_plan import inside_open_angle, pairs_blocked, plan_targets
 from .delaunay_links import LINKED_ISLANDS, delaunay_links
-from .point_walk import walk_sequence
-from .points import PointOrder, delaunay_point_bridge, nearest_point_bridge, point_order
+from .points import delaunay_point_bridge, nearest_point_bridge, point_order
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
 from .spatial_index import PointColumns, SegmentGrid, chunks
@@ -131,32 +130,6 @@ def _order_along(x: np.ndarray, y: np.ndarray, a: int, b: int, inside: list[int]
 _LABEL_GAP = 1 << 32
 
 
-class MeshEdges:
-    """The edges of a triangulation of the polygon with every vertex (rings and points), the
-    ring edges among them: each crosses no ring edge and no other of them, and no vertex lies
-    on it. While every bridge made is one of them, a candidate bridge that is one is clear
-    (:meth:`_Bridger._segment_clear`) without the test."""
-
-    def __init__(self, triangles: np.ndarray, vertex_count: int) -> None:
-        tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-        a, b = tri.ravel(), tri[:, [1, 2, 0]].ravel()
-        self.n = vertex_count
-        self.keys: set[int] = set((np.minimum(a, b) * vertex_count + np.maximum(a, b)).tolist())
-        self.used = 0  # segment tests skipped
-
-    def __contains__(self, pair: tuple[int, int]) -> bool:
-        u, w = pair
-        return (u * self.n + w if u < w else w * self.n + u) in self.keys
-
-    def holds_rings(self, rings: list[np.ndarray]) -> bool:
-        """Every edge of ``rings`` is one of the edges."""
-        starts, ends = ring_edges(rings)
-        keep = starts != ends
-        a, b = starts[keep], ends[keep]
-        keys = (np.minimum(a, b) * self.n + np.maximum(a, b)).tolist()
-        return all(key in self.keys for key in keys)
-
-
 class _Bridger:
     """Joins islands one by one into the sequence (outer ring first).
 
@@ -171,14 +144,8 @@ class _Bridger:
         x: np.ndarray,
         y: np.ndarray,
         rings: list[np.ndarray],
-        mesh_edges: MeshEdges | None = None,
     ) -> None:
         self.x, self.y = x, y
-        # None once a bridge is not a mesh edge (or none given)
-        self.mesh_edges = mesh_edges
-        # the constrained Delaunay edges when known (rule delaunay with points): a bridge must
-        # be one of them, for a tie on a bridge's diametral circle can fall either way
-        self.known_edges = mesh_edges
         starts, ends = ring_edges(rings)
         self.edge_a, self.edge_b = starts, ends
         self.edges = SegmentGrid(x[starts], y[starts], x[ends], y[ends])
@@ -414,17 +381,9 @@ class _Bridger:
                 and self._inside_angle(k, x[prv], y[prv], closed=True)
             ]
         ks = [k for k in self.occurrences(vid) if self._inside_angle(k, x[h], y[h])]
-        if ks and (self._known_clear(vid, h) or self._segment_clear(vid, h)):
+        if ks and self._segment_clear(vid, h):
             return ks
         return []
-
-    def _known_clear(self, u: int, w: int) -> bool:
-        """The segment u-w is a mesh edge while every bridge is one: it is clear."""
-        edges = self.mesh_edges
-        if edges is None or (u, w) not in edges:
-            return False
-        edges.used += 1
-        return True
 
     def _inside_angle_many(self, nodes: np.ndarray, tx: float, ty: float) -> np.ndarray:
         """Vectorised :meth:`_inside_angle` (open angle) of the occurrences ``nodes``."""
@@ -641,11 +600,7 @@ class _Bridger:
             if reach < math.inf and self._no_empty_disk(h, reach, near):
                 continue  # this vertex's bridge, wherever it goes, is no Delaunay edge
             target = self.find_bridge(island, index, reach)
-            if (
-                target is not None
-                and self.diametral_disk_empty(h, target[1])
-                and (self.known_edges is None or (h, target[1]) in self.known_edges)
-            ):
+            if target is not None and self.diametral_disk_empty(h, target[1]):
                 return target[0], target[1], index
         return None
 
@@ -683,8 +638,6 @@ class _Bridger:
     def _add_bridge(self, sk: int, h: int) -> None:
         self.bridges[self.bridge_count] = (sk, h)
         self.bridge_count += 1
-        if self.mesh_edges is not None and (sk, h) not in self.mesh_edges:
-            self.mesh_edges = None  # it may cross mesh edges: no more shortcuts
 
     def nearest_occurrence(self, h: int) -> tuple[int, int]:
         """(node, vertex id) of the occurrence nearest to vertex ``h`` (first on ties)."""
@@ -703,7 +656,6 @@ def bridge_islands(
     ring_numbers: list[int],
     relaxed: bool = False,
     delaunay: bool = False,
-    mesh_edges: MeshEdges | None = None,
 ) -> np.ndarray:
     """The single vertex sequence of the outer ring with every island joined by a bridge.
 
@@ -716,22 +668,10 @@ def bridge_islands(
     rings (:meth:`_Bridger.find_delaunay_bridge`); an island that has none to the sequence
     yet waits until the other islands are joined, and only then takes the usual bridge
     (docs/algorithm.md, "Rule delaunay"). Without it the bridges are those of section 2.
-
-    ``mesh_edges``: the edges of a triangulation of the polygon with every vertex of
-    ``rings``; they spare segment tests (:class:`MeshEdges`), the result is the same.
     """
     if len(rings) == 1:
         return rings[0]
-    if mesh_edges is not None and not mesh_edges.holds_rings(rings):
-        mesh_edges = None
-    order = None
-    if delaunay and mesh_edges is not None and all(len(ring) == 1 for ring in rings[1:]):
-        # the outer ring and points only: one walk, where it applies, without the set-up below
-        order = point_order(x, y, rings, np.unique(np.concatenate(rings)))
-        walked = _walked(x, y, rings, order, mesh_edges)
-        if walked is not None:
-            return walked
-    bridger = _Bridger(x, y, rings, mesh_edges)
+    bridger = _Bridger(x, y, rings)
     leftmost: list[tuple[float, float, int, int]] = []
     islands_at: dict[tuple[float, float], list[int]] = {}
     for slot in range(1, len(rings)):
@@ -745,7 +685,7 @@ def bridge_islands(
     leftmost.sort()
     rank = {item[2]: number for number, item in enumerate(leftmost)}
     plan: dict[int, int] = {}
-    if not delaunay and mesh_edges is None and _plannable(rings):
+    if not delaunay and _plannable(rings):
         joins = _join_order(x, y, rings, leftmost, islands_at, rank)
         grids = (bridger.points, bridger.point_ids, bridger.edges, bridger.edge_a, bridger.edge_b)
         plan = plan_targets(x, y, rings, joins, grids)
@@ -753,8 +693,7 @@ def bridge_islands(
     touching = _TouchingQueue(x, y, islands_at, rank, joined)
     touching.mark(rings[0])
     # delaunay: a point is tried as soon as a vertex linked to it is in (points.PointOrder)
-    if delaunay and order is None:
-        order = point_order(x, y, rings, bridger.point_ids)
+    order = point_order(x, y, rings, bridger.point_ids) if delaunay else None
     ready = deque(order.ready(rings[0].tolist()) if order else ())
     # delaunay: islands along links that are constrained Delaunay edges, breadth-first
     links = None
@@ -834,27 +773,6 @@ def bridge_islands(
         if links:
             linked.extend(links.ready(rings[slot].tolist()))
     return bridger.seq
-
-
-def _walked(
-    x: np.ndarray,
-    y: np.ndarray,
-    rings: list[np.ndarray],
-    order: PointOrder | None,
-    edges: MeshEdges,
-) -> np.ndarray | None:
-    """The sequence of an outer ring and one-point islands only, each point joined by the
-    link that reaches it first (``point_walk``), where every such bridge is an edge of the
-    triangulation: the one the joining below gives; else None."""
-    if order is None:
-        return None
-    pairs = order.joined_by_links(rings[0].tolist())
-    if pairs is None or not all((a, b) in edges for a, b in pairs.tolist()):
-        return None
-    walked = walk_sequence(x, y, rings[0], pairs)
-    if walked is not None:
-        edges.used += len(pairs)
-    return walked
 
 
 class _TouchingQueue:

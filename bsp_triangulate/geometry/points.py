@@ -7,7 +7,6 @@ y-range holds the point, with the exact signs of :mod:`.predicates`.
 
 from __future__ import annotations
 
-from collections import deque
 from fractions import Fraction
 from typing import Protocol
 
@@ -112,17 +111,13 @@ class Bridging(Protocol):
     edge_a: np.ndarray
     edge_b: np.ndarray
     label: np.ndarray
-    known_edges: object  # bridges.MeshEdges of the constrained Delaunay triangulation, or None
 
     def _valid_occurrences(self, vid: int, island: np.ndarray, h_index: int) -> list[int]: ...
 
 
 def delaunay_point_bridge(bridger: Bridging, h: int, more: int = 8) -> tuple[int, int] | None:
     """(node, vertex id) of a bridge from the one-point island ``h`` that is a constrained
-    Delaunay edge of the rings, or None (the point waits for other islands). Where the
-    constrained Delaunay triangulation with every point is known (``known_edges``), the
-    bridge must also be one of its edges: a vertex exactly on the circle (a tie) may leave
-    h-v out of it.
+    Delaunay edge of the rings, or None (the point waits for other islands).
 
     The targets of section 2 are tried nearest first (float distance), up to ``more`` of
     them after the nearest valid one. Target ``v`` is taken when no vertex strictly inside
@@ -162,8 +157,7 @@ def delaunay_point_bridge(bridger: Bridging, h: int, more: int = 8) -> tuple[int
             ks = bridger._valid_occurrences(vid, island, 0)
             if not ks:
                 continue
-            known = bridger.known_edges
-            if _disk_hidden(bridger, h, vid) and (known is None or (h, vid) in known):
+            if _disk_hidden(bridger, h, vid):
                 return min(ks, key=lambda k: int(bridger.label[k])), vid
             if budget is None:
                 budget = more
@@ -540,27 +534,6 @@ class PointOrder:
             self.root[ra] = rb
             if ra in self.anchored:
                 self.anchored.add(rb)
-
-    def joined_by_links(self, outer: list[int]) -> np.ndarray | None:
-        """The bridges (point, vertex) that joining the points breadth-first from the
-        ``outer`` ring along the links makes, each point by the first link that reaches it
-        (:meth:`ready` order, the links left as they are); None where a point is not
-        reached."""
-        links, point_of = self.links, {slot: vid for vid, slot in self.slot_of.items()}
-        ready = deque(entry for vid in outer for entry in links.get(vid, ()))
-        joined: set[int] = set()
-        bridges = []
-        while ready:
-            slot, near = ready.popleft()
-            if slot in joined:
-                continue
-            joined.add(slot)
-            point = point_of[slot]
-            bridges.append((point, near))
-            ready.extend(links.get(point, ()))
-        if len(joined) != len(point_of):
-            return None
-        return np.array(bridges, dtype=np.int64).reshape(-1, 2)
 
     def ready(self, vids: list[int]) -> list[tuple[int, int]]:
         """(slot, target vertex id) of the points linked to one of ``vids`` (once each)."""

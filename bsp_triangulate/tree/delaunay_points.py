@@ -2,14 +2,10 @@
 
 The constrained Delaunay triangulation of a polygon's rings is made from any triangulation of
 them by flips; the points are then inserted one at a time with flips
-(``geometry/delaunay_mesh.py``, the ring edges as constraints), and the
-BSP tree is read off the finished triangulation: the root on the sequence's first edge, each
-node's children the triangles across its two new sides, stopping at the sequence's edges.
-With the tie rule of ``predicates.cocircular_sign`` the triangulation is unique, so this gives
-the tree the recursion builds over the bridged sequence, node for node, whenever the
-sequence's bridges are edges of it (it checks; the caller builds the recursion otherwise).
-The triangulation is built before the sequence: its edges spare the bridges' segment tests
-(``bridges.MeshEdges``).
+(``geometry/delaunay_mesh.py``, the ring edges as constraints), and the BSP tree is read off
+the finished triangulation by a depth-first walk from the outer ring's first edge, which
+never crosses a ring edge: the interior edges it does not cross are the bridges of the
+sequence the tree stands for, so that no bridge has to be searched for.
 """
 
 from __future__ import annotations
@@ -51,87 +47,104 @@ def points_mesh(
     return vertex_of[mesh.triangles()]
 
 
-def tree_of_triangles(
+def tree_of_cdt(
     triangles: np.ndarray,
     vertices: np.ndarray,
-    sequence: np.ndarray,
+    walls: tuple[np.ndarray, np.ndarray],
     mirrored: bool,
     tick: Callable[[float], None] | None = None,
 ) -> Triangulation | None:
-    """The tree of :func:`tree_of_mesh` over ``sequence`` as a :class:`Triangulation` (rows of
-    ``vertices``), or None."""
+    """The BSP tree of a triangulation of a polygon (``triangles`` counter-clockwise in the
+    working plane, rows of ``vertices``), as a :class:`Triangulation`; ``walls``: the start and
+    end vertex of every ring edge, the polygon on its left. None where some ring edge is not
+    an edge of the triangulation, another edge is not shared by two triangles, a directed edge
+    is used twice, or the triangles are not all reached from the root.
+
+    The tree is the depth-first walk over the triangles (docs/algorithm.md, section 5b): the
+    root on the outer ring's first edge, each node's left child across its new side at V1,
+    then its right child, never across a ring edge nor into a triangle already in the tree.
+    The interior edges it does not cross are the bridges of the sequence it stands for.
+    """
     if tick is not None:
         tick(0.9)
-    rows = tree_of_mesh(triangles.tolist(), sequence.tolist(), mirrored, len(vertices))
-    if rows is None:
+    tri = np.asarray(triangles, dtype=np.int64)
+    count, n = len(tri), len(vertices)
+    starts, ends = walls
+    if count == 0 or not len(starts):
         return None
-    tri, parent, depth, side = rows
+    # directed edge k of triangle t (corner k to corner k + 1) is item 3 t + k, keyed a n + b
+    following = tri[:, [1, 2, 0]]
+    keys = (tri * n + following).ravel()
+    order = np.argsort(keys, kind="stable")
+    ordered = keys[order]
+    if (ordered[1:] == ordered[:-1]).any():
+        return None
+
+    def items(wanted: np.ndarray) -> np.ndarray:
+        """The item of each directed edge key in ``wanted``, or -1."""
+        at = np.minimum(np.searchsorted(ordered, wanted), len(ordered) - 1)
+        return np.where(ordered[at] == wanted, order[at], -1)
+
+    across = items((following * n + tri).ravel())  # the same edge, the other way round
+    wall = items(starts * n + ends)
+    # every edge is a ring edge or shared by two triangles: no gap, nothing left over
+    if (wall < 0).any() or not np.isin(np.flatnonzero(across < 0), wall).all():
+        return None
+    twins = across[wall]
+    across[wall] = -1
+    across[twins[twins >= 0]] = -1
+    rows = _depth_first(tri.tolist(), across.tolist(), int(wall[0]), mirrored)
+    if len(rows[0]) != count:
+        return None
+    out, parent, depth, side = rows
     return Triangulation(
         vertices=vertices,
-        triangles=np.array(tri, dtype=np.int64).reshape(-1, 3),
+        triangles=np.array(out, dtype=np.int64).reshape(-1, 3),
         parent=np.array(parent, dtype=np.int64),
         depth=np.array(depth, dtype=np.int64),
         side=np.array(side, dtype=np.int8),
     )
 
 
-def tree_of_mesh(
-    triangles: list[list[int]], sequence: list[int], mirrored: bool, n: int
-) -> tuple[list[tuple[int, int, int]], list[int], list[int], list[int]] | None:
-    """The BSP tree of a triangulation of the bridged ``sequence`` (triangles counter-
-    clockwise in the working plane, over ``n`` vertices): rows (triangle, parent, depth,
-    side) in pre-order, as the recursion of docs/algorithm.md section 3 records them; None
-    when the triangulation does not have every edge of the sequence or its triangles do not
-    form one tree."""
-    m = len(sequence)
-    if m < 3 or len(triangles) != m - 2:
-        return None
-    # directed edge (a, b) as the integer a * n + b
-    owner: dict[int, int] = {}
-    for t, (a, b, c) in enumerate(triangles):
-        owner[a * n + b] = t
-        owner[b * n + c] = t
-        owner[c * n + a] = t
-    walls = set()
-    for i in range(m):
-        u, v = sequence[i], sequence[(i + 1) % m]
-        if u * n + v not in owner and v * n + u not in owner:
-            return None
-        walls.add(u * n + v)
-        walls.add(v * n + u)
-    used = [False] * len(triangles)
+def _depth_first(
+    triangles: list[list[int]], across: list[int], root: int, mirrored: bool
+) -> tuple[list[tuple[int, int, int]], list[int], list[int], list[int]]:
+    """Rows (triangle, parent, depth, side) in pre-order of :func:`tree_of_cdt`'s walk from
+    the directed edge item ``root`` (``across``: per item, the item of the same edge the
+    other way round, or -1 at a ring edge)."""
+    used = bytearray(len(triangles))
     out: list[tuple[int, int, int]] = []
     parent: list[int] = []
     depth: list[int] = []
     side: list[int] = []
-    get = owner.get
-    # (chord a -> b with the sub-polygon on its left, V1 at a, parent, depth, side)
-    stack = [(sequence[0], sequence[1], True, -1, 0, 0)]
+    # (the item of the node's base, the chord a -> b with the sub-polygon on its left, in its
+    # triangle; V1 at a; parent, depth, side)
+    stack = [(root, True, -1, 0, 0)]
     pop, push = stack.pop, stack.append
     while stack:
-        a, b, v1_at_a, par, dep, sd = pop()
-        t = get(a * n + b)
-        if t is None or used[t]:
-            return None
-        used[t] = True
-        p, q, r = triangles[t]
-        c = r if p == a else (p if q == a else q)
+        item, v1_at_a, par, dep, sd = pop()
+        t, k = divmod(item, 3)
+        if used[t]:
+            continue  # reached the other way round: this edge is a bridge
+        used[t] = 1
+        corners = triangles[t]
+        a, b, c = corners[k], corners[k - 2], corners[k - 1]
         node = len(out)
         out.append((b, a, c) if mirrored else (a, b, c))
         parent.append(par)
         depth.append(dep)
         side.append(sd)
-        # the right child (pushed first, taken last), then the left; upper: (a, c), V1 at a
+        upper = across[item - k + (k + 2) % 3]  # across c -> a: the child on a c
+        lower = across[item - k + (k + 1) % 3]  # across b -> c: the child on c b
+        # the right child pushed first, taken last
         if v1_at_a:
-            if c * n + b not in walls:
-                push((c, b, False, node, dep + 1, 2))
-            if a * n + c not in walls:
-                push((a, c, True, node, dep + 1, 1))
+            if lower >= 0:
+                push((lower, False, node, dep + 1, 2))
+            if upper >= 0:
+                push((upper, True, node, dep + 1, 1))
         else:
-            if a * n + c not in walls:
-                push((a, c, True, node, dep + 1, 2))
-            if c * n + b not in walls:
-                push((c, b, False, node, dep + 1, 1))
-    if len(out) != m - 2:
-        return None
+            if upper >= 0:
+                push((upper, True, node, dep + 1, 2))
+            if lower >= 0:
+                push((lower, False, node, dep + 1, 1))
     return out, parent, depth, side

@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..geometry.bridges import MeshEdges, bridge_islands, remove_spikes, ring_edges, split_touching
+from ..geometry.bridges import bridge_islands, remove_spikes, ring_edges, split_touching
 from ..geometry.delaunay_mesh import delaunay_faults
 from ..geometry.points import as_point_array, first_occurrences, strictly_inside
 from ..geometry.predicates import (
@@ -31,7 +31,7 @@ from ..geometry.rings import PreparedRings, normalise_rings, prepare, ring_label
 from ..geometry.spatial_index import ChainBoxes, SegmentGrid
 from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
-from .delaunay_points import points_mesh, tree_of_triangles
+from .delaunay_points import points_mesh, tree_of_cdt
 from .elevation_order import ElevationWindows
 from .shadows import Shadows
 from .subtrees import DELAUNAY_POSITIONS, MAX_POSITIONS, build_subtrees
@@ -1220,35 +1220,33 @@ def _triangulate(
     ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
     is_point = np.arange(len(prepared.vertices)) >= ring_count
 
-    def bridged(mesh_edges: MeshEdges | None = None) -> np.ndarray:
-        sequence = bridge_islands(
-            prepared.x,
-            prepared.y,
-            ring_ids + point_rings,
-            prepared.ring_numbers + (-1 - np.flatnonzero(point_ids >= 0)).tolist(),
-            relaxed=as_given,
-            delaunay=getattr(apex_rule, "in_plane", False),
-            mesh_edges=mesh_edges,
-        )
-        return remove_spikes(prepared.x, prepared.y, sequence, is_point if point_rings else None)
-
-    # rule delaunay with points: the points inserted into the rings' triangulation first, so
-    # that its edges spare the bridges' segment tests (section 5b)
-    mesh_ids = None
+    # rule delaunay with points: the points inserted into the rings' triangulation, whose
+    # tree is read off it (section 5b)
+    inserted = None
     if point_rings and type(apex_rule) is DelaunayRule and not as_given:
-        mesh_ids = None if mesh is None else _known_mesh(prepared, mesh)
-        if mesh_ids is None:
-            mesh_ids = _delaunay_mesh(prepared, ring_ids, ring_count, apex_rule, tick)
-    mesh = mesh_ids
-    edges = None if mesh is None else MeshEdges(mesh, len(prepared.vertices))
-    sequence = bridged(edges)
+        # the mesh given with the polygon where it passes the checks, else one built here
+        known = None if mesh is None else _known_mesh(prepared, mesh)
+        if known is not None:
+            inserted = _delaunay_by_insertion(prepared, known, ring_ids, tick)
+        if inserted is None:
+            built = _delaunay_mesh(prepared, ring_ids, ring_count, apex_rule, tick)
+            if built is not None:
+                inserted = _delaunay_by_insertion(prepared, built, ring_ids, tick)
+    if inserted is not None:
+        inserted.point_ids = point_ids
+        check_area(prepared, inserted, axes)
+        return inserted
+    sequence = bridge_islands(
+        prepared.x,
+        prepared.y,
+        ring_ids + point_rings,
+        prepared.ring_numbers + (-1 - np.flatnonzero(point_ids >= 0)).tolist(),
+        relaxed=as_given,
+        delaunay=getattr(apex_rule, "in_plane", False),
+    )
+    sequence = remove_spikes(prepared.x, prepared.y, sequence, is_point if point_rings else None)
     if len(sequence) < 3:
         return Triangulation(vertices=prepared.vertices, point_ids=point_ids)
-    inserted = None
-    if mesh is not None:
-        inserted = _delaunay_by_insertion(prepared, mesh, sequence, tick)
-        if inserted is None and edges is not None and edges.used:
-            sequence = bridged()  # the recursion over the sequence of section 2a, untouched
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given, tick)
     repaired: list[Triangulation | None] = []  # the repair, once tried
 
@@ -1264,7 +1262,7 @@ def _triangulate(
         except _RepairWinsError:
             return repaired[0]
     else:
-        result = tree.build() if inserted is None else inserted
+        result = tree.build()
     result.point_ids = point_ids
     if tree.used_fallback and repair:
         lost = _area_loss(prepared, result, axes)
@@ -1338,15 +1336,16 @@ def _known_mesh(prepared: PreparedRings, mesh: object) -> np.ndarray | None:
 def _delaunay_by_insertion(
     prepared: PreparedRings,
     mesh: np.ndarray,
-    sequence: np.ndarray,
+    ring_ids: list[np.ndarray],
     tick: Callable[[float], None] | None,
 ) -> Triangulation | None:
-    """The tree of ``sequence`` read off the ``mesh`` of :func:`_delaunay_mesh`; None where
-    that does not give the recursion's tree (a bridge that is not an edge of it)."""
-    try:
-        return tree_of_triangles(mesh, prepared.vertices, sequence, prepared.mirrored, tick)
-    except (TriangulationError, ValueError):
-        return None
+    """The tree read off the ``mesh`` of :func:`_delaunay_mesh` (its depth-first walk, section
+    5b); None where the mesh does not triangulate the rings."""
+    starts, ends = ring_edges(ring_ids)
+    distinct = starts != ends
+    return tree_of_cdt(
+        mesh, prepared.vertices, (starts[distinct], ends[distinct]), prepared.mirrored, tick
+    )
 
 
 def _with_points(

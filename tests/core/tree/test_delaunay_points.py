@@ -1,5 +1,6 @@
 """Rule "delaunay" with interior points: the points inserted into the rings' triangulation
-give the recursion's tree, field by field (docs/algorithm.md, section 5b)."""
+and the tree read off it by a depth-first walk give the recursion's triangles, as a valid BSP
+tree (docs/algorithm.md, section 5b)."""
 
 from __future__ import annotations
 
@@ -12,51 +13,46 @@ from bsp_triangulate import triangulate
 from bsp_triangulate.geometry import bridges
 from bsp_triangulate.geometry.predicates import exact_sq_distance, sq_distance_exact
 from bsp_triangulate.tree import one_polygon
+from bsp_triangulate.tree.delaunay_points import tree_of_cdt
 
+from ..checks import check_tree
 from ..random_polygons import random_polygon
 from ..test_points import check_with_points, random_points
 
-FIELDS = ("vertices", "triangles", "parent", "depth", "side", "point_ids")
-
 
 def both_ways(
-    rings: list, points: np.ndarray, monkeypatch: pytest.MonkeyPatch, shortcuts: list | None = None
+    rings: list, points: np.ndarray, monkeypatch: pytest.MonkeyPatch
 ) -> tuple[object, object, bool]:
-    """The result by insertion, the recursion's, and whether insertion gave the first.
-
-    The bridged sequence made with the mesh's edges (segment tests skipped) is checked equal
-    to the one made without; ``shortcuts`` gets the number of tests each skipped."""
+    """The result by insertion, the recursion's, and whether insertion gave the first."""
     taken = []
     original = one_polygon._delaunay_by_insertion
-    original_bridges = one_polygon.bridge_islands
 
     def spy(*args: object) -> object:
         result = original(*args)
         taken.append(result is not None)
         return result
 
-    def checked_bridges(*args: object, mesh_edges: object = None, **kwargs: object) -> object:
-        sequence = original_bridges(*args, mesh_edges=mesh_edges, **kwargs)
-        if mesh_edges is not None:
-            np.testing.assert_array_equal(sequence, original_bridges(*args, **kwargs))
-            if shortcuts is not None:
-                shortcuts.append(mesh_edges.used)
-        return sequence
-
     with monkeypatch.context() as patch:
         patch.setattr(one_polygon, "_delaunay_by_insertion", spy)
-        patch.setattr(one_polygon, "bridge_islands", checked_bridges)
         inserted = triangulate(rings, points=points, rule="delaunay")
     with monkeypatch.context() as patch:
-        # the recursion over the sequence made without the mesh's edges
+        # the recursion over the sequence of section 2a
         patch.setattr(one_polygon, "_delaunay_by_insertion", lambda *args: None)
         recursion = triangulate(rings, points=points, rule="delaunay")
     return inserted, recursion, any(taken)
 
 
+def triangle_set(triangles: np.ndarray) -> set[tuple[int, int, int]]:
+    """The triangles, each from its smallest vertex id on (orientation kept)."""
+    return {tuple(t[t.index(min(t)) :] + t[: t.index(min(t))]) for t in triangles.tolist()}
+
+
 def assert_same(inserted: object, recursion: object) -> None:
-    for name in FIELDS:
+    """The same vertices, point rows and triangles; the trees may differ (other bridges)."""
+    for name in ("vertices", "point_ids"):
         np.testing.assert_array_equal(getattr(inserted, name), getattr(recursion, name), name)
+    assert len(inserted.triangles) == len(recursion.triangles)
+    assert triangle_set(inserted.triangles) == triangle_set(recursion.triangles)
 
 
 @pytest.mark.parametrize("seed", range(30))
@@ -85,17 +81,16 @@ def test_cell_centres_with_cocircular_ties_equal_the_recursion(
     centres = [(i + 0.5, j + 0.5) for i in range(31) for j in range(31)]
     points = np.array(rnd.sample(centres, 500))
     rings = [outer, island]
-    shortcuts: list[int] = []
-    inserted, recursion, by_insertion = both_ways(rings, points, monkeypatch, shortcuts)
+    inserted, recursion, by_insertion = both_ways(rings, points, monkeypatch)
     assert by_insertion
-    assert shortcuts and shortcuts[0] > 400  # most links are mesh edges: no segment test
     assert_same(inserted, recursion)
     check_with_points(rings, points, inserted, "delaunay")
 
 
 def test_link_across_an_island_takes_the_slow_bridge(monkeypatch: pytest.MonkeyPatch) -> None:
     # the two points are each other's nearest vertex, but the thin island lies between them:
-    # that link is no mesh edge, its segment is tested and the circle-tested bridge taken
+    # the recursion tests that link's segment and takes the circle-tested bridge; insertion
+    # needs no bridge, and both give the same triangles
     outer = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)]
     island = [(1.0, 5.0), (1.0, 5.2), (9.0, 5.2), (9.0, 5.0)]
     points = np.array([(5.0, 4.5), (5.0, 5.6), (2.0, 2.0), (7.5, 8.0)])
@@ -108,38 +103,46 @@ def test_link_across_an_island_takes_the_slow_bridge(monkeypatch: pytest.MonkeyP
         return result
 
     monkeypatch.setattr(bridges, "delaunay_point_bridge", spy)
-    shortcuts: list[int] = []
     rings = [outer, island]
-    inserted, recursion, by_insertion = both_ways(rings, points, monkeypatch, shortcuts)
+    inserted, recursion, by_insertion = both_ways(rings, points, monkeypatch)
     assert by_insertion
-    assert slow and shortcuts and shortcuts[0] > 0
+    assert slow
     assert_same(inserted, recursion)
     check_with_points(rings, points, inserted, "delaunay")
 
 
-def test_mesh_edges_hold_the_rings_or_are_not_used() -> None:
-    x = np.array([0.0, 4.0, 4.0, 0.0, 1.0])
-    y = np.array([0.0, 0.0, 4.0, 4.0, 1.0])
-    ring = np.arange(4, dtype=np.int64)
-    point = np.array([4], dtype=np.int64)
+def fan_of_square() -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """A square with a point at its centre, triangulated as a fan: vertices, triangles, walls."""
+    vertices = np.array([[0.0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0], [2, 2, 0]])
     fan = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
-    edges = bridges.MeshEdges(fan, len(x))
-    assert edges.holds_rings([ring, point])
-    assert (4, 0) in edges and (0, 2) not in edges
-    # a mesh without the ring edge 2-3 does not spare any test
-    partial = bridges.MeshEdges(fan[:2], len(x))
-    assert not partial.holds_rings([ring, point])
-    plain = bridges.bridge_islands(x, y, [ring, point], [0, -1], delaunay=True)
-    with_partial = bridges.bridge_islands(
-        x, y, [ring, point], [0, -1], delaunay=True, mesh_edges=partial
-    )
-    np.testing.assert_array_equal(plain, with_partial)
-    assert partial.used == 0
-    with_edges = bridges.bridge_islands(
-        x, y, [ring, point], [0, -1], delaunay=True, mesh_edges=edges
-    )
-    np.testing.assert_array_equal(plain, with_edges)
-    assert edges.used == 1
+    walls = (np.arange(4), np.array([1, 2, 3, 0]))
+    return vertices, fan, walls
+
+
+def test_the_walk_goes_left_first_and_leaves_one_bridge_per_point() -> None:
+    vertices, fan, walls = fan_of_square()
+    result = tree_of_cdt(fan, vertices, walls, mirrored=False)
+    # root on 0 -> 1, then across its new side at V1 (0 4) and around the point: the root's
+    # other new side (1 4) is reached the other way round and stays the one bridge
+    np.testing.assert_array_equal(result.triangles, [[0, 1, 4], [0, 4, 3], [3, 4, 2], [2, 4, 1]])
+    np.testing.assert_array_equal(result.parent, [-1, 0, 1, 2])
+    np.testing.assert_array_equal(result.side, [0, 1, 2, 1])
+    check_tree(result.triangles, result.parent, result.depth, result.side)
+    mirrored = tree_of_cdt(fan, vertices, walls, mirrored=True)
+    np.testing.assert_array_equal(mirrored.triangles, result.triangles[:, [1, 0, 2]])
+
+
+def test_a_mesh_that_does_not_triangulate_the_rings_gives_no_tree() -> None:
+    vertices, fan, walls = fan_of_square()
+    assert tree_of_cdt(fan[1:], vertices, walls, mirrored=False) is None  # a gap
+    assert tree_of_cdt(np.vstack([fan, fan[:1]]), vertices, walls, mirrored=False) is None
+    # a ring edge that is no edge of the mesh
+    assert tree_of_cdt(fan, vertices, (np.array([0, 0]), np.array([1, 2])), False) is None
+    # two pieces that share no edge: the walk does not reach the second
+    apart = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 5, 0], [6, 5, 0], [5, 6, 0]])
+    pieces = np.array([[0, 1, 2], [3, 4, 5]])
+    rims = (np.arange(6), np.array([1, 2, 0, 4, 5, 3]))
+    assert tree_of_cdt(pieces, apart, rims, mirrored=False) is None
 
 
 def test_sq_distance_exact_orders_as_the_exact_distance() -> None:
