@@ -123,6 +123,21 @@ def triangulate_many(
             decided = _batch_well_formed(batch, rule, triangulate_batch, plane)
         for index, done in zip(plain, decided):
             results[index] = done
+    ring_meshes = {}
+    if _ring_meshes_wanted(rule, planar_tolerance, invalid):
+        from .tree.batch import triangulate_batch
+
+        wanted = [
+            i
+            for i in range(len(polygons))
+            if i not in plain and (meshes is None or meshes[i] is None)
+        ]
+        if wanted:
+            try:
+                found = triangulate_batch([polygons[i] for i in wanted], rule, plane=plane)
+            except (ArithmeticError, ValueError, TypeError):
+                found = []
+            ring_meshes = dict(zip(wanted, found))
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
@@ -138,8 +153,15 @@ def triangulate_many(
             plane,
             points=None if points is None else points[index],
             mesh=None if meshes is None else meshes[index],
+            ring_mesh=ring_meshes.get(index),
         )
     return results
+
+
+def _ring_meshes_wanted(rule: str, planar_tolerance: float, invalid: str) -> bool:
+    """Whether polygons with points take their rings' triangulation from the batch path:
+    rule delaunay by insertion (docs/algorithm.md, section 5b), which starts from it."""
+    return rule == "delaunay" and planar_tolerance <= 0 and not _as_given(invalid)
 
 
 def _point_count(points: object) -> int:
@@ -169,9 +191,10 @@ def _engine_result(
     tick: Callable[[float], None] | None = None,
     points: object = None,
     mesh: object = None,
+    ring_mesh: Triangulation | None = None,
 ) -> Triangulation | TriangulationError:
     """:func:`triangulate` of one polygon of many: its error is returned (``on_error`` is
-    "return") or raised. ``tick``: see ``one_polygon._triangulate``."""
+    "return") or raised. ``tick``, ``ring_mesh``: see ``one_polygon._triangulate``."""
     try:
         with np.errstate(over="ignore", invalid="ignore", under="ignore"):
             return _triangulate(
@@ -183,6 +206,7 @@ def _engine_result(
                 tick=tick,
                 points=points,
                 mesh=mesh,
+                ring_mesh=ring_mesh,
             )
     except TriangulationError as exc:
         if on_error == "raise":
@@ -238,6 +262,23 @@ def triangulate_packed(
     starts = None if counts is None else np.cumsum(counts) - counts
     mesh_rows, mesh_counts = (None, None) if meshes is None else meshes
     mesh_starts = None if mesh_counts is None else np.cumsum(mesh_counts) - mesh_counts
+    ring_meshes: dict[int, Triangulation] = {}
+    if counts is not None and _ring_meshes_wanted(rule, planar_tolerance, invalid):
+        from .tree.batch import triangulate_batch_packed
+
+        wanted = np.flatnonzero(~decided & (counts > 0))
+        if mesh_counts is not None:
+            given = np.zeros(len(polygons), dtype=bool)
+            given[: len(mesh_counts)] = np.asarray(mesh_counts)[: len(polygons)] > 0
+            wanted = wanted[~given[wanted]]
+        if len(wanted):
+            try:
+                found = triangulate_batch_packed(polygons.take(wanted), rule, plane=plane)
+            except (ArithmeticError, ValueError, TypeError):
+                found = []
+            for piece in found:
+                for index, result in zip(piece.index.tolist(), piece.results.to_list()):
+                    ring_meshes[int(wanted[index])] = result
     for index in np.flatnonzero(~decided).tolist():
         report.one_more()
         rings = polygons.rings(index)
@@ -248,7 +289,16 @@ def triangulate_packed(
         if mesh_starts is not None and index < len(mesh_counts) and mesh_counts[index]:
             mesh = mesh_rows[mesh_starts[index] : mesh_starts[index] + mesh_counts[index]]
         result = _engine_result(
-            rings, rule, planar_tolerance, invalid, on_error, plane, report.tick, given, mesh
+            rings,
+            rule,
+            planar_tolerance,
+            invalid,
+            on_error,
+            plane,
+            report.tick,
+            given,
+            mesh,
+            ring_meshes.get(index),
         )
         if isinstance(result, TriangulationError):
             errors[index] = result

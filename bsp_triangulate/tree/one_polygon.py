@@ -1187,12 +1187,14 @@ def _triangulate(
     tick: Callable[[float], None] | None = None,
     points: object = None,
     mesh: object = None,
+    ring_mesh: Triangulation | None = None,
 ) -> Triangulation:
     """:func:`~bsp_triangulate.api.triangulate` of one polygon; ``repair``: a polygon whose
     rings cross may be repaired (False inside the repair itself); ``tick``: called every 64
     triangles with the share of the tree built (it may raise to stop); ``points``: interior
     points, each joined as a one-point island; ``mesh``: under rule delaunay with points, the
-    constrained Delaunay triangulation if known (see :func:`_known_mesh`)."""
+    constrained Delaunay triangulation if known (see :func:`_known_mesh`); ``ring_mesh``:
+    the rings' own triangulation without the points, if known (the points go into it)."""
     apex_rule = get_rule(rule)
     as_given = _as_given(invalid)
     clean, axes = normalise_rings(rings, plane)
@@ -1229,7 +1231,7 @@ def _triangulate(
         if known is not None:
             inserted = _delaunay_by_insertion(prepared, known, ring_ids, tick)
         if inserted is None:
-            built = _delaunay_mesh(prepared, ring_ids, ring_count, apex_rule, tick)
+            built = _delaunay_mesh(prepared, ring_ids, ring_count, tick, ring_mesh)
             if built is not None:
                 inserted = _delaunay_by_insertion(prepared, built, ring_ids, tick)
     if inserted is not None:
@@ -1280,29 +1282,24 @@ def _delaunay_mesh(
     prepared: PreparedRings,
     ring_ids: list[np.ndarray],
     ring_count: int,
-    rule: ApexRule,
     tick: Callable[[float], None] | None,
+    ring_mesh: Triangulation | None = None,
 ) -> np.ndarray | None:
     """Rule "delaunay" with points (docs/algorithm.md, section 5b): the rings' triangulation
-    (their own bridges) with every point inserted, as (t, 3) vertex ids counter-clockwise in
-    the working plane; None where it cannot be built."""
+    (``ring_mesh`` where it has these ring vertices, else made here with their own bridges)
+    with every point inserted, as (t, 3) vertex ids counter-clockwise in the working plane;
+    None where it cannot be built."""
     try:
-        rings = bridge_islands(
-            prepared.x, prepared.y, ring_ids, prepared.ring_numbers, delaunay=True
-        )
-        rings = remove_spikes(prepared.x, prepared.y, rings)
-        if len(rings) < 3:
-            return None
         # any triangulation of the rings: the flips make it their constrained Delaunay one
-        base = _Tree(prepared, rings, prepared.vertices[:, 2], _FIRST).build()
-        if len(base.triangles) != len(rings) - 2:
+        triangles = _ring_triangles(prepared, ring_ids, ring_count, ring_mesh)
+        if triangles is None:
             return None
         starts, ends = ring_edges(ring_ids)
         distinct = starts != ends
         return points_mesh(
             prepared.x,
             prepared.y,
-            base.triangles,
+            triangles,
             ring_count,
             prepared.mirrored,
             tick,
@@ -1310,6 +1307,31 @@ def _delaunay_mesh(
         )
     except (TriangulationError, ValueError):
         return None
+
+
+def _ring_triangles(
+    prepared: PreparedRings,
+    ring_ids: list[np.ndarray],
+    ring_count: int,
+    ring_mesh: Triangulation | None,
+) -> np.ndarray | None:
+    """Triangles (counter-clockwise in the output's XY) of the rings alone: ``ring_mesh``'s
+    where its vertices are the rings' own, else rule first's over their bridged sequence."""
+    if (
+        ring_mesh is not None
+        and len(ring_mesh.triangles)
+        and ring_mesh.vertices.shape == (ring_count, 3)
+        and np.array_equal(ring_mesh.vertices, prepared.vertices[:ring_count])
+    ):
+        return ring_mesh.triangles
+    rings = bridge_islands(prepared.x, prepared.y, ring_ids, prepared.ring_numbers, delaunay=True)
+    rings = remove_spikes(prepared.x, prepared.y, rings)
+    if len(rings) < 3:
+        return None
+    base = _Tree(prepared, rings, prepared.vertices[:, 2], _FIRST).build()
+    if len(base.triangles) != len(rings) - 2:
+        return None
+    return base.triangles
 
 
 def _known_mesh(prepared: PreparedRings, mesh: object) -> np.ndarray | None:

@@ -9,7 +9,7 @@ import random
 import numpy as np
 import pytest
 
-from bsp_triangulate import triangulate
+from bsp_triangulate import PackedPolygons, triangulate, triangulate_many, triangulate_packed
 from bsp_triangulate.geometry import bridges
 from bsp_triangulate.geometry.predicates import exact_sq_distance, sq_distance_exact
 from bsp_triangulate.tree import one_polygon
@@ -177,3 +177,46 @@ def test_many_islands_and_points_equal_the_recursion(
     assert by_insertion
     assert_same(inserted, recursion)
     check_with_points(rings, points, inserted, "delaunay")
+
+
+def test_many_polygons_start_from_the_batch_path_s_ring_triangulations(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # triangulate_many and triangulate_packed triangulate the rings of all polygons with
+    # points at once and insert the points into those: the results of one polygon at a time
+    rnd = random.Random(11)
+    polygons = [random_polygon(rnd, islands=rnd.randint(0, 2)) for _ in range(12)]
+    points = [random_points(rnd, rings, rnd.choice((5, 40))) for rings in polygons]
+    one_by_one = [triangulate(r, points=p, rule="delaunay") for r, p in zip(polygons, points)]
+    taken = []
+    original = one_polygon._ring_triangles
+
+    def spy(prepared: object, ring_ids: list, ring_count: int, ring_mesh: object) -> object:
+        result = original(prepared, ring_ids, ring_count, ring_mesh)
+        taken.append(ring_mesh is not None and result is ring_mesh.triangles)
+        return result
+
+    monkeypatch.setattr(one_polygon, "_ring_triangles", spy)
+    many = triangulate_many(polygons, points=points, rule="delaunay")
+    counts = np.array([len(p) for p in points], dtype=np.int64)
+    flat = np.concatenate(points)
+    packed = triangulate_packed(PackedPolygons.of(polygons), points=(flat, counts), rule="delaunay")
+    assert sum(taken) >= 2 * len(polygons) - 2
+    for number, want in enumerate(one_by_one):
+        for got in (many[number], packed.to_list()[number]):
+            for name in ("vertices", "triangles", "parent", "depth", "side", "point_ids"):
+                np.testing.assert_array_equal(getattr(got, name), getattr(want, name), name)
+
+
+def test_a_ring_triangulation_of_other_vertices_is_not_used() -> None:
+    rnd = random.Random(12)
+    rings = random_polygon(rnd, islands=1)
+    points = random_points(rnd, rings, 30)
+    plain = triangulate(rings, points=points, rule="delaunay")
+    other = triangulate(random_polygon(rnd, islands=1), rule="delaunay")
+    hinted = one_polygon._triangulate(
+        rings, rule="delaunay", planar_tolerance=0.0, invalid="fail", points=points,
+        ring_mesh=other,
+    )  # fmt: skip
+    for name in ("vertices", "triangles", "parent", "depth", "side", "point_ids"):
+        np.testing.assert_array_equal(getattr(hinted, name), getattr(plain, name), name)
