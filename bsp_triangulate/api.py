@@ -16,6 +16,7 @@ from .geometry.rings import PLANES, normalise_rings
 from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
 from .rules import get_rule
 from .tree.one_polygon import _as_given, _triangulate
+from .tree.points_batch import InsertedMesh, insert_points
 from .triangulation import Triangulation, TriangulationError
 
 
@@ -123,14 +124,16 @@ def triangulate_many(
             decided = _batch_well_formed(batch, rule, triangulate_batch, plane)
         for index, done in zip(plain, decided):
             results[index] = done
-    ring_meshes = {}
+    ring_meshes: dict[int, Triangulation | None] = {}
+    inserted: dict[int, InsertedMesh | None] = {}
     if _ring_meshes_wanted(rule, planar_tolerance, invalid):
         from .tree.batch import triangulate_batch
 
+        taken = set(plain)
         wanted = [
             i
             for i in range(len(polygons))
-            if i not in plain and (meshes is None or meshes[i] is None)
+            if i not in taken and (meshes is None or meshes[i] is None)
         ]
         if wanted:
             try:
@@ -138,6 +141,12 @@ def triangulate_many(
             except (ArithmeticError, ValueError, TypeError):
                 found = []
             ring_meshes = dict(zip(wanted, found))
+            inserted = _inserted(
+                [polygons[i] for i in wanted],
+                [ring_meshes.get(i) for i in wanted],
+                [points[i] for i in wanted],
+                wanted,
+            )
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
@@ -154,8 +163,24 @@ def triangulate_many(
             points=None if points is None else points[index],
             mesh=None if meshes is None else meshes[index],
             ring_mesh=ring_meshes.get(index),
+            inserted_mesh=inserted.get(index),
         )
     return results
+
+
+def _inserted(
+    polygons: list[Sequence[object]],
+    ring_meshes: list[Triangulation | None],
+    points: list[object],
+    index: Sequence[int],
+) -> dict[int, InsertedMesh | None]:
+    """``points_batch.insert_points`` of the polygons numbered ``index``; none where the
+    points are not a plain array of coordinates (the one-polygon builder checks them)."""
+    try:
+        found = insert_points(polygons, ring_meshes, points)
+    except (ArithmeticError, ValueError, TypeError, IndexError):
+        return {}
+    return dict(zip(index, found))
 
 
 def _ring_meshes_wanted(rule: str, planar_tolerance: float, invalid: str) -> bool:
@@ -192,9 +217,11 @@ def _engine_result(
     points: object = None,
     mesh: object = None,
     ring_mesh: Triangulation | None = None,
+    inserted_mesh: InsertedMesh | None = None,
 ) -> Triangulation | TriangulationError:
     """:func:`triangulate` of one polygon of many: its error is returned (``on_error`` is
-    "return") or raised. ``tick``, ``ring_mesh``: see ``one_polygon._triangulate``."""
+    "return") or raised. ``tick``, ``ring_mesh``, ``inserted_mesh``: see
+    ``one_polygon._triangulate``."""
     try:
         with np.errstate(over="ignore", invalid="ignore", under="ignore"):
             return _triangulate(
@@ -207,6 +234,7 @@ def _engine_result(
                 points=points,
                 mesh=mesh,
                 ring_mesh=ring_mesh,
+                inserted_mesh=inserted_mesh,
             )
     except TriangulationError as exc:
         if on_error == "raise":
@@ -263,6 +291,7 @@ def triangulate_packed(
     mesh_rows, mesh_counts = (None, None) if meshes is None else meshes
     mesh_starts = None if mesh_counts is None else np.cumsum(mesh_counts) - mesh_counts
     ring_meshes: dict[int, Triangulation] = {}
+    inserted: dict[int, InsertedMesh | None] = {}
     if counts is not None and _ring_meshes_wanted(rule, planar_tolerance, invalid):
         from .tree.batch import triangulate_batch_packed
 
@@ -279,6 +308,13 @@ def triangulate_packed(
             for piece in found:
                 for index, result in zip(piece.index.tolist(), piece.results.to_list()):
                     ring_meshes[int(wanted[index])] = result
+            order = [int(i) for i in wanted]
+            inserted = _inserted(
+                [polygons.rings(i) for i in order],
+                [ring_meshes.get(i) for i in order],
+                [coordinates[starts[i] : starts[i] + counts[i]] for i in order],
+                order,
+            )
     for index in np.flatnonzero(~decided).tolist():
         report.one_more()
         rings = polygons.rings(index)
@@ -299,6 +335,7 @@ def triangulate_packed(
             given,
             mesh,
             ring_meshes.get(index),
+            inserted.get(index),
         )
         if isinstance(result, TriangulationError):
             errors[index] = result

@@ -69,11 +69,14 @@ class MeshSet:
         """(t, 3) vertex ids of every triangle, counter-clockwise."""
         return self.vertex[: 3 * self._nt].reshape(-1, 3)
 
-    def insert(self, px: np.ndarray, py: np.ndarray, start: np.ndarray) -> np.ndarray:
+    def insert(
+        self, px: np.ndarray, py: np.ndarray, start: np.ndarray, boundary: bool = True
+    ) -> np.ndarray:
         """Add the points (px, py), each found from triangle ``start`` (a triangle of its
         region, best near it), and restore the Delaunay property; returns each point's vertex
-        id, or -1 for a point outside its region (walking from ``start``) or equal to a
-        vertex. Equal points: the first is inserted, the others are vertices by then."""
+        id, or -1 for a point outside its region (walking from ``start``), equal to a vertex,
+        or (``boundary`` False) on a boundary edge. Equal points: the first is inserted, the
+        others are vertices by then."""
         px = np.asarray(px, dtype=np.float64)
         py = np.asarray(py, dtype=np.float64)
         ids = np.full(len(px), -1, dtype=np.int64)
@@ -84,9 +87,12 @@ class MeshSet:
         while len(pending):
             tri, edge, found = self._locate(px[pending], py[pending], near[pending])
             pending, tri, edge = pending[found], tri[found], edge[found]
+            other = np.where(edge >= 0, self.across[3 * tri + np.maximum(edge, 0)], -1)
+            if not boundary:
+                inner = (edge < 0) | (other >= 0)
+                pending, tri, edge, other = pending[inner], tri[inner], edge[inner], other[inner]
             if not len(pending):
                 break
-            other = np.where(edge >= 0, self.across[3 * tri + np.maximum(edge, 0)], -1)
             partner = np.where(other >= 0, other // 3, -1)
             # one point per triangle (an edge point holds both of its edge's), the first wins
             rank = np.arange(len(pending))

@@ -294,66 +294,8 @@ class DelaunayMesh:
         return np.array(found_ids, dtype=np.int64)
 
     def _containing(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
-        """A triangle holding each point (closed), or -1: a grid over the triangles' boxes."""
-        found = np.full(len(px), -1, dtype=np.int64)
-        tri = self.triangles()
-        count = len(tri)
-        if count == 0 or len(px) == 0:
-            return found
-        tx, ty = np.array(self.x)[tri], np.array(self.y)[tri]
-        x0, x1, y0, y1 = tx.min(axis=1), tx.max(axis=1), ty.min(axis=1), ty.max(axis=1)
-        left, bottom = float(x0.min()), float(y0.min())
-        span = max(float(x1.max()) - left, float(y1.max()) - bottom)
-        side = max(1, math.isqrt(count))
-        while True:
-            size = span / side if span > 0 else 1.0
-            cx0, cx1 = _cells(x0, left, size, side), _cells(x1, left, size, side)
-            cy0, cy1 = _cells(y0, bottom, size, side), _cells(y1, bottom, size, side)
-            cover = (cx1 - cx0 + 1) * (cy1 - cy0 + 1)
-            # long thin triangles cover many cells: coarser cells keep the pairs few
-            if side == 1 or cover.sum() <= 8 * count + 4096:
-                break
-            side //= 2
-        # one (cell, triangle) pair per cell of each triangle's box, sorted by cell
-        owner = np.repeat(np.arange(count), cover)
-        local = _ranges(np.zeros(count, dtype=np.int64), cover)
-        width = (cx1 - cx0 + 1)[owner]
-        cells = (cy0[owner] + local // width) * side + cx0[owner] + local % width
-        order = np.argsort(cells, kind="stable")
-        cells, owner = cells[order], owner[order]
-        # the boxes' own extremes: left + span may round below them
-        right, top = float(x1.max()), float(y1.max())
-        inside = (px >= left) & (px <= right) & (py >= bottom) & (py <= top)
-        where = np.flatnonzero(inside)
-        point_cells = _cells(px[where], left, size, side)
-        point_cells += _cells(py[where], bottom, size, side) * side
-        lo = np.searchsorted(cells, point_cells, side="left")
-        counts = np.searchsorted(cells, point_cells, side="right") - lo
-        # (point, candidate triangle) pairs in chunks of about a million
-        ends = np.cumsum(counts)
-        first = 0
-        while first < len(where):
-            last = int(np.searchsorted(ends, ends[first] - counts[first] + 1_000_000, "right"))
-            last = max(last, first + 1)
-            part = slice(first, last)
-            point = np.repeat(where[part], counts[part])
-            candidate = owner[_ranges(lo[part], counts[part])]
-            held = np.ones(len(point), dtype=bool)
-            corner_x, corner_y = tx[candidate], ty[candidate]
-            for k in range(3):
-                a, b = (k + 1) % 3, (k + 2) % 3
-                sides = orient_many(
-                    corner_x[:, a],
-                    corner_y[:, a],
-                    corner_x[:, b],
-                    corner_y[:, b],
-                    px[point],
-                    py[point],
-                )
-                held &= sides >= 0
-            found[point[held]] = candidate[held]
-            first = last
-        return found
+        """A triangle holding each point (closed), or -1 (:func:`containing_triangles`)."""
+        return containing_triangles(np.array(self.x), np.array(self.y), self.triangles(), px, py)
 
     def _split_triangle(self, t: int, p: int) -> list[int]:
         """1 -> 3: (p, b, c) keeps id t, (p, c, a) and (p, a, b) are appended."""
@@ -628,6 +570,82 @@ def hilbert_order(x: np.ndarray, y: np.ndarray, bits: int = 16) -> np.ndarray:
         qx, qy = np.where(turn, qy, qx), np.where(turn, qx, qy)
         s >>= 1
     return np.argsort(key, kind="stable")
+
+
+def containing_triangles(
+    x: np.ndarray,
+    y: np.ndarray,
+    tri: np.ndarray,
+    px: np.ndarray,
+    py: np.ndarray,
+    tri_region: np.ndarray | None = None,
+    point_region: np.ndarray | None = None,
+) -> np.ndarray:
+    """A triangle of ``tri`` (rows of vertex ids into ``x``, ``y``, counter-clockwise)
+    holding each point (closed), or -1: a grid over the triangles' boxes. With regions (one
+    per triangle and one per point), only the triangles of the point's own region."""
+    found = np.full(len(px), -1, dtype=np.int64)
+    count = len(tri)
+    if count == 0 or len(px) == 0:
+        return found
+    tx, ty = x[tri], y[tri]
+    x0, x1, y0, y1 = tx.min(axis=1), tx.max(axis=1), ty.min(axis=1), ty.max(axis=1)
+    left, bottom = float(x0.min()), float(y0.min())
+    span = max(float(x1.max()) - left, float(y1.max()) - bottom)
+    side = max(1, math.isqrt(count))
+    while True:
+        size = span / side if span > 0 else 1.0
+        cx0, cx1 = _cells(x0, left, size, side), _cells(x1, left, size, side)
+        cy0, cy1 = _cells(y0, bottom, size, side), _cells(y1, bottom, size, side)
+        cover = (cx1 - cx0 + 1) * (cy1 - cy0 + 1)
+        # long thin triangles cover many cells: coarser cells keep the pairs few
+        if side == 1 or cover.sum() <= 8 * count + 4096:
+            break
+        side //= 2
+    # one (cell, triangle) pair per cell of each triangle's box, sorted by cell
+    owner = np.repeat(np.arange(count), cover)
+    local = _ranges(np.zeros(count, dtype=np.int64), cover)
+    width = (cx1 - cx0 + 1)[owner]
+    cells = (cy0[owner] + local // width) * side + cx0[owner] + local % width
+    if tri_region is not None:
+        cells += tri_region[owner] * (side * side)  # cells of one region only
+    order = np.argsort(cells, kind="stable")
+    cells, owner = cells[order], owner[order]
+    # the boxes' own extremes: left + span may round below them
+    right, top = float(x1.max()), float(y1.max())
+    inside = (px >= left) & (px <= right) & (py >= bottom) & (py <= top)
+    where = np.flatnonzero(inside)
+    point_cells = _cells(px[where], left, size, side)
+    point_cells += _cells(py[where], bottom, size, side) * side
+    if point_region is not None:
+        point_cells += point_region[where] * (side * side)
+    lo = np.searchsorted(cells, point_cells, side="left")
+    counts = np.searchsorted(cells, point_cells, side="right") - lo
+    # (point, candidate triangle) pairs in chunks of about a million
+    ends = np.cumsum(counts)
+    first = 0
+    while first < len(where):
+        last = int(np.searchsorted(ends, ends[first] - counts[first] + 1_000_000, "right"))
+        last = max(last, first + 1)
+        part = slice(first, last)
+        point = np.repeat(where[part], counts[part])
+        candidate = owner[_ranges(lo[part], counts[part])]
+        held = np.ones(len(point), dtype=bool)
+        corner_x, corner_y = tx[candidate], ty[candidate]
+        for k in range(3):
+            a, b = (k + 1) % 3, (k + 2) % 3
+            sides = orient_many(
+                corner_x[:, a],
+                corner_y[:, a],
+                corner_x[:, b],
+                corner_y[:, b],
+                px[point],
+                py[point],
+            )
+            held &= sides >= 0
+        found[point[held]] = candidate[held]
+        first = last
+    return found
 
 
 def _cells(v: np.ndarray, low: float, size: float, side: int) -> np.ndarray:

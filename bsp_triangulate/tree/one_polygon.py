@@ -33,6 +33,7 @@ from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
 from .delaunay_points import points_mesh, tree_of_cdt
 from .elevation_order import ElevationWindows
+from .points_batch import InsertedMesh
 from .shadows import Shadows
 from .subtrees import DELAUNAY_POSITIONS, MAX_POSITIONS, build_subtrees
 
@@ -1188,13 +1189,16 @@ def _triangulate(
     points: object = None,
     mesh: object = None,
     ring_mesh: Triangulation | None = None,
+    inserted_mesh: InsertedMesh | None = None,
 ) -> Triangulation:
     """:func:`~bsp_triangulate.api.triangulate` of one polygon; ``repair``: a polygon whose
     rings cross may be repaired (False inside the repair itself); ``tick``: called every 64
     triangles with the share of the tree built (it may raise to stop); ``points``: interior
     points, each joined as a one-point island; ``mesh``: under rule delaunay with points, the
     constrained Delaunay triangulation if known (see :func:`_known_mesh`); ``ring_mesh``:
-    the rings' own triangulation without the points, if known (the points go into it)."""
+    the rings' own triangulation without the points, if known (the points go into it);
+    ``inserted_mesh``: the points already inserted into it (``points_batch``), used where its
+    points are the rows this polygon gives them."""
     apex_rule = get_rule(rule)
     as_given = _as_given(invalid)
     clean, axes = normalise_rings(rings, plane)
@@ -1226,8 +1230,13 @@ def _triangulate(
     # tree is read off it (section 5b)
     inserted = None
     if point_rings and type(apex_rule) is DelaunayRule and not as_given:
-        # the mesh given with the polygon where it passes the checks, else one built here
-        known = None if mesh is None else _known_mesh(prepared, mesh)
+        # the points inserted already (their rows must be these), or the mesh given with the
+        # polygon where it passes the checks; else one built here
+        known = None
+        if inserted_mesh is not None and np.array_equal(inserted_mesh.point_ids, point_ids):
+            known = _mesh_rows(prepared, inserted_mesh.triangles)
+        elif mesh is not None:
+            known = _known_mesh(prepared, mesh)
         if known is not None:
             inserted = _delaunay_by_insertion(prepared, known, ring_ids, tick)
         if inserted is None:
@@ -1341,6 +1350,16 @@ def _known_mesh(prepared: PreparedRings, mesh: object) -> np.ndarray | None:
     used once, every interior edge locally Delaunay (exact, with the tie rule); else None.
     Whether it tiles the polygon with the sequence's edges is checked when the tree is read
     off it, and the area at the end."""
+    tri = _mesh_rows(prepared, mesh)
+    if tri is None or delaunay_faults(prepared.x, prepared.y, tri, ties=True).any():
+        return None
+    return tri
+
+
+def _mesh_rows(prepared: PreparedRings, mesh: object) -> np.ndarray | None:
+    """``mesh`` (rows of the polygon's vertices, counter-clockwise in the output's XY) as
+    (t, 3) vertex ids counter-clockwise in the working plane, or None where it is not such
+    an array."""
     try:
         tri = np.asarray(mesh, dtype=np.int64)
     except (TypeError, ValueError):
@@ -1348,11 +1367,7 @@ def _known_mesh(prepared: PreparedRings, mesh: object) -> np.ndarray | None:
     n = len(prepared.vertices)
     if tri.ndim != 2 or tri.shape[1] != 3 or len(tri) == 0 or tri.min() < 0 or tri.max() >= n:
         return None
-    if prepared.mirrored:
-        tri = tri[:, [1, 0, 2]]
-    if delaunay_faults(prepared.x, prepared.y, tri, ties=True).any():
-        return None
-    return tri
+    return tri[:, [1, 0, 2]] if prepared.mirrored else tri
 
 
 def _delaunay_by_insertion(

@@ -14,6 +14,7 @@ from bsp_triangulate.geometry import bridges
 from bsp_triangulate.geometry.predicates import exact_sq_distance, sq_distance_exact
 from bsp_triangulate.tree import one_polygon
 from bsp_triangulate.tree.delaunay_points import tree_of_cdt
+from bsp_triangulate.tree.points_batch import InsertedMesh
 
 from ..checks import check_tree
 from ..random_polygons import random_polygon
@@ -179,33 +180,48 @@ def test_many_islands_and_points_equal_the_recursion(
     check_with_points(rings, points, inserted, "delaunay")
 
 
-def test_many_polygons_start_from_the_batch_path_s_ring_triangulations(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
+def test_many_polygons_insert_their_points_all_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
     # triangulate_many and triangulate_packed triangulate the rings of all polygons with
-    # points at once and insert the points into those: the results of one polygon at a time
+    # points at once and insert all points into those (points_batch): the results of one
+    # polygon at a time, field by field. Clockwise rings, polygons that overlap, points on
+    # the boundary, on vertices, outside and repeated are among them.
     rnd = random.Random(11)
     polygons = [random_polygon(rnd, islands=rnd.randint(0, 2)) for _ in range(12)]
+    polygons += [[ring[::-1] for ring in rings] for rings in polygons[:3]]  # clockwise
     points = [random_points(rnd, rings, rnd.choice((5, 40))) for rings in polygons]
+    square = [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)]
+    polygons += [[square], [[(2.0, 2.0), (6.0, 2.0), (6.0, 6.0), (2.0, 6.0)]]]  # overlapping
+    odd = [(3.0, 3.0), (2.0, 0.0), (4.0, 4.0), (5.0, 5.0), (3.0, 3.0), (1.0, 2.5), (2.0, 3.5)]
+    points = [np.column_stack([p, np.zeros(len(p))]) if p.shape[1] == 2 else p for p in points]
+    points += [np.array([(*p, 1.0) for p in odd]), np.array([(*p, 2.0) for p in odd[::-1]])]
     one_by_one = [triangulate(r, points=p, rule="delaunay") for r, p in zip(polygons, points)]
-    taken = []
-    original = one_polygon._ring_triangles
-
-    def spy(prepared: object, ring_ids: list, ring_count: int, ring_mesh: object) -> object:
-        result = original(prepared, ring_ids, ring_count, ring_mesh)
-        taken.append(ring_mesh is not None and result is ring_mesh.triangles)
-        return result
-
-    monkeypatch.setattr(one_polygon, "_ring_triangles", spy)
+    own = []
+    original = one_polygon._delaunay_mesh
+    monkeypatch.setattr(one_polygon, "_delaunay_mesh", lambda *a: own.append(1) or original(*a))
     many = triangulate_many(polygons, points=points, rule="delaunay")
     counts = np.array([len(p) for p in points], dtype=np.int64)
     flat = np.concatenate(points)
     packed = triangulate_packed(PackedPolygons.of(polygons), points=(flat, counts), rule="delaunay")
-    assert sum(taken) >= 2 * len(polygons) - 2
+    assert len(own) <= 2  # nearly every polygon took its inserted mesh
     for number, want in enumerate(one_by_one):
         for got in (many[number], packed.to_list()[number]):
             for name in ("vertices", "triangles", "parent", "depth", "side", "point_ids"):
                 np.testing.assert_array_equal(getattr(got, name), getattr(want, name), name)
+    assert (one_by_one[-1].point_ids >= 0).sum() == 3  # inside, once each
+
+
+def test_inserted_points_whose_rows_differ_are_not_used() -> None:
+    rnd = random.Random(13)
+    rings = random_polygon(rnd, islands=1)
+    points = random_points(rnd, rings, 20)
+    plain = triangulate(rings, points=points, rule="delaunay")
+    wrong = InsertedMesh(plain.triangles, np.roll(plain.point_ids, 1))
+    hinted = one_polygon._triangulate(
+        rings, rule="delaunay", planar_tolerance=0.0, invalid="fail", points=points,
+        inserted_mesh=wrong,
+    )  # fmt: skip
+    for name in ("vertices", "triangles", "parent", "depth", "side", "point_ids"):
+        np.testing.assert_array_equal(getattr(hinted, name), getattr(plain, name), name)
 
 
 def test_a_ring_triangulation_of_other_vertices_is_not_used() -> None:

@@ -1,0 +1,99 @@
+"""Rule "delaunay" with interior points for many polygons at once (docs/algorithm.md, 5b).
+
+The rings of the polygons come triangulated from the lock-step batch path (their constrained
+Delaunay triangulations); here every polygon's points go into its triangulation, all
+polygons at once, in batches (``geometry/delaunay_batch.MeshSet``, one region per polygon, in
+the polygon's working plane so that cocircular ties fall as the one-polygon builder decides
+them). Each polygon's triangles then go to the one-polygon builder with the rows of the
+points they used, which reads the tree off them where those rows are its own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.delaunay_batch import MeshSet
+from ..geometry.delaunay_mesh import containing_triangles, hilbert_order
+from ..geometry.predicates import ring_area_sign
+from ..triangulation import Triangulation
+
+
+@dataclass
+class InsertedMesh:
+    """A polygon's rings' triangulation with its points inserted: ``triangles`` (t, 3) rows
+    of its vertices (ring vertices, then the points used, in the order given), counter-
+    clockwise in the output's XY; ``point_ids`` per given point its row there, or -1."""
+
+    triangles: np.ndarray
+    point_ids: np.ndarray
+
+
+def insert_points(
+    polygons: Sequence[Sequence[object]],
+    ring_meshes: Sequence[Triangulation | None],
+    points: Sequence[object],
+) -> list[InsertedMesh | None]:
+    """Per polygon (rings as given, its rings' constrained Delaunay triangulation from the
+    batch path or None, its points (m, 2 or 3) in XY): its :class:`InsertedMesh`, or None
+    where it has no ring triangulation. A point is used where it lies strictly inside a
+    triangle or on an edge between two, and is no vertex or repeat of an earlier point."""
+    kept = [
+        i
+        for i, mesh in enumerate(ring_meshes)
+        if mesh is not None and len(mesh.triangles) and len(points[i])
+    ]
+    found: list[InsertedMesh | None] = [None] * len(polygons)
+    if not kept:
+        return found
+    sizes = np.array([len(ring_meshes[i].vertices) for i in kept], dtype=np.int64)
+    offsets = np.cumsum(sizes) - sizes
+    mirror = np.array([_mirror(polygons[i]) for i in kept])
+    x = np.concatenate([ring_meshes[i].vertices[:, 0] * m for i, m in zip(kept, mirror)])
+    y = np.concatenate([ring_meshes[i].vertices[:, 1] for i in kept])
+    triangles = np.concatenate(
+        [
+            (ring_meshes[i].triangles[:, [1, 0, 2]] if m < 0 else ring_meshes[i].triangles) + o
+            for i, m, o in zip(kept, mirror, offsets)
+        ]
+    )
+    region = np.repeat(np.arange(len(kept)), [len(ring_meshes[i].triangles) for i in kept])
+    given = [np.asarray(points[i], dtype=np.float64) for i in kept]
+    counts = np.array([len(p) for p in given], dtype=np.int64)
+    owner = np.repeat(np.arange(len(kept)), counts)
+    px = np.concatenate([p[:, 0] for p in given]) * mirror[owner]
+    py = np.concatenate([p[:, 1] for p in given])
+    start = containing_triangles(x, y, triangles, px, py, region, owner)
+    ids = np.full(len(px), -1, dtype=np.int64)
+    inside = np.flatnonzero(start >= 0)
+    order = inside[hilbert_order(px[inside], py[inside])]
+    mesh = MeshSet(x, y, triangles, region)
+    ids[order] = mesh.insert(px[order], py[order], start[order], boundary=False)
+    # rows: ring vertices keep theirs; the used points follow them in the order given
+    used = ids >= 0
+    rank = np.cumsum(used) - 1
+    first_rank = np.cumsum(np.r_[0, np.bincount(owner[used], minlength=len(kept))])[:-1]
+    row = np.empty(mesh.vertex_count, dtype=np.int64)
+    row[: len(x)] = np.arange(len(x)) - np.repeat(offsets, sizes)
+    row[ids[used]] = sizes[owner[used]] + rank[used] - first_rank[owner[used]]
+    point_rows = np.where(used, row[np.maximum(ids, 0)], -1)
+    mesh_region = mesh.region[: mesh.triangle_count]
+    local = row[mesh.triangles()[np.argsort(mesh_region, kind="stable")]]
+    tri_counts = np.bincount(mesh_region, minlength=len(kept))
+    tri_starts = np.cumsum(tri_counts) - tri_counts
+    point_starts = np.cumsum(counts) - counts
+    for k, i in enumerate(kept):
+        tri = local[tri_starts[k] : tri_starts[k] + tri_counts[k]]
+        found[i] = InsertedMesh(
+            tri[:, [1, 0, 2]] if mirror[k] < 0 else tri,
+            point_rows[point_starts[k] : point_starts[k] + counts[k]],
+        )
+    return found
+
+
+def _mirror(rings: Sequence[object]) -> float:
+    """-1 where the outer ring is clockwise in XY (the working plane mirrors x), else 1."""
+    outer = np.asarray(rings[0], dtype=np.float64)
+    return -1.0 if ring_area_sign(outer[:, 0], outer[:, 1]) < 0 else 1.0
