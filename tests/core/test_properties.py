@@ -20,7 +20,13 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bsp_triangulate import TriangulationError, triangulate, triangulate_many
+from bsp_triangulate import (
+    PackedPolygons,
+    TriangulationError,
+    triangulate,
+    triangulate_many,
+    triangulate_packed,
+)
 
 from .checks import check_triangulation
 from .random_polygons import (
@@ -186,3 +192,50 @@ def test_triangulate_many_matches_one_by_one_and_returns_errors_in_place(polys: 
         np.testing.assert_array_equal(result.vertices, single.vertices)
         np.testing.assert_array_equal(result.triangles, single.triangles)
         np.testing.assert_array_equal(result.parent, single.parent)
+
+
+@st.composite
+def points_for(draw: st.DrawFn, rings: list) -> np.ndarray:
+    """Points for a polygon: on a grid over its box (inside, outside, on its edges), at its
+    vertices and edges' midpoints, some repeated."""
+    rnd = random.Random(draw(st.integers(0, 2**32 - 1)))
+    xy = np.array([p[:2] for ring in rings for p in ring], dtype=np.float64)
+    low, high = xy.min(axis=0), xy.max(axis=0)
+    steps = rnd.choice((4, 9, 17))
+    grid = [
+        (low[0] + (high[0] - low[0]) * i / steps, low[1] + (high[1] - low[1]) * j / steps)
+        for i in range(steps + 1)
+        for j in range(steps + 1)
+    ]
+    chosen = rnd.sample(grid, min(len(grid), rnd.randint(1, 40)))
+    ring = [tuple(p[:2]) for p in rings[rnd.randrange(len(rings))]]
+    chosen += rnd.sample(ring, min(2, len(ring)))
+    a, b = ring[0], ring[1]
+    chosen.append(((a[0] + b[0]) / 2, (a[1] + b[1]) / 2))
+    chosen += rnd.sample(chosen, min(3, len(chosen)))
+    rnd.shuffle(chosen)
+    return np.array([(x, y, rnd.randint(0, 3)) for x, y in chosen], dtype=np.float64)
+
+
+@st.composite
+def polygons_with_points(draw: st.DrawFn) -> tuple[list, list]:
+    polys = draw(st.lists(polygons(), min_size=1, max_size=4))
+    return polys, [draw(points_for(rings)) for rings in polys]
+
+
+@examples(15)
+@given(polygons_with_points())
+def test_many_with_points_match_one_by_one_under_rule_delaunay(drawn: tuple) -> None:
+    # triangulate_many and triangulate_packed insert the points of all polygons at once
+    # (tree/points_batch.py); one polygon at a time inserts them one by one
+    polys, points = drawn
+    many = triangulate_many(polys, points=points, rule="delaunay", on_error="return")
+    counts = np.array([len(p) for p in points], dtype=np.int64)
+    packed = triangulate_packed(
+        PackedPolygons.of(polys), points=(np.concatenate(points), counts), rule="delaunay"
+    ).to_list()
+    for rings, pts, got, got_packed in zip(polys, points, many, packed):
+        single = triangulate(rings, points=pts, rule="delaunay")
+        for result in (got, got_packed):
+            for name in ("vertices", "triangles", "parent", "depth", "side", "point_ids"):
+                np.testing.assert_array_equal(getattr(result, name), getattr(single, name))
