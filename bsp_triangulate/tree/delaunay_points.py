@@ -93,58 +93,64 @@ def tree_of_cdt(
     twins = across[wall]
     across[wall] = -1
     across[twins[twins >= 0]] = -1
-    rows = _depth_first(tri.tolist(), across.tolist(), int(wall[0]), mirrored)
-    if len(rows[0]) != count:
+    walk = _depth_first(across.tolist(), int(wall[0]), count)
+    if walk is None:
         return None
-    out, parent, depth, side = rows
+    item, parent, depth, side = walk
+    t, k = np.divmod(item, 3)
+    a, b, c = tri[t, k], tri[t, (k + 1) % 3], tri[t, (k + 2) % 3]
     return Triangulation(
         vertices=vertices,
-        triangles=np.array(out, dtype=np.int64).reshape(-1, 3),
-        parent=np.array(parent, dtype=np.int64),
-        depth=np.array(depth, dtype=np.int64),
-        side=np.array(side, dtype=np.int8),
+        triangles=np.column_stack([b, a, c] if mirrored else [a, b, c]),
+        parent=parent,
+        depth=depth,
+        side=side.astype(np.int8),
     )
 
 
 def _depth_first(
-    triangles: list[list[int]], across: list[int], root: int, mirrored: bool
-) -> tuple[list[tuple[int, int, int]], list[int], list[int], list[int]]:
-    """Rows (triangle, parent, depth, side) in pre-order of :func:`tree_of_cdt`'s walk from
-    the directed edge item ``root`` (``across``: per item, the item of the same edge the
-    other way round, or -1 at a ring edge)."""
-    used = bytearray(len(triangles))
-    out: list[tuple[int, int, int]] = []
-    parent: list[int] = []
-    depth: list[int] = []
-    side: list[int] = []
-    # (the item of the node's base, the chord a -> b with the sub-polygon on its left, in its
-    # triangle; V1 at a; parent, depth, side)
+    across: list[int], root: int, count: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Per node in pre-order of :func:`tree_of_cdt`'s walk from the directed edge item
+    ``root``: the item of its base (the chord a -> b with the rest on its left, in its
+    triangle), its parent, depth and side; None where it does not reach all ``count``
+    triangles (``across``: per item, the item of the same edge the other way round, or -1 at
+    a ring edge)."""
+    used = bytearray(count)
+    # (item, V1 at a, parent, depth, side) of every node, as taken off the stack
+    nodes: list[tuple[int, bool, int, int, int]] = []
     stack = [(root, True, -1, 0, 0)]
-    pop, push = stack.pop, stack.append
+    pop, push, keep = stack.pop, stack.append, nodes.append
     while stack:
-        item, v1_at_a, par, dep, sd = pop()
-        t, k = divmod(item, 3)
+        entry = pop()
+        item = entry[0]
+        t = item // 3
         if used[t]:
             continue  # reached the other way round: this edge is a bridge
         used[t] = 1
-        corners = triangles[t]
-        a, b, c = corners[k], corners[k - 2], corners[k - 1]
-        node = len(out)
-        out.append((b, a, c) if mirrored else (a, b, c))
-        parent.append(par)
-        depth.append(dep)
-        side.append(sd)
-        upper = across[item - k + (k + 2) % 3]  # across c -> a: the child on a c
-        lower = across[item - k + (k + 1) % 3]  # across b -> c: the child on c b
+        node = len(nodes)
+        keep(entry)
+        base = item - item % 3
+        upper = across[base + _AFTER_NEXT[item - base]]  # across c -> a: the child on a c
+        lower = across[base + _NEXT[item - base]]  # across b -> c: the child on c b
+        dep = entry[3] + 1
         # the right child pushed first, taken last
-        if v1_at_a:
+        if entry[1]:
             if lower >= 0:
-                push((lower, False, node, dep + 1, 2))
+                push((lower, False, node, dep, 2))
             if upper >= 0:
-                push((upper, True, node, dep + 1, 1))
+                push((upper, True, node, dep, 1))
         else:
             if upper >= 0:
-                push((upper, True, node, dep + 1, 2))
+                push((upper, True, node, dep, 2))
             if lower >= 0:
-                push((lower, False, node, dep + 1, 1))
-    return out, parent, depth, side
+                push((lower, False, node, dep, 1))
+    if len(nodes) != count:
+        return None
+    columns = np.array(nodes, dtype=np.int64).reshape(-1, 5).T.copy()
+    return columns[0], columns[2], columns[3], columns[4]
+
+
+# the local edges after edge k of a triangle, and after that
+_NEXT = (1, 2, 0)
+_AFTER_NEXT = (2, 0, 1)
