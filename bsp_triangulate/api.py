@@ -126,7 +126,7 @@ def triangulate_many(
             results[index] = done
     ring_meshes: dict[int, Triangulation | None] = {}
     inserted: dict[int, InsertedMesh | None] = {}
-    if _ring_meshes_wanted(rule, planar_tolerance, invalid):
+    if points is not None and _at_once_wanted(rule, planar_tolerance, invalid):
         from .tree.batch import triangulate_batch
 
         taken = set(plain)
@@ -135,18 +135,12 @@ def triangulate_many(
             for i in range(len(polygons))
             if i not in taken and (meshes is None or meshes[i] is None)
         ]
-        if wanted:
-            try:
-                found = triangulate_batch([polygons[i] for i in wanted], rule, plane=plane)
-            except (ArithmeticError, ValueError, TypeError):
-                found = []
-            ring_meshes = dict(zip(wanted, found))
-            inserted = _inserted(
-                [polygons[i] for i in wanted],
-                [ring_meshes.get(i) for i in wanted],
-                [points[i] for i in wanted],
-                wanted,
-            )
+        ring_meshes, inserted = _points_at_once(
+            wanted,
+            [polygons[i] for i in wanted],
+            [points[i] for i in wanted],
+            lambda: triangulate_batch([polygons[i] for i in wanted], rule, plane=plane),
+        )
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
@@ -168,24 +162,34 @@ def triangulate_many(
     return results
 
 
-def _inserted(
-    polygons: list[Sequence[object]],
-    ring_meshes: list[Triangulation | None],
-    points: list[object],
+def _points_at_once(
     index: Sequence[int],
-) -> dict[int, InsertedMesh | None]:
-    """``points_batch.insert_points`` of the polygons numbered ``index``; none where the
-    points are not a plain array of coordinates (the one-polygon builder checks them)."""
+    polygons: list[Sequence[object]],
+    points: list[object],
+    triangulate_rings: Callable[[], list[Triangulation | None]],
+) -> tuple[dict[int, Triangulation | None], dict[int, InsertedMesh | None]]:
+    """Rule delaunay with points for the polygons numbered ``index`` (their rings and points):
+    the rings' triangulations from the batch path (``triangulate_rings``, None where it
+    leaves a polygon to the engine) and every point inserted into them
+    (``points_batch.insert_points``), per polygon number; none where the batch path or the
+    insertion cannot take the input (the one-polygon builder then checks it)."""
+    if not len(index):
+        return {}, {}
     try:
-        found = insert_points(polygons, ring_meshes, points)
+        found = triangulate_rings()
+    except (ArithmeticError, ValueError, TypeError):
+        return {}, {}
+    try:
+        inserted = insert_points(polygons, found, points)
     except (ArithmeticError, ValueError, TypeError, IndexError):
-        return {}
-    return dict(zip(index, found))
+        inserted = [None] * len(index)
+    return dict(zip(index, found)), dict(zip(index, inserted))
 
 
-def _ring_meshes_wanted(rule: str, planar_tolerance: float, invalid: str) -> bool:
-    """Whether polygons with points take their rings' triangulation from the batch path:
-    rule delaunay by insertion (docs/algorithm.md, section 5b), which starts from it."""
+def _at_once_wanted(rule: str, planar_tolerance: float, invalid: str) -> bool:
+    """Whether polygons with points take their rings' triangulation from the batch path and
+    their points inserted all at once: rule delaunay by insertion (docs/algorithm.md,
+    section 5b)."""
     return rule == "delaunay" and planar_tolerance <= 0 and not _as_given(invalid)
 
 
@@ -290,9 +294,9 @@ def triangulate_packed(
     starts = None if counts is None else np.cumsum(counts) - counts
     mesh_rows, mesh_counts = (None, None) if meshes is None else meshes
     mesh_starts = None if mesh_counts is None else np.cumsum(mesh_counts) - mesh_counts
-    ring_meshes: dict[int, Triangulation] = {}
+    ring_meshes: dict[int, Triangulation | None] = {}
     inserted: dict[int, InsertedMesh | None] = {}
-    if counts is not None and _ring_meshes_wanted(rule, planar_tolerance, invalid):
+    if counts is not None and _at_once_wanted(rule, planar_tolerance, invalid):
         from .tree.batch import triangulate_batch_packed
 
         wanted = np.flatnonzero(~decided & (counts > 0))
@@ -300,21 +304,20 @@ def triangulate_packed(
             given = np.zeros(len(polygons), dtype=bool)
             given[: len(mesh_counts)] = np.asarray(mesh_counts)[: len(polygons)] > 0
             wanted = wanted[~given[wanted]]
-        if len(wanted):
-            try:
-                found = triangulate_batch_packed(polygons.take(wanted), rule, plane=plane)
-            except (ArithmeticError, ValueError, TypeError):
-                found = []
-            for piece in found:
+
+        def triangulate_rings() -> list[Triangulation | None]:
+            found: list[Triangulation | None] = [None] * len(wanted)
+            for piece in triangulate_batch_packed(polygons.take(wanted), rule, plane=plane):
                 for index, result in zip(piece.index.tolist(), piece.results.to_list()):
-                    ring_meshes[int(wanted[index])] = result
-            order = [int(i) for i in wanted]
-            inserted = _inserted(
-                [polygons.rings(i) for i in order],
-                [ring_meshes.get(i) for i in order],
-                [coordinates[starts[i] : starts[i] + counts[i]] for i in order],
-                order,
-            )
+                    found[index] = result
+            return found
+
+        ring_meshes, inserted = _points_at_once(
+            wanted.tolist(),
+            [polygons.rings(i) for i in wanted.tolist()],
+            [coordinates[starts[i] : starts[i] + counts[i]] for i in wanted.tolist()],
+            triangulate_rings,
+        )
     for index in np.flatnonzero(~decided).tolist():
         report.one_more()
         rings = polygons.rings(index)
