@@ -48,6 +48,12 @@ def triangle_set(triangles: np.ndarray) -> set[tuple[int, int, int]]:
     return {tuple(t[t.index(min(t)) :] + t[: t.index(min(t))]) for t in triangles.tolist()}
 
 
+def assert_same_fields(got: object, want: object) -> None:
+    """Every field equal."""
+    for name in ("vertices", "triangles", "parent", "depth", "side", "point_ids"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(want, name), name)
+
+
 def assert_same(inserted: object, recursion: object) -> None:
     """The same vertices, point rows and triangles; the trees may differ (other bridges)."""
     for name in ("vertices", "point_ids"):
@@ -204,35 +210,24 @@ def test_many_polygons_insert_their_points_all_at_once(monkeypatch: pytest.Monke
     packed = triangulate_packed(PackedPolygons.of(polygons), points=(flat, counts), rule="delaunay")
     assert len(own) <= 2  # nearly every polygon took its inserted mesh
     for number, want in enumerate(one_by_one):
-        for got in (many[number], packed.to_list()[number]):
-            for name in ("vertices", "triangles", "parent", "depth", "side", "point_ids"):
-                np.testing.assert_array_equal(getattr(got, name), getattr(want, name), name)
+        assert_same_fields(many[number], want)
+        assert_same_fields(packed.to_list()[number], want)
     assert (one_by_one[-1].point_ids >= 0).sum() == 3  # inside, once each
 
 
-def test_inserted_points_whose_rows_differ_are_not_used() -> None:
+@pytest.mark.parametrize("hint", ["inserted_mesh", "ring_mesh"])
+def test_a_hint_that_does_not_fit_the_polygon_is_not_used(hint: str) -> None:
+    # points inserted with other rows, or the rings' triangulation of another polygon
     rnd = random.Random(13)
     rings = random_polygon(rnd, islands=1)
     points = random_points(rnd, rings, 20)
     plain = triangulate(rings, points=points, rule="delaunay")
-    wrong = InsertedMesh(plain.triangles, np.roll(plain.point_ids, 1))
+    wrong = {
+        "inserted_mesh": InsertedMesh(plain.triangles, np.roll(plain.point_ids, 1)),
+        "ring_mesh": triangulate(random_polygon(rnd, islands=1), rule="delaunay"),
+    }[hint]
     hinted = one_polygon._triangulate(
         rings, rule="delaunay", planar_tolerance=0.0, invalid="fail", points=points,
-        inserted_mesh=wrong,
+        **{hint: wrong},
     )  # fmt: skip
-    for name in ("vertices", "triangles", "parent", "depth", "side", "point_ids"):
-        np.testing.assert_array_equal(getattr(hinted, name), getattr(plain, name), name)
-
-
-def test_a_ring_triangulation_of_other_vertices_is_not_used() -> None:
-    rnd = random.Random(12)
-    rings = random_polygon(rnd, islands=1)
-    points = random_points(rnd, rings, 30)
-    plain = triangulate(rings, points=points, rule="delaunay")
-    other = triangulate(random_polygon(rnd, islands=1), rule="delaunay")
-    hinted = one_polygon._triangulate(
-        rings, rule="delaunay", planar_tolerance=0.0, invalid="fail", points=points,
-        ring_mesh=other,
-    )  # fmt: skip
-    for name in ("vertices", "triangles", "parent", "depth", "side", "point_ids"):
-        np.testing.assert_array_equal(getattr(hinted, name), getattr(plain, name), name)
+    assert_same_fields(hinted, plain)
