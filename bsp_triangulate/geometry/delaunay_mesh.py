@@ -504,13 +504,19 @@ class DelaunayMesh:
         return t, t2
 
 
+def slot_keys(tri: np.ndarray, n: int) -> np.ndarray:
+    """Per slot of the (t, 3) triangles over n vertices (slot 3t + k: the directed edge from
+    vertex k + 1 to vertex k + 2), its edge as the integer start * n + end."""
+    return (tri[:, [1, 2, 0]] * n + tri[:, [2, 0, 1]]).ravel()
+
+
 def edge_links(tri: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Per slot of the (t, 3) counter-clockwise triangles over n vertices (slot 3t + k: the
     directed edge from vertex k + 1 to vertex k + 2): the slot across its edge, or -1; and
     whether an earlier slot already has that directed edge (overlapping triangles)."""
     start = tri[:, [1, 2, 0]].ravel()
     end = tri[:, [2, 0, 1]].ravel()
-    keys = start * n + end
+    keys = slot_keys(tri, n)
     order = np.argsort(keys, kind="stable")
     sorted_keys = keys[order]
     repeated = np.zeros(len(keys), dtype=bool)

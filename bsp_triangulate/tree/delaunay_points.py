@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..geometry.delaunay_mesh import DelaunayMesh
+from ..geometry.delaunay_mesh import DelaunayMesh, edge_links, slot_keys
 from ..triangulation import Triangulation
 
 
@@ -72,33 +72,26 @@ def tree_of_cdt(
     starts, ends = walls
     if count == 0 or not len(starts):
         return None
-    # directed edge k of triangle t (corner k to corner k + 1) is item 3 t + k, keyed a n + b
-    following = tri[:, [1, 2, 0]]
-    keys = (tri * n + following).ravel()
-    order = np.argsort(keys, kind="stable")
-    ordered = keys[order]
-    if (ordered[1:] == ordered[:-1]).any():
+    # slot 3 t + k: the directed edge from corner k + 1 to corner k + 2 of triangle t
+    across, repeated = edge_links(tri, n)
+    if repeated.any():
         return None
-
-    def items(wanted: np.ndarray) -> np.ndarray:
-        """The item of each directed edge key in ``wanted``, or -1."""
-        at = np.minimum(np.searchsorted(ordered, wanted), len(ordered) - 1)
-        return np.where(ordered[at] == wanted, order[at], -1)
-
-    across = items((following * n + tri).ravel())  # the same edge, the other way round
-    wall = items(starts * n + ends)
+    keys = slot_keys(tri, n)
+    rims = starts * n + ends
+    wall = np.isin(keys, rims)
     # every edge is a ring edge or shared by two triangles: no gap, nothing left over
-    if (wall < 0).any() or not np.isin(np.flatnonzero(across < 0), wall).all():
+    if not np.isin(rims, keys).all() or (~wall & (across < 0)).any():
         return None
     twins = across[wall]
     across[wall] = -1
     across[twins[twins >= 0]] = -1
-    walk = _depth_first(across.tolist(), int(wall[0]), count)
+    root = int(np.flatnonzero(keys == rims[0])[0])
+    walk = _depth_first(across.tolist(), root, count)
     if walk is None:
         return None
-    item, parent, depth, side = walk
-    t, k = np.divmod(item, 3)
-    a, b, c = tri[t, k], tri[t, (k + 1) % 3], tri[t, (k + 2) % 3]
+    slot, parent, depth, side = walk
+    t, k = np.divmod(slot, 3)
+    a, b, c = tri[t, (k + 1) % 3], tri[t, (k + 2) % 3], tri[t, k]
     return Triangulation(
         vertices=vertices,
         triangles=np.column_stack([b, a, c] if mirrored else [a, b, c]),
@@ -111,28 +104,28 @@ def tree_of_cdt(
 def _depth_first(
     across: list[int], root: int, count: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-    """Per node in pre-order of :func:`tree_of_cdt`'s walk from the directed edge item
-    ``root``: the item of its base (the chord a -> b with the rest on its left, in its
-    triangle), its parent, depth and side; None where it does not reach all ``count``
-    triangles (``across``: per item, the item of the same edge the other way round, or -1 at
-    a ring edge)."""
+    """Per node in pre-order of :func:`tree_of_cdt`'s walk from the slot ``root``: the slot
+    of its base (the chord a -> b with the rest on its left, in its triangle), its parent,
+    depth and side; None where it does not reach all ``count`` triangles (``across``: per
+    slot, the slot of the same edge the other way round, or -1 at a ring edge)."""
     used = bytearray(count)
-    # (item, V1 at a, parent, depth, side) of every node, as taken off the stack
+    # (slot, V1 at a, parent, depth, side) of every node, as taken off the stack
     nodes: list[tuple[int, bool, int, int, int]] = []
     stack = [(root, True, -1, 0, 0)]
     pop, push, keep = stack.pop, stack.append, nodes.append
     while stack:
         entry = pop()
-        item = entry[0]
-        t = item // 3
+        slot = entry[0]
+        t = slot // 3
         if used[t]:
             continue  # reached the other way round: this edge is a bridge
         used[t] = 1
         node = len(nodes)
         keep(entry)
-        base = item - item % 3
-        upper = across[base + _AFTER_NEXT[item - base]]  # across c -> a: the child on a c
-        lower = across[base + _NEXT[item - base]]  # across b -> c: the child on c b
+        base = slot - slot % 3
+        # the base a -> b is the edge opposite the apex c (slot k: corner k)
+        upper = across[base + _AFTER_NEXT[slot - base]]  # across c -> a: the child on a c
+        lower = across[base + _NEXT[slot - base]]  # across b -> c: the child on c b
         dep = entry[3] + 1
         # the right child pushed first, taken last
         if entry[1]:
@@ -151,6 +144,6 @@ def _depth_first(
     return columns[0], columns[2], columns[3], columns[4]
 
 
-# the local edges after edge k of a triangle, and after that
+# the triangle's slots k + 1 and k + 2 (mod 3) from its slot k
 _NEXT = (1, 2, 0)
 _AFTER_NEXT = (2, 0, 1)
