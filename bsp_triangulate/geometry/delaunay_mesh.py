@@ -29,6 +29,7 @@ from .predicates import (
     orient,
     orient_many,
 )
+from .rings_batch import ragged_index
 
 # ICC_ERRBOUND with a margin for the few roundings by which the float value of the simpler
 # bound of DelaunayMesh._restore may fall below the float permanent
@@ -610,7 +611,7 @@ def containing_triangles(
         side //= 2
     # one (cell, triangle) pair per cell of each triangle's box, sorted by cell
     owner = np.repeat(np.arange(count), cover)
-    local = _ranges(np.zeros(count, dtype=np.int64), cover)
+    local = ragged_index(np.zeros(count, dtype=np.int64), cover)
     width = (cx1 - cx0 + 1)[owner]
     cells = (cy0[owner] + local // width) * side + cx0[owner] + local % width
     if tri_region is not None:
@@ -635,7 +636,7 @@ def containing_triangles(
         last = max(last, first + 1)
         part = slice(first, last)
         point = np.repeat(where[part], counts[part])
-        candidate = owner[_ranges(lo[part], counts[part])]
+        candidate = owner[ragged_index(lo[part], counts[part])]
         held = np.ones(len(point), dtype=bool)
         corner_x, corner_y = tx[candidate], ty[candidate]
         for k in range(3):
@@ -658,10 +659,3 @@ def _cells(v: np.ndarray, low: float, size: float, side: int) -> np.ndarray:
     """Grid column (or row) of each coordinate; monotone, so a box holding a point holds
     its cell."""
     return np.clip(np.floor((v - low) / size), 0, side - 1).astype(np.int64)
-
-
-def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """The concatenated ranges ``starts[i], ..., starts[i] + counts[i] - 1``."""
-    total = int(counts.sum())
-    offsets = np.repeat(np.cumsum(counts) - counts, counts)
-    return np.repeat(starts, counts) + np.arange(total) - offsets

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..triangulation import TriangulationError
 from .predicates import compare_sq_distances_many, orient_many, sq_distance_exact
+from .rings_batch import ragged_index
 from .spatial_index import SegmentGrid, chunks
 
 # (edge, point) pairs tested at once: bounds the memory of the vectorised tests
@@ -244,7 +245,7 @@ def _least_exact(
         # loses wins (a loser is farther, or as far and later)
         span = sizes[owner]
         i = np.repeat(np.arange(count), span)
-        j = np.repeat(starts[owner], span) + _ranks(span)
+        j = ragged_index(starts[owner], span)
         i, j = i[i < j], j[i < j]
         sign = compare_sq_distances_many(
             x[a[i]], y[a[i]], x[b[i]], y[b[i]], x[a[j]], y[a[j]], x[b[j]], y[b[j]]
@@ -267,11 +268,6 @@ def _least_exact(
         better = sign < 0
         best[g[better]] = challenger[better]
     return best
-
-
-def _ranks(sizes: np.ndarray) -> np.ndarray:
-    """0, 1, ..., sizes[k] - 1 for each k, concatenated."""
-    return np.arange(int(sizes.sum()), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)
 
 
 def nearest_vertices(
@@ -342,10 +338,10 @@ class VertexGrid:
         (block, row of cells)."""
         nx, starts = self.nx, self.starts
         block = np.repeat(np.arange(len(lo_col), dtype=np.int64), rows)
-        row_of = np.repeat(lo_row, rows) + _ranks(rows)
+        row_of = ragged_index(lo_row, rows)
         first = starts[row_of * nx + lo_col[block]]
         spans = starts[row_of * nx + hi_col[block] + 1] - first
-        return np.repeat(block, spans), self.sorted_ids[np.repeat(first, spans) + _ranks(spans)]
+        return np.repeat(block, spans), self.sorted_ids[ragged_index(first, spans)]
 
     def nearest(
         self,

@@ -17,6 +17,7 @@ import numpy as np
 from ..geometry.delaunay_batch import MeshSet, grown
 from ..geometry.delaunay_mesh import delaunay_faults
 from ..geometry.predicates import ring_area_sign
+from ..geometry.rings_batch import ragged_index
 from .raster_sampling import PreparedGrid
 
 # (triangle, cell) pairs examined per numpy step of the point location
@@ -238,7 +239,7 @@ def _locate_rows(
     heights, r0, c0, c1 = boxes
     xs, ys, x0, y0, dx, dy, margin = frame
     tri = np.repeat(block, heights[block])
-    row = r0[tri] + _ranges_of(heights[block])
+    row = ragged_index(r0[block], heights[block])
     yc = y0[tri] - (row + 0.5) * dy[tri]
     # the centre line's crossing with the triangle: per edge meeting it (closed in y), where
     # it crosses (clamped to the edge; an edge within 1e-6 of flat gives its whole x range)
@@ -265,7 +266,7 @@ def _locate_rows(
     widths = np.maximum(np.where(ok, last, -1).astype(np.int64) - first + 1, 0)
     at_row = np.repeat(np.arange(len(tri)), widths)
     tri, row = tri[at_row], row[at_row]
-    col = first[at_row] + _ranges_of(widths)
+    col = ragged_index(first, widths)
     px = x0[tri] + (col + 0.5) * dx[tri]
     py = yc[at_row]
     ax, ay, az, bax, bay, bz, cax, cay, cz, det = (term[tri] for term in terms)
@@ -322,12 +323,6 @@ def _sorted_corners(corners: np.ndarray) -> np.ndarray:
         swap = (xj < xi) | ((xj == xi) & (yj < yi))
         index[swap, i], index[swap, j] = index[swap, j], index[swap, i]
     return np.take_along_axis(corners, index[:, :, None], axis=1)
-
-
-def _ranges_of(counts: np.ndarray) -> np.ndarray:
-    """0, 1, ..., counts[i] - 1 for each i, concatenated."""
-    total = int(counts.sum())
-    return np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
 
 
 @dataclass
