@@ -118,6 +118,13 @@ def working_axes(outer: np.ndarray) -> tuple[int, int]:
     return 0, 2
 
 
+def xy_mirror(rings: Sequence[object]) -> float:
+    """-1.0 where the outer ring of ``rings`` is clockwise in XY (the working plane then
+    mirrors x, as :func:`prepare` does), else 1.0."""
+    outer = np.asarray(rings[0], dtype=np.float64)
+    return -1.0 if ring_area_sign(outer[:, 0], outer[:, 1]) < 0 else 1.0
+
+
 def _clean(points: np.ndarray, axes: tuple[int, int]) -> np.ndarray:
     """Drop consecutive duplicates (equal in the working plane) and the closing point."""
     if len(points) == 0:

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry.delaunay_batch import MeshSet, grown
 from ..geometry.delaunay_mesh import delaunay_faults
-from ..geometry.predicates import ring_area_sign
+from ..geometry.rings import xy_mirror
 from ..geometry.rings_batch import ragged_index
 from .raster_sampling import PreparedGrid
 
@@ -651,8 +651,7 @@ class _Meshes:
         for p, result in zip(active, results):
             if isinstance(result, Exception) or not len(getattr(result, "triangles", ())):
                 continue
-            outer = np.asarray(self.polygons[p][0], dtype=np.float64)
-            mirror = -1.0 if ring_area_sign(outer[:, 0], outer[:, 1]) < 0 else 1.0
+            mirror = xy_mirror(self.polygons[p])
             triangles = np.asarray(result.triangles, np.int64)
             if mirror < 0:
                 triangles = triangles[:, [1, 0, 2]]

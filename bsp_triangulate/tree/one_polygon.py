@@ -1232,17 +1232,20 @@ def _triangulate(
     if point_rings and type(apex_rule) is DelaunayRule and not as_given:
         # the points inserted already (their rows must be these), or the mesh given with the
         # polygon where it passes the checks; else one built here
+        starts, ends = ring_edges(ring_ids)
+        distinct = starts != ends
+        walls = (starts[distinct], ends[distinct])
         known = None
         if inserted_mesh is not None and np.array_equal(inserted_mesh.point_ids, point_ids):
             known = _mesh_rows(prepared, inserted_mesh.triangles)
         elif mesh is not None:
             known = _known_mesh(prepared, mesh)
         if known is not None:
-            inserted = _delaunay_by_insertion(prepared, known, ring_ids, tick)
+            inserted = _delaunay_by_insertion(prepared, known, walls, tick)
         if inserted is None:
-            built = _delaunay_mesh(prepared, ring_ids, ring_count, tick, ring_mesh)
+            built = _delaunay_mesh(prepared, ring_ids, ring_count, walls, tick, ring_mesh)
             if built is not None:
-                inserted = _delaunay_by_insertion(prepared, built, ring_ids, tick)
+                inserted = _delaunay_by_insertion(prepared, built, walls, tick)
     if inserted is not None:
         inserted.point_ids = point_ids
         check_area(prepared, inserted, axes)
@@ -1291,20 +1294,20 @@ def _delaunay_mesh(
     prepared: PreparedRings,
     ring_ids: list[np.ndarray],
     ring_count: int,
+    walls: tuple[np.ndarray, np.ndarray],
     tick: Callable[[float], None] | None,
     ring_mesh: Triangulation | None = None,
 ) -> np.ndarray | None:
     """Rule "delaunay" with points (docs/algorithm.md, section 5b): the rings' triangulation
     (``ring_mesh`` where it has these ring vertices, else made here with their own bridges)
     with every point inserted, as (t, 3) vertex ids counter-clockwise in the working plane;
-    None where it cannot be built."""
+    ``walls``: the start and end vertices of the ring edges (never flipped). None where it
+    cannot be built."""
     try:
         # any triangulation of the rings: the flips make it their constrained Delaunay one
         triangles = _ring_triangles(prepared, ring_ids, ring_count, ring_mesh)
         if triangles is None:
             return None
-        starts, ends = ring_edges(ring_ids)
-        distinct = starts != ends
         return points_mesh(
             prepared.x,
             prepared.y,
@@ -1312,7 +1315,7 @@ def _delaunay_mesh(
             ring_count,
             prepared.mirrored,
             tick,
-            list(zip(starts[distinct].tolist(), ends[distinct].tolist())),
+            list(zip(walls[0].tolist(), walls[1].tolist())),
         )
     except (TriangulationError, ValueError):
         return None
@@ -1348,8 +1351,8 @@ def _known_mesh(prepared: PreparedRings, mesh: object) -> np.ndarray | None:
     output's XY) as (t, 3) vertex ids counter-clockwise in the working plane, if it is one the
     insertion could have made: every triangle strictly counter-clockwise, every directed edge
     used once, every interior edge locally Delaunay (exact, with the tie rule); else None.
-    Whether it tiles the polygon with the sequence's edges is checked when the tree is read
-    off it, and the area at the end."""
+    Whether it tiles the polygon along its ring edges is checked when the tree is read off
+    it, and the area at the end."""
     tri = _mesh_rows(prepared, mesh)
     if tri is None or delaunay_faults(prepared.x, prepared.y, tri, ties=True).any():
         return None
@@ -1373,16 +1376,13 @@ def _mesh_rows(prepared: PreparedRings, mesh: object) -> np.ndarray | None:
 def _delaunay_by_insertion(
     prepared: PreparedRings,
     mesh: np.ndarray,
-    ring_ids: list[np.ndarray],
+    walls: tuple[np.ndarray, np.ndarray],
     tick: Callable[[float], None] | None,
 ) -> Triangulation | None:
     """The tree read off the ``mesh`` of :func:`_delaunay_mesh` (its depth-first walk, section
-    5b); None where the mesh does not triangulate the rings."""
-    starts, ends = ring_edges(ring_ids)
-    distinct = starts != ends
-    return tree_of_cdt(
-        mesh, prepared.vertices, (starts[distinct], ends[distinct]), prepared.mirrored, tick
-    )
+    5b; ``walls``: the ring edges' start and end vertices); None where the mesh does not
+    triangulate the rings."""
+    return tree_of_cdt(mesh, prepared.vertices, walls, prepared.mirrored, tick)
 
 
 def _with_points(

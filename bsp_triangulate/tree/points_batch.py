@@ -17,7 +17,7 @@ import numpy as np
 
 from ..geometry.delaunay_batch import MeshSet
 from ..geometry.delaunay_mesh import containing_triangles, hilbert_order
-from ..geometry.predicates import ring_area_sign
+from ..geometry.rings import xy_mirror
 from ..triangulation import Triangulation
 
 
@@ -50,7 +50,7 @@ def insert_points(
         return found
     sizes = np.array([len(ring_meshes[i].vertices) for i in kept], dtype=np.int64)
     offsets = np.cumsum(sizes) - sizes
-    mirror = np.array([_mirror(polygons[i]) for i in kept])
+    mirror = np.array([xy_mirror(polygons[i]) for i in kept])
     x = np.concatenate([ring_meshes[i].vertices[:, 0] * m for i, m in zip(kept, mirror)])
     y = np.concatenate([ring_meshes[i].vertices[:, 1] for i in kept])
     triangles = np.concatenate(
@@ -74,7 +74,8 @@ def insert_points(
     # rows: ring vertices keep theirs; the used points follow them in the order given
     used = ids >= 0
     rank = np.cumsum(used) - 1
-    first_rank = np.cumsum(np.r_[0, np.bincount(owner[used], minlength=len(kept))])[:-1]
+    used_counts = np.bincount(owner[used], minlength=len(kept))
+    first_rank = np.cumsum(used_counts) - used_counts
     row = np.empty(mesh.vertex_count, dtype=np.int64)
     row[: len(x)] = np.arange(len(x)) - np.repeat(offsets, sizes)
     row[ids[used]] = sizes[owner[used]] + rank[used] - first_rank[owner[used]]
@@ -91,9 +92,3 @@ def insert_points(
             point_rows[point_starts[k] : point_starts[k] + counts[k]],
         )
     return found
-
-
-def _mirror(rings: Sequence[object]) -> float:
-    """-1 where the outer ring is clockwise in XY (the working plane mirrors x), else 1."""
-    outer = np.asarray(rings[0], dtype=np.float64)
-    return -1.0 if ring_area_sign(outer[:, 0], outer[:, 1]) < 0 else 1.0
