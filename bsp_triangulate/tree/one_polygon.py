@@ -47,12 +47,14 @@ _FIRST_CHUNK = 1
 _MAX_CHUNK = 64
 # Edges remembered per base as likely blockers of its next candidates.
 _MAX_BLOCKERS = 256
-_MAX_RECENT_BLOCKERS = 8
+_MAX_RECENT_BLOCKERS = 16
 # Candidates per base tested one by one before the facing test switches to chunks.
 _SCALAR_CANDIDATES = 16
 # Sub-polygons longer than this take their candidates closest elevation first from shared
 # sorted windows (rule "elevation").
 _WINDOWED = 512
+# Bands of at most this many candidates are tested lazily, candidate by candidate.
+_LAZY_BAND = 256
 # The rule "elevation" error bound's factor (rules.ElevationRule).
 _EPS8 = 8.0 * 2.0**-53
 # Largest chunk of candidates filtered at once by rule "first" on long runs.
@@ -375,6 +377,9 @@ class _Tree:
         self._windows: ElevationWindows | None = None  # rule "elevation", long sub-polygons
         self._points: SegmentGrid | None = None  # positions, for rule "delaunay"
         self.boxes = ChainBoxes(self.sx, self.sy) if self.m > SMALL_SEQUENCE else None
+        # the last long base's blockers: in a chain of nodes that each cut off a few
+        # vertices, the next base's far candidates are mostly blocked by the same edges
+        self._recent: list[int] = []
 
     @property
     def grid(self) -> SegmentGrid | None:
@@ -478,31 +483,36 @@ class _Tree:
         z1, z2 = float(z[v1]), float(z[v2])
         # the rule's error bound for any candidate of the window
         widest = _EPS8 * (2.0 * windows.widest_z(lo, hi) + abs(z1) + abs(z2)) + 1e-300
-        blockers: list[int] = []
+        blockers = self._carried(lo, hi)
         found: list[int] = []
         best = math.inf
         shadows: Shadows | None = None
         tested = 0
         for band, floor in windows.bands(lo, hi, z1 + z2):
-            if len(band):
-                band = band[facing_candidates(self.sx, self.sy, lo, hi, band, self.exact)]
             if shadows is None and tested > _SCALAR_CANDIDATES:
                 shadows = self._shadows(lo, hi, blockers)
-            if shadows is not None and len(band):
-                band = band[~shadows.shadowed_many(self.sx, self.sy, band)]
-            if len(band) > _SCALAR_CANDIDATES and blockers:
-                # wide bands (elevations close or equal): the edges that blocked earlier
-                # candidates, against the whole band at once
-                band = self._not_blocked_by(lo, hi, band, blockers)
+            lazy = len(band) <= _LAZY_BAND
+            if not lazy:
+                # wide bands (elevations close or equal): the cheap tests, then the edges
+                # that blocked earlier candidates, against the whole band at once
+                band = band[facing_candidates(self.sx, self.sy, lo, hi, band, self.exact)]
+                if shadows is not None and len(band):
+                    band = band[~shadows.shadowed_many(self.sx, self.sy, band)]
+                if len(band) > _SCALAR_CANDIDATES and blockers:
+                    band = self._not_blocked_by(lo, hi, band, blockers)
             if len(band):
                 zc = z[band]
                 approx = np.abs(2.0 * zc - z1 - z2)
                 error = _EPS8 * (2.0 * np.abs(zc) + abs(z1) + abs(z2)) + 1e-300
                 approx_list, error_list = approx.tolist(), error.tolist()
+                band_list = band.tolist()
                 for index in np.argsort(approx, kind="stable").tolist():
                     if found and approx_list[index] - widest > best:
                         break  # this band's others too are surely farther than a correct one
-                    c = int(band[index])
+                    c = band_list[index]
+                    # narrow bands: each test only when the candidate's turn comes
+                    if lazy and not facing_one(xs, ys, lo, hi, c):
+                        continue
                     if shadows is not None and shadows.shadowed(*shadows.angles(xs[c], ys[c])):
                         continue
                     tested += 1
@@ -514,6 +524,7 @@ class _Tree:
                         shadows.add(blockers[0] + 1)
             if found and floor - widest > best:
                 break  # every later band is surely farther than a correct one
+        self._recent = blockers
         if not found:
             return -1
         # in candidate order (decreasing position), as the rule expects
@@ -535,7 +546,7 @@ class _Tree:
         first, stopping as soon as no untested one can be as close as a correct one."""
         widest = float(error.max())
         approx_list, error_list = approx.tolist(), error.tolist()
-        blockers: list[int] = []
+        blockers = self._carried(lo, hi)
         found: list[int] = []
         best = math.inf
         start, size = 0, 1
@@ -555,6 +566,7 @@ class _Tree:
                 if not self._blocked(lo, hi, int(candidates[index]), blockers):
                     found.append(index)
                     best = min(best, approx_list[index] + error_list[index])
+        self._recent = blockers
         if not found:
             return -1
         # in candidate order, as the rule expects
@@ -709,6 +721,11 @@ class _Tree:
                 if not self._blocked(lo, hi, c, blockers):
                     return c
         return -1
+
+    def _carried(self, lo: int, hi: int) -> list[int]:
+        """The last long base's blockers that are edges of sub-polygon [lo, hi]: tried
+        first (any blocking edge proves a candidate fails, so the choice is the same)."""
+        return [e for e in self._recent if lo <= e < hi]
 
     def _shadows(self, lo: int, hi: int, blockers: list[int]) -> Shadows:
         """The shadows on the base of [lo, hi] of the ends of the edges ``blockers`` (the
