@@ -520,8 +520,7 @@ class _Tree:
                         found.append(c)
                         best = min(best, approx_list[index] + error_list[index])
                     elif shadows is not None:
-                        shadows.add(blockers[0])
-                        shadows.add(blockers[0] + 1)
+                        shadows.add_edge(blockers[0])
             if found and floor - widest > best:
                 break  # every later band is surely farther than a correct one
         self._recent = blockers
@@ -732,8 +731,7 @@ class _Tree:
         caller adds more as it finds them)."""
         shadows = Shadows(self.xs, self.ys, self.boxes, lo, hi)
         for e in blockers:
-            shadows.add(e)
-            shadows.add(e + 1)
+            shadows.add_edge(e)
         return shadows
 
     def _first_apex_shadowed(self, lo: int, hi: int, start: int, blockers: list[int]) -> int:
@@ -751,8 +749,7 @@ class _Tree:
                 continue
             if not self._blocked(lo, hi, c, blockers):
                 return c
-            shadows.add(blockers[0])
-            shadows.add(blockers[0] + 1)
+            shadows.add_edge(blockers[0])
         return -1
 
     def _not_blocked_by(
@@ -782,7 +779,7 @@ class _Tree:
             if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
                 return True
         if self.boxes is not None and hi - lo > SMALL_SEQUENCE:
-            return self._blocked_boxes(lo, hi, corners, blockers)
+            return self._blocked_boxes(lo, hi, c, corners, blockers)
         for e in range(lo, hi):
             if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
                 _remember(blockers, e)
@@ -793,12 +790,15 @@ class _Tree:
         self,
         lo: int,
         hi: int,
+        c: int,
         corners: tuple[float, float, float, float, float, float],
         blockers: list[int],
     ) -> bool:
         """:meth:`_blocked` for long sub-polygons: the edges are found by descending the chain
         boxes of positions [lo, hi) that the triangle's closed region may meet (separating-axis
-        tests on each box's rectangle: its two axes and the triangle's three side normals)."""
+        tests on each box's rectangle: its two axes and the triangle's three side normals). A
+        box holding a corner's position (``lo``, ``hi``, apex ``c``) meets the triangle: it is
+        entered untested."""
         xs, ys, sign = self.xs, self.ys, self.sign
         boxes = self.boxes
         levels, sizes, pad = boxes.levels, boxes.sizes, boxes.pad
@@ -821,6 +821,12 @@ class _Tree:
             start = k * size
             end = start + size
             if end <= lo or start >= hi:
+                continue
+            if level and (start <= c <= end or start <= lo or end >= hi):
+                child = 2 * k
+                if child + 1 < len(levels[level - 1]):
+                    stack.append((level - 1, child + 1))
+                stack.append((level - 1, child))
                 continue
             x0, x1, y0, y1, ox, oy, ux, uy, hu, hv = levels[level][k]
             if x1 < xmin or x0 > xmax or y1 < ymin or y0 > ymax:

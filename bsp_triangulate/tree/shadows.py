@@ -31,6 +31,8 @@ from ..geometry.spatial_index import ChainBoxes
 _SEED_LEAVES = 24
 # Angles (radians) closer than this are not trusted to compare.
 _MARGIN = 1e-9
+# Points along an edge that casts its shadow (its ends' shadows do not cover each other).
+_EDGE_SAMPLES = 7
 _TWO_PI = 2.0 * math.pi
 
 
@@ -49,6 +51,10 @@ class Shadows:
         self.alphas: list[float] = []
         self.betas: list[float] = []
         self.side: tuple[float, float, float, float] | None = None
+        # squared distance from a base end within which a computed point's angles are not
+        # trusted (the coordinates' rounding, 2**-52 of their scale, over it stays far below
+        # the margin)
+        self.near2 = (boxes.pad * 2.0**12) ** 2
         nx, ny = ay - by, bx - ax  # left of the chord A -> B
         norm = math.hypot(nx, ny)
         if 0 < norm < math.inf:
@@ -66,6 +72,32 @@ class Shadows:
         the chord (a vertex of the sub-polygon other than the base's ends)."""
         if self.lo < position < self.hi and self.side is not None:
             self._add(*self.angles(self.xs[position], self.ys[position]))
+
+    def add_edge(self, edge: int) -> None:
+        """Cast the shadows of the edge (edge, edge + 1) of the sub-polygon: those of its
+        ends and, where neither end's shadow covers the other's, those of points along it (a
+        point of an edge strictly inside a triangle breaks condition 2 as a vertex does)."""
+        self.add(edge)
+        self.add(edge + 1)
+        if self.side is None or not self.lo <= edge < self.hi:
+            return
+        px, py, qx, qy = self.xs[edge], self.ys[edge], self.xs[edge + 1], self.ys[edge + 1]
+        alpha_p, beta_p = self.angles(px, py)
+        alpha_q, beta_q = self.angles(qx, qy)
+        if (alpha_q - alpha_p) * (beta_q - beta_p) >= 0 and max(
+            alpha_p, beta_p, alpha_q, beta_q
+        ) < math.pi:
+            return
+        # a point computed along the edge is off it by a rounding: kept only where that
+        # moves its angles far less than the margin
+        near = self.near2
+        for k in range(1, _EDGE_SAMPLES + 1):
+            t = k / (_EDGE_SAMPLES + 1)
+            x, y = px + t * (qx - px), py + t * (qy - py)
+            if (x - self.ax) ** 2 + (y - self.ay) ** 2 > near and (x - self.bx) ** 2 + (
+                y - self.by
+            ) ** 2 > near:
+                self._add(*self.angles(x, y))
 
     def _add(self, alpha: float, beta: float) -> None:
         if not (_MARGIN < alpha < math.pi - _MARGIN and _MARGIN < beta < math.pi - _MARGIN):

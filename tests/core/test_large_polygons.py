@@ -83,7 +83,7 @@ def test_chain_boxes_find_exactly_the_blocked_candidates(
         if not facing_one(tree.xs, tree.ys, lo, hi, c):
             continue
         expected = _blocked_by_any_edge(tree, lo, hi, c)
-        assert tree._blocked_boxes(lo, hi, tree_corners(tree, lo, hi, c), []) == expected, (
+        assert tree._blocked_boxes(lo, hi, c, tree_corners(tree, lo, hi, c), []) == expected, (
             lo,
             hi,
             c,

@@ -116,6 +116,57 @@ def test_skipped_candidates_fail_exactly(seed: int) -> None:
     assert shadowed > 10
 
 
+def _meets_inside(a: tuple, b: tuple, c: tuple, p: tuple, q: tuple) -> bool:
+    """Some point of the segment p-q lies strictly inside the counter-clockwise triangle
+    (a, b, c) (exact: the parameters where it is strictly left of every side)."""
+    low, high = Fraction(0), Fraction(1)
+    for u, v in ((a, b), (b, c), (c, a)):
+        f0 = (v[0] - u[0]) * (p[1] - u[1]) - (v[1] - u[1]) * (p[0] - u[0])
+        f1 = (v[0] - u[0]) * (q[1] - u[1]) - (v[1] - u[1]) * (q[0] - u[0])
+        if f0 <= 0 and f1 <= 0:
+            return False
+        if f0 != f1:
+            root = f0 / (f0 - f1)
+            low, high = (max(low, root), high) if f1 > f0 else (low, min(high, root))
+    return low < high
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_candidates_skipped_behind_an_edge_fail_exactly(seed: int) -> None:
+    """Edges cast shadows along their length (``Shadows.add_edge``): each candidate not
+    yielded lies on or right of the chord, or has a vertex, or a point of an edge that cast
+    a shadow, strictly inside its triangle (exact rational tests)."""
+    rng = np.random.default_rng(seed)
+    scale = 1.0 if seed % 2 else 1e-3
+    offset = 1e5 * (seed % 3)
+    points = rng.integers(-40, 41, (400, 2)) * scale + offset
+    points[0], points[-1] = (offset - 3 * scale, offset), (offset + 3 * scale, offset)
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    boxes = ChainBoxes(x, y, leaf=4)
+    lo, hi = 0, len(x) - 1
+    xs, ys = x.tolist(), y.tolist()
+    shadows = Shadows(xs, ys, boxes, lo, hi)
+    edges = rng.integers(0, hi, 12).tolist()
+    for edge in edges:
+        shadows.add_edge(int(edge))
+    shadows.seed()
+    top = hi - 1
+    yielded = set(shadows.candidates(top))
+    exact = [(Fraction(u), Fraction(v)) for u, v in zip(xs, ys)]
+    a, b = exact[hi], exact[lo]
+    shadowed = 0
+    for c in set(range(lo + 1, top + 1)) - yielded:
+        facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
+        if facing > 0:
+            assert any(
+                _strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)
+            ) or any(
+                _meets_inside(a, b, exact[c], exact[e], exact[e + 1]) for e in edges
+            ), c
+            shadowed += 1
+    assert shadowed > 10
+
+
 def test_rule_elevation_skips_shadowed_candidates_with_the_same_trees(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
