@@ -160,9 +160,7 @@ def test_candidates_skipped_behind_an_edge_fail_exactly(seed: int) -> None:
         if facing > 0:
             assert any(
                 _strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)
-            ) or any(
-                _meets_inside(a, b, exact[c], exact[e], exact[e + 1]) for e in edges
-            ), c
+            ) or any(_meets_inside(a, b, exact[c], exact[e], exact[e + 1]) for e in edges), c
             shadowed += 1
     assert shadowed > 10
 
