@@ -82,6 +82,22 @@ def pairs_blocked(
     """The segments (rows of ``ux``.. ``wy``; ``wx``, ``wy`` may be one point for all) that
     the edge a-b of some pair (row, a, b) meets in their open interior, or whose relative
     interior holds a or b (exact); may repeat rows."""
+    return row[blocking_pairs(x, y, row, a, b, ux, uy, wx, wy)]
+
+
+def blocking_pairs(
+    x: np.ndarray,
+    y: np.ndarray,
+    row: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    ux: np.ndarray,
+    uy: np.ndarray,
+    wx: np.ndarray | float,
+    wy: np.ndarray | float,
+) -> np.ndarray:
+    """:func:`pairs_blocked` as a mask over the pairs: where the pair's edge blocks its
+    segment."""
     wx, wy = np.broadcast_to(wx, ux.shape), np.broadcast_to(wy, uy.shape)
     pax, pay, pbx, pby = x[a], y[a], x[b], y[b]
     pux, puy, pwx, pwy = ux[row], uy[row], wx[row], wy[row]
@@ -93,7 +109,7 @@ def pairs_blocked(
         & (np.minimum(pay, pby) <= np.maximum(puy, pwy))
     )
     pick = np.flatnonzero(near)
-    row, pux, puy, pwx, pwy = row[pick], pux[pick], puy[pick], pwx[pick], pwy[pick]
+    pux, puy, pwx, pwy = pux[pick], puy[pick], pwx[pick], pwy[pick]
     pax, pay, pbx, pby = pax[pick], pay[pick], pbx[pick], pby[pick]
     o1 = orient_many(pux, puy, pwx, pwy, pax, pay)
     o2 = orient_many(pux, puy, pwx, pwy, pbx, pby)
@@ -106,7 +122,9 @@ def pairs_blocked(
         o3 = orient_many(qax, qay, qbx, qby, pux[straddle], puy[straddle])
         o4 = orient_many(qax, qay, qbx, qby, pwx[straddle], pwy[straddle])
         blocked[straddle] = (o3.astype(np.int16) * o4) < 0
-    return row[blocked]
+    mask = np.zeros(len(row), dtype=bool)
+    mask[pick[blocked]] = True
+    return mask
 
 
 def inside_open_angle(

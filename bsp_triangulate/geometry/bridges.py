@@ -13,7 +13,7 @@ from fractions import Fraction
 import numpy as np
 
 from ..triangulation import TriangulationError
-from .bridge_plan import inside_open_angle, pairs_blocked, plan_targets
+from .bridge_plan import blocking_pairs, inside_open_angle, plan_targets
 from .delaunay_links import LINKED_ISLANDS, delaunay_links
 from .points import delaunay_point_bridge, nearest_point_bridge, point_order
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
@@ -34,6 +34,8 @@ _FEW = 32
 # the last
 _FIRST_BLOCK = 8
 _LAST_BLOCK = 64
+# edges that blocked segments to one island's vertex, tried first for its next segments
+_KNOWN_BLOCKERS = 16
 
 
 def ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -157,6 +159,9 @@ class _Bridger:
         # bridges made so far, (start, end) vertex ids: one at most per island
         self.bridges = np.empty((len(rings), 2), dtype=np.int64)
         self.bridge_count = 0
+        # the edges (vertex id pairs) that blocked segments to vertex _known_to
+        self._known_to = -1
+        self._known = np.zeros((0, 2), dtype=np.int64)
         self.seq_points: set[tuple[float, float]] = set()
         capacity = len(starts) + 2 * len(rings)
         self.vid = np.empty(capacity, dtype=np.int64)
@@ -392,13 +397,31 @@ class _Bridger:
         return inside_open_angle(self.x, self.y, p, v, n, tx, ty)
 
     def _segments_clear(self, us: np.ndarray, w: int) -> np.ndarray:
-        """Vectorised :meth:`_segment_clear` of the segments from each vertex of ``us`` to w."""
+        """Vectorised :meth:`_segment_clear` of the segments from each vertex of ``us`` to w.
+
+        Edges that blocked earlier segments to w often block the next ones too (an island
+        with no valid bridge, inside another, is searched to the end): they are tried first,
+        and only the segments they leave clear are looked up in the grid."""
         x, y = self.x, self.y
         wx, wy = float(x[w]), float(y[w])
-        ux, uy = x[us], y[us]
         clear = np.ones(len(us), dtype=bool)
         if len(us) == 0:
             return clear
+        if self._known_to != w:
+            self._known_to, self._known = w, np.zeros((0, 2), dtype=np.int64)
+        known = self._known
+        if len(known):
+            row = np.repeat(np.arange(len(us), dtype=np.int64), len(known))
+            edge = np.tile(np.arange(len(known), dtype=np.int64), len(us))
+            hit = blocking_pairs(
+                x, y, row, known[edge, 0], known[edge, 1], x[us], y[us], wx, wy
+            )
+            clear[row[hit]] = False
+            rest = np.flatnonzero(clear)
+            if len(rest) < len(us):
+                clear[rest] = self._segments_clear(us[rest], w)
+                return clear
+        ux, uy = x[us], y[us]
         row, found = self.edges.query_segments(ux, uy, np.full(len(us), wx), np.full(len(us), wy))
         a, b = self.edge_a[found], self.edge_b[found]
         if self.bridge_count:
@@ -415,7 +438,13 @@ class _Bridger:
             row = np.concatenate([row, pair_row])
             a = np.concatenate([a, extra[pair_bridge, 0]])
             b = np.concatenate([b, extra[pair_bridge, 1]])
-        clear[pairs_blocked(x, y, row, a, b, ux, uy, wx, wy)] = False
+        hit = blocking_pairs(x, y, row, a, b, ux, uy, wx, wy)
+        clear[row[hit]] = False
+        if hit.any():
+            # the edges that blocked the most of these segments, then those known before
+            fresh, count = np.unique(np.column_stack([a[hit], b[hit]]), axis=0, return_counts=True)
+            fresh = fresh[np.argsort(-count, kind="stable")]
+            self._known = np.concatenate([fresh, known])[:_KNOWN_BLOCKERS]
         return clear
 
     def _valid_many(self, vids: np.ndarray, island: np.ndarray, h_index: int) -> list[list[int]]:
