@@ -413,9 +413,7 @@ class _Bridger:
         if len(known):
             row = np.repeat(np.arange(len(us), dtype=np.int64), len(known))
             edge = np.tile(np.arange(len(known), dtype=np.int64), len(us))
-            hit = blocking_pairs(
-                x, y, row, known[edge, 0], known[edge, 1], x[us], y[us], wx, wy
-            )
+            hit = blocking_pairs(x, y, row, known[edge, 0], known[edge, 1], x[us], y[us], wx, wy)
             clear[row[hit]] = False
             rest = np.flatnonzero(clear)
             if len(rest) < len(us):
