@@ -912,10 +912,12 @@ class _Tree:
             try:
                 self._restart_watch()
                 self._grow([(1, self.m, True, -1, 0, 0)], rows, deferred)
-                if deferred and not _worth_lockstep(deferred):
-                    rows = None
-                elif deferred:
-                    rows = self._with_subtrees(rows, deferred, name)
+                if deferred:
+                    built = None
+                    if _worth_lockstep(deferred, name):
+                        built = self._with_subtrees(rows, deferred, name)
+                    # else, or where the lock-step builder found no tree: one step at a time
+                    rows = built if built is not None else self._with_blocks(rows, deferred)
             except TriangulationError:
                 rows = None
         if rows is None:  # one step at a time throughout (and the errors in pre-order)
@@ -1097,6 +1099,57 @@ class _Tree:
         out.side[place] = np.where(root, sd[owner], np.where(flip, 3 - sub.side, sub.side))
         return out
 
+    def _with_blocks(
+        self, rows: _Rows, deferred: list[tuple[int, int, int, bool, int, int, int]]
+    ) -> _Rows:
+        """``rows`` with the subtrees of the ``deferred`` sub-polygons built one step at a
+        time, each in its place in pre-order (a deferred sub-polygon shares no point with
+        another part of the sequence, so it cuts off no loop: its subtree is one block)."""
+        table = np.array(deferred, dtype=np.int64)
+        at, above, dep, sd = table[:, 0], table[:, 4], table[:, 5], table[:, 6]
+        count = rows.count
+        blocks = _Rows(len(rows.triangles) - count)
+        starts = []
+        tick = self.tick
+        if tick is not None:  # the share of the whole tree
+            done, left = count / len(rows.triangles), 1.0 - count / len(rows.triangles)
+            self.tick = lambda share: tick(done + share * left)
+        try:
+            for _, lo, hi, v1_at_hi, *_ in deferred:
+                starts.append(blocks.count)
+                self._grow([(lo, hi, v1_at_hi, -1, 0, 0)], blocks, None)
+        finally:
+            self.tick = tick
+        local = np.array([*starts, blocks.count], dtype=np.int64)
+        sizes = np.diff(local)
+        before = np.concatenate([[0], np.cumsum(sizes)])
+        total = count + int(before[-1])
+        mine = np.arange(count, dtype=np.int64)
+        moved_rows = mine + before[np.searchsorted(at, mine, side="right")]
+        # block k's rows go from at[k] + before[k] on
+        owner = np.repeat(np.arange(len(table), dtype=np.int64), sizes)
+        place = np.arange(blocks.count, dtype=np.int64) + (at + before[:-1] - local[:-1])[owner]
+        out = _Rows(total)
+        out.count = total
+        out.triangles[moved_rows] = rows.triangles[:count]
+        out.parent[moved_rows] = np.where(
+            rows.parent[:count] < 0, -1, moved_rows[np.maximum(rows.parent[:count], 0)]
+        )
+        out.depth[moved_rows] = rows.depth[:count]
+        out.side[moved_rows] = rows.side[:count]
+        parent = blocks.parent[: blocks.count]
+        root = parent < 0
+        top = above[owner]
+        out.triangles[place] = blocks.triangles[: blocks.count]
+        out.parent[place] = np.where(
+            root,
+            np.where(top < 0, -1, moved_rows[np.maximum(top, 0)]),
+            place[np.maximum(parent, 0)],
+        )
+        out.depth[place] = blocks.depth[: blocks.count] + dep[owner]
+        out.side[place] = np.where(root, sd[owner], blocks.side[: blocks.count])
+        return out
+
     def _fallback_apex(self, lo: int, hi: int) -> int:
         """Apex for a base of an invalid polygon that has no correct triangle (``as_given``).
 
@@ -1183,15 +1236,16 @@ class _LossWatch:
 
 # the lock-step builder pays a round per tree level: it is worth it only when this many
 # sub-polygons' worth of positions advance together (a deep chain alone costs a numpy round
-# per triangle)
-_LOCKSTEP_BREADTH = 8
+# per triangle); rule first's one-step search is the cheapest, so it needs more of them
+_LOCKSTEP_BREADTH = {"first": 16, "elevation": 8, "delaunay": 8}
 
 
-def _worth_lockstep(deferred: list[tuple[int, int, int, bool, int, int, int]]) -> bool:
+def _worth_lockstep(deferred: list[tuple[int, int, int, bool, int, int, int]], rule: str) -> bool:
     """The deferred sub-polygons are many enough beside the largest of them (whose depth
-    bounds the lock-step rounds) to be built in lock-step rather than one step at a time."""
+    bounds the lock-step rounds) to be built in lock-step under ``rule`` rather than one step
+    at a time."""
     sizes = [hi - lo for _, lo, hi, *_ in deferred]
-    return sum(sizes) >= _LOCKSTEP_BREADTH * max(sizes)
+    return sum(sizes) >= _LOCKSTEP_BREADTH[rule] * max(sizes)
 
 
 def _snap(clean: list[np.ndarray], tolerance: float) -> list[np.ndarray]:

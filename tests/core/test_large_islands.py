@@ -94,6 +94,25 @@ def test_subtrees_of_the_lockstep_builder_match_one_step(
         check_triangulation(rings, fast)
 
 
+@pytest.mark.parametrize("rule", ["first", "elevation", "delaunay"])
+@pytest.mark.parametrize(("name", "rings"), CASES, ids=[c[0] for c in CASES])
+def test_small_sub_polygons_built_one_step_in_place_match_one_step(
+    monkeypatch: pytest.MonkeyPatch, name: str, rings: list, rule: str
+) -> None:
+    """Where the lock-step builder is not worth its rounds (or finds no tree), the deferred
+    sub-polygons are built one step at a time, each subtree put in its place: the same
+    fields as building the whole tree one step at a time."""
+    rings = _lifted(rings) if rule == "elevation" else rings
+    for invalid in ("fail", "as_given"):
+        plain = _one_step(monkeypatch, rings, rule=rule, invalid=invalid)
+        with monkeypatch.context() as patch:
+            patch.setattr(one_polygon, "_worth_lockstep", lambda deferred, rule: False)
+            _same(plain, triangulate(rings, rule=rule, invalid=invalid))
+        with monkeypatch.context() as patch:
+            patch.setattr(one_polygon._Tree, "_with_subtrees", lambda self, *args: None)
+            _same(plain, triangulate(rings, rule=rule, invalid=invalid))
+
+
 def test_subtrees_in_several_lockstep_calls(monkeypatch: pytest.MonkeyPatch) -> None:
     rings = _wavy(1500, 40, 4)
     plain = _one_step(monkeypatch, rings)
@@ -124,7 +143,7 @@ def test_lockstep_subtrees_only_where_many_advance_together(
     monkeypatch.setattr(
         one_polygon, "build_subtrees", lambda *a, **k: calls.append(1) or build(*a, **k)
     )
-    triangulate(_wavy(5000, 100, 1))
+    triangulate(_wavy(8000, 200, 1))
     assert calls
     calls.clear()
     rng = np.random.default_rng(29)
