@@ -64,25 +64,8 @@ def segments_clear(
     if len(ux) == 0:
         return clear
     row, found = grid.query_segments(ux, uy, wx, wy)
-    clear[pairs_blocked(x, y, row, edge_a[found], edge_b[found], ux, uy, wx, wy)] = False
+    clear[row[blocking_pairs(x, y, row, edge_a[found], edge_b[found], ux, uy, wx, wy)]] = False
     return clear
-
-
-def pairs_blocked(
-    x: np.ndarray,
-    y: np.ndarray,
-    row: np.ndarray,
-    a: np.ndarray,
-    b: np.ndarray,
-    ux: np.ndarray,
-    uy: np.ndarray,
-    wx: np.ndarray | float,
-    wy: np.ndarray | float,
-) -> np.ndarray:
-    """The segments (rows of ``ux``.. ``wy``; ``wx``, ``wy`` may be one point for all) that
-    the edge a-b of some pair (row, a, b) meets in their open interior, or whose relative
-    interior holds a or b (exact); may repeat rows."""
-    return row[blocking_pairs(x, y, row, a, b, ux, uy, wx, wy)]
 
 
 def blocking_pairs(
@@ -96,8 +79,9 @@ def blocking_pairs(
     wx: np.ndarray | float,
     wy: np.ndarray | float,
 ) -> np.ndarray:
-    """:func:`pairs_blocked` as a mask over the pairs: where the pair's edge blocks its
-    segment."""
+    """Per pair (row, a, b): the edge a-b meets the segment of row ``row`` (of ``ux``..
+    ``wy``; ``wx``, ``wy`` may be one point for all) in their open interiors, or the
+    segment's relative interior holds a or b (exact)."""
     wx, wy = np.broadcast_to(wx, ux.shape), np.broadcast_to(wy, uy.shape)
     pax, pay, pbx, pby = x[a], y[a], x[b], y[b]
     pux, puy, pwx, pwy = ux[row], uy[row], wx[row], wy[row]

@@ -1054,14 +1054,8 @@ class _Tree:
         )
         if not sub.ok.all():
             return None
-        count = rows.count
         sizes = sub.count
-        before = np.concatenate([[0], np.cumsum(sizes)])
-        total = count + int(before[-1])
-        # where each row of the one-step part and each subtree go
-        mine = np.arange(count, dtype=np.int64)
-        moved_rows = mine + before[np.searchsorted(at, mine, side="right")]
-        block = at + before[:-1]
+        out, moved_rows, block = _spread(rows, at, sizes)
         owner = np.repeat(np.arange(len(table), dtype=np.int64), sizes)
         local = np.arange(len(owner), dtype=np.int64) - np.repeat(sub.start, sizes)
         # the subtrees were built with V1 at s_hi (the upper sub-range the left child): where
@@ -1078,14 +1072,6 @@ class _Tree:
             return np.where(swap & (index > 0), moved, index)
 
         place = block[owner] + reordered(local)
-        out = _Rows(total)
-        out.count = total
-        out.triangles[moved_rows] = rows.triangles[:count]
-        out.parent[moved_rows] = np.where(
-            rows.parent[:count] < 0, -1, moved_rows[np.maximum(rows.parent[:count], 0)]
-        )
-        out.depth[moved_rows] = rows.depth[:count]
-        out.side[moved_rows] = rows.side[:count]
         root = sub.parent < 0
         top = above[owner]
         out.triangles[place] = sub.triangles
@@ -1122,21 +1108,9 @@ class _Tree:
             self.tick = tick
         local = np.array([*starts, blocks.count], dtype=np.int64)
         sizes = np.diff(local)
-        before = np.concatenate([[0], np.cumsum(sizes)])
-        total = count + int(before[-1])
-        mine = np.arange(count, dtype=np.int64)
-        moved_rows = mine + before[np.searchsorted(at, mine, side="right")]
-        # block k's rows go from at[k] + before[k] on
+        out, moved_rows, block = _spread(rows, at, sizes)
         owner = np.repeat(np.arange(len(table), dtype=np.int64), sizes)
-        place = np.arange(blocks.count, dtype=np.int64) + (at + before[:-1] - local[:-1])[owner]
-        out = _Rows(total)
-        out.count = total
-        out.triangles[moved_rows] = rows.triangles[:count]
-        out.parent[moved_rows] = np.where(
-            rows.parent[:count] < 0, -1, moved_rows[np.maximum(rows.parent[:count], 0)]
-        )
-        out.depth[moved_rows] = rows.depth[:count]
-        out.side[moved_rows] = rows.side[:count]
+        place = np.arange(blocks.count, dtype=np.int64) + (block - local[:-1])[owner]
         parent = blocks.parent[: blocks.count]
         root = parent < 0
         top = above[owner]
@@ -1182,6 +1156,25 @@ class _Tree:
     def _label(self, position: int) -> str:
         vid = int(self.ids[position])
         return ring_label(int(self.prepared.ring_of[vid]))
+
+
+def _spread(rows: _Rows, at: np.ndarray, sizes: np.ndarray) -> tuple[_Rows, np.ndarray, np.ndarray]:
+    """The rows of the whole tree with ``rows`` (its one-step part) moved apart so that block
+    k of ``sizes[k]`` rows goes just before one-step row ``at[k]``: the new rows (the one-step
+    part filled in), where each one-step row went and where each block starts."""
+    count = rows.count
+    before = np.concatenate([[0], np.cumsum(sizes)])
+    mine = np.arange(count, dtype=np.int64)
+    moved = mine + before[np.searchsorted(at, mine, side="right")]
+    out = _Rows(count + int(before[-1]))
+    out.count = len(out.triangles)
+    out.triangles[moved] = rows.triangles[:count]
+    out.parent[moved] = np.where(
+        rows.parent[:count] < 0, -1, moved[np.maximum(rows.parent[:count], 0)]
+    )
+    out.depth[moved] = rows.depth[:count]
+    out.side[moved] = rows.side[:count]
+    return out, moved, at + before[:-1]
 
 
 class _RepairWinsError(Exception):

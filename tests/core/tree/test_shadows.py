@@ -82,21 +82,29 @@ def _strictly_inside(a: tuple, b: tuple, c: tuple, p: tuple) -> bool:
     return orient(a, b, p) > 0 and orient(b, c, p) > 0 and orient(c, a, p) > 0
 
 
+def _lattice_chain(
+    seed: int, spread: int, count: int
+) -> tuple[np.random.Generator, list[float], list[float], Shadows]:
+    """A random chain of ``count`` lattice points within ``spread`` steps (vertices on the
+    chord and on the shadows' edges), its base from the last point to the first, scaled and
+    moved by the seed; its random generator, coordinates and empty staircase."""
+    rng = np.random.default_rng(seed)
+    scale = 1.0 if seed % 2 else 1e-3
+    offset = 1e5 * (seed % 3)
+    points = rng.integers(-spread, spread + 1, (count, 2)) * scale + offset
+    points[0], points[-1] = (offset - 3 * scale, offset), (offset + 3 * scale, offset)
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    xs, ys = x.tolist(), y.tolist()
+    return rng, xs, ys, Shadows(xs, ys, ChainBoxes(x, y, leaf=4), 0, count - 1)
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_skipped_candidates_fail_exactly(seed: int) -> None:
     """On random chains (lattice points: vertices on the chord and on the shadows' edges),
     each candidate not yielded lies on or right of the chord, or some vertex of the
     sub-polygon lies strictly inside its triangle (exact rational test)."""
-    rng = np.random.default_rng(seed)
-    scale = 1.0 if seed % 2 else 1e-3
-    offset = 1e5 * (seed % 3)
-    points = rng.integers(-12, 13, (700, 2)) * scale + offset
-    points[0], points[-1] = (offset - 3 * scale, offset), (offset + 3 * scale, offset)
-    x, y = points[:, 0].copy(), points[:, 1].copy()
-    boxes = ChainBoxes(x, y, leaf=4)
-    lo, hi = 0, len(x) - 1
-    xs, ys = x.tolist(), y.tolist()
-    shadows = Shadows(xs, ys, boxes, lo, hi)
+    rng, xs, ys, shadows = _lattice_chain(seed, 12, 700)
+    lo, hi = shadows.lo, shadows.hi
     for position in rng.integers(1, hi, 5).tolist():
         shadows.add(int(position))
     shadows.seed()
@@ -136,16 +144,8 @@ def test_candidates_skipped_behind_an_edge_fail_exactly(seed: int) -> None:
     """Edges cast shadows along their length (``Shadows.add_edge``): each candidate not
     yielded lies on or right of the chord, or has a vertex, or a point of an edge that cast
     a shadow, strictly inside its triangle (exact rational tests)."""
-    rng = np.random.default_rng(seed)
-    scale = 1.0 if seed % 2 else 1e-3
-    offset = 1e5 * (seed % 3)
-    points = rng.integers(-40, 41, (400, 2)) * scale + offset
-    points[0], points[-1] = (offset - 3 * scale, offset), (offset + 3 * scale, offset)
-    x, y = points[:, 0].copy(), points[:, 1].copy()
-    boxes = ChainBoxes(x, y, leaf=4)
-    lo, hi = 0, len(x) - 1
-    xs, ys = x.tolist(), y.tolist()
-    shadows = Shadows(xs, ys, boxes, lo, hi)
+    rng, xs, ys, shadows = _lattice_chain(seed, 40, 400)
+    lo, hi = shadows.lo, shadows.hi
     edges = rng.integers(0, hi, 12).tolist()
     for edge in edges:
         shadows.add_edge(int(edge))
