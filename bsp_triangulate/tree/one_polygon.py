@@ -1292,21 +1292,29 @@ def _triangulate(
         return Triangulation(vertices=prepared.vertices, point_ids=unused)
     ring_count = len(prepared.vertices)
     prepared, point_ids = _with_points(prepared, given, axes)
-    point_rings = [np.array([vid], dtype=np.int64) for vid in point_ids[point_ids >= 0].tolist()]
-    ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
-    is_point = np.arange(len(prepared.vertices)) >= ring_count
+    has_points = bool((point_ids >= 0).any())
+    # the points inserted already, into the batch path's triangulation of the rings (their
+    # rows must be these): that path takes no polygon whose rings touch (a vertex on another
+    # edge, two vertices at one point), so no ring edge needs splitting
+    batch_inserted = inserted_mesh is not None and np.array_equal(
+        inserted_mesh.point_ids, point_ids
+    )
+    if batch_inserted:
+        ring_ids = prepared.rings
+    else:
+        ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
 
     # rule delaunay with points: the points inserted into the rings' triangulation, whose
     # tree is read off it (section 5b)
     inserted = None
-    if point_rings and type(apex_rule) is DelaunayRule and not as_given:
+    if has_points and type(apex_rule) is DelaunayRule and not as_given:
         # the points inserted already (their rows must be these), or the mesh given with the
         # polygon where it passes the checks; else one built here
         starts, ends = ring_edges(ring_ids)
         distinct = starts != ends
         walls = (starts[distinct], ends[distinct])
         known = None
-        if inserted_mesh is not None and np.array_equal(inserted_mesh.point_ids, point_ids):
+        if batch_inserted:
             known = _mesh_rows(prepared, inserted_mesh.triangles)
         elif mesh is not None:
             known = _known_mesh(prepared, mesh)
@@ -1320,6 +1328,7 @@ def _triangulate(
         inserted.point_ids = point_ids
         check_area(prepared, inserted, axes)
         return inserted
+    point_rings = [np.array([vid], dtype=np.int64) for vid in point_ids[point_ids >= 0].tolist()]
     sequence = bridge_islands(
         prepared.x,
         prepared.y,
@@ -1328,7 +1337,8 @@ def _triangulate(
         relaxed=as_given,
         delaunay=getattr(apex_rule, "in_plane", False),
     )
-    sequence = remove_spikes(prepared.x, prepared.y, sequence, is_point if point_rings else None)
+    is_point = np.arange(len(prepared.vertices)) >= ring_count
+    sequence = remove_spikes(prepared.x, prepared.y, sequence, is_point if has_points else None)
     if len(sequence) < 3:
         return Triangulation(vertices=prepared.vertices, point_ids=point_ids)
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given, tick)

@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 
 from bsp_triangulate import TriangulationError, triangulate
+from bsp_triangulate.geometry.bridges import split_touching
+from bsp_triangulate.geometry.rings import normalise_rings, prepare
 from bsp_triangulate.tree.batch import MAX_VERTICES, MID_MIN_COUNT, MID_VERTICES, triangulate_batch
 
 from ...conftest import SHARED_DATA
@@ -131,6 +133,40 @@ def test_batch_leaves_touching_islands_to_the_engine_or_agrees() -> None:
         sum(t and sum(len(ring) for ring in rings) >= 16 for rings, t in zip(polygons, touching))
         >= 40
     )
+
+
+@pytest.mark.parametrize("rule", ["first", "delaunay"])
+def test_batch_decides_no_polygon_whose_ring_edges_the_engine_splits(rule: str) -> None:
+    """The one-polygon builder takes the points the batch path inserted into its rings'
+    triangulation without splitting the ring edges at vertices on them: the batch path
+    leaves every polygon with such a vertex (or two vertices at one point) to the engine."""
+    rnd = random.Random(11)
+    polygons = [random_polygon(rnd, islands=1, touching=2) for _ in range(60)]
+    polygons += [random_polygon(rnd, islands=2, grid=k % 2 == 0) for k in range(40)]
+    square = [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)]
+    polygons += [
+        [square, [(2.0, 0.0), (1.0, 1.0), (3.0, 1.0)]],  # an island's vertex on the outer edge
+        [
+            square,
+            [(1.0, 1.0), (1.0, 3.0), (3.0, 3.0), (3.0, 1.0)],
+            [(2.0, 1.0), (2.5, 2.0), (1.5, 2.0)],
+        ],
+        [[(0.0, 0.0), (4.0, 0.0), (2.0, 2.0), (4.0, 4.0), (0.0, 4.0), (2.0, 2.0)]],  # a pinch
+        [square, [(1.0, 1.0), (1.0, 3.0), (3.0, 3.0), (3.0, 1.0)]],  # apart: decided
+    ]
+    results = triangulate_batch(polygons, rule)
+    decided = 0
+    for rings, result in zip(polygons, results):
+        if result is None:
+            continue
+        decided += 1
+        clean, axes = normalise_rings(rings, "auto")
+        prepared = prepare(clean, axes)
+        split = split_touching(prepared.x, prepared.y, prepared.rings)
+        assert len(split) == len(prepared.rings)
+        assert all(np.array_equal(a, b) for a, b in zip(split, prepared.rings))
+    assert results[-1] is not None and all(r is None for r in results[-4:-1])
+    assert decided >= 20
 
 
 def test_batch_equals_engine_with_rule_elevation_on_polygons_with_z() -> None:
