@@ -403,7 +403,6 @@ class _Bridger:
         with no valid bridge, inside another, is searched to the end): they are tried first,
         and only the segments they leave clear are looked up in the grid."""
         x, y = self.x, self.y
-        wx, wy = float(x[w]), float(y[w])
         clear = np.ones(len(us), dtype=bool)
         if len(us) == 0:
             return clear
@@ -413,12 +412,20 @@ class _Bridger:
         if len(known):
             row = np.repeat(np.arange(len(us), dtype=np.int64), len(known))
             edge = np.tile(np.arange(len(known), dtype=np.int64), len(us))
-            hit = blocking_pairs(x, y, row, known[edge, 0], known[edge, 1], x[us], y[us], wx, wy)
+            a, b = known[edge, 0], known[edge, 1]
+            hit = blocking_pairs(x, y, row, a, b, x[us], y[us], float(x[w]), float(y[w]))
             clear[row[hit]] = False
-            rest = np.flatnonzero(clear)
-            if len(rest) < len(us):
-                clear[rest] = self._segments_clear(us[rest], w)
-                return clear
+        rest = np.flatnonzero(clear)
+        if len(rest):
+            clear[rest] = self._segments_looked_up(us[rest], w)
+        return clear
+
+    def _segments_looked_up(self, us: np.ndarray, w: int) -> np.ndarray:
+        """:meth:`_segments_clear` by the edges and bridges the grid finds near each segment;
+        the edges that block the most of them join those tried first."""
+        x, y = self.x, self.y
+        wx, wy = float(x[w]), float(y[w])
+        clear = np.ones(len(us), dtype=bool)
         ux, uy = x[us], y[us]
         row, found = self.edges.query_segments(ux, uy, np.full(len(us), wx), np.full(len(us), wy))
         a, b = self.edge_a[found], self.edge_b[found]
@@ -442,7 +449,7 @@ class _Bridger:
             # the edges that blocked the most of these segments, then those known before
             fresh, count = np.unique(np.column_stack([a[hit], b[hit]]), axis=0, return_counts=True)
             fresh = fresh[np.argsort(-count, kind="stable")]
-            self._known = np.concatenate([fresh, known])[:_KNOWN_BLOCKERS]
+            self._known = np.concatenate([fresh, self._known])[:_KNOWN_BLOCKERS]
         return clear
 
     def _valid_many(self, vids: np.ndarray, island: np.ndarray, h_index: int) -> list[list[int]]:

@@ -822,34 +822,32 @@ class _Tree:
             end = start + size
             if end <= lo or start >= hi:
                 continue
-            if level and (start <= c <= end or start <= lo or end >= hi):
-                child = 2 * k
-                if child + 1 < len(levels[level - 1]):
-                    stack.append((level - 1, child + 1))
-                stack.append((level - 1, child))
-                continue
-            x0, x1, y0, y1, ox, oy, ux, uy, hu, hv = levels[level][k]
-            if x1 < xmin or x0 > xmax or y1 < ymin or y0 > ymax:
-                continue
-            apart = False
-            for nx, ny, offset in sides:
-                if (
-                    nx * ox + ny * oy - hu * abs(nx * ux + ny * uy) - hv * abs(ny * ux - nx * uy)
-                    > offset
-                ):
-                    apart = True
-                    break
-            if apart:
-                continue
-            # the triangle's corners along the box's axes, from its centre
-            da, db, dc = ax - ox, bx - ox, cx - ox
-            ea, eb, ec = ay - oy, by - oy, cy - oy
-            pa, pb, pc = ux * da + uy * ea, ux * db + uy * eb, ux * dc + uy * ec
-            if (pa > hu and pb > hu and pc > hu) or (pa < -hu and pb < -hu and pc < -hu):
-                continue
-            pa, pb, pc = ux * ea - uy * da, ux * eb - uy * db, ux * ec - uy * dc
-            if (pa > hv and pb > hv and pc > hv) or (pa < -hv and pb < -hv and pc < -hv):
-                continue
+            if not (level and (start <= c <= end or start <= lo or end >= hi)):
+                x0, x1, y0, y1, ox, oy, ux, uy, hu, hv = levels[level][k]
+                if x1 < xmin or x0 > xmax or y1 < ymin or y0 > ymax:
+                    continue
+                apart = False
+                for nx, ny, offset in sides:
+                    if (
+                        nx * ox
+                        + ny * oy
+                        - hu * abs(nx * ux + ny * uy)
+                        - hv * abs(ny * ux - nx * uy)
+                        > offset
+                    ):
+                        apart = True
+                        break
+                if apart:
+                    continue
+                # the triangle's corners along the box's axes, from its centre
+                da, db, dc = ax - ox, bx - ox, cx - ox
+                ea, eb, ec = ay - oy, by - oy, cy - oy
+                pa, pb, pc = ux * da + uy * ea, ux * db + uy * eb, ux * dc + uy * ec
+                if (pa > hu and pb > hu and pc > hu) or (pa < -hu and pb < -hu and pc < -hu):
+                    continue
+                pa, pb, pc = ux * ea - uy * da, ux * eb - uy * db, ux * ec - uy * dc
+                if (pa > hv and pb > hv and pc > hv) or (pa < -hv and pb < -hv and pc < -hv):
+                    continue
             if level:
                 child = 2 * k
                 if child + 1 < len(levels[level - 1]):

@@ -77,13 +77,15 @@ class Shadows:
         """Cast the shadows of the edge (edge, edge + 1) of the sub-polygon: those of its
         ends and, where neither end's shadow covers the other's, those of points along it (a
         point of an edge strictly inside a triangle breaks condition 2 as a vertex does)."""
-        self.add(edge)
-        self.add(edge + 1)
         if self.side is None or not self.lo <= edge < self.hi:
-            return
+            return  # neither end is a vertex strictly between the base's ends
         px, py, qx, qy = self.xs[edge], self.ys[edge], self.xs[edge + 1], self.ys[edge + 1]
         alpha_p, beta_p = self.angles(px, py)
         alpha_q, beta_q = self.angles(qx, qy)
+        if edge > self.lo:
+            self._add(alpha_p, beta_p)
+        if edge + 1 < self.hi:
+            self._add(alpha_q, beta_q)
         if (alpha_q - alpha_p) * (beta_q - beta_p) >= 0 and max(
             alpha_p, beta_p, alpha_q, beta_q
         ) < math.pi:
