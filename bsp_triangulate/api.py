@@ -17,6 +17,7 @@ from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
 from .rules import get_rule
 from .tree.one_polygon import _as_given, _triangulate
 from .tree.points_batch import InsertedMesh, insert_points
+from .tree.points_trees import trees_of_inserted
 from .triangulation import Triangulation, TriangulationError
 
 
@@ -135,12 +136,14 @@ def triangulate_many(
             for i in range(len(polygons))
             if i not in taken and (meshes is None or meshes[i] is None)
         ]
-        ring_meshes, inserted = _points_at_once(
+        trees, ring_meshes, inserted = _points_at_once(
             wanted,
             [polygons[i] for i in wanted],
             [points[i] for i in wanted],
             lambda: triangulate_batch([polygons[i] for i in wanted], rule, plane=plane),
         )
+        for index, tree in trees.items():
+            results[index] = tree
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
@@ -167,23 +170,30 @@ def _points_at_once(
     polygons: list[Sequence[object]],
     points: list[object],
     triangulate_rings: Callable[[], list[Triangulation | None]],
-) -> tuple[dict[int, Triangulation | None], dict[int, InsertedMesh | None]]:
+) -> tuple[
+    dict[int, Triangulation], dict[int, Triangulation | None], dict[int, InsertedMesh | None]
+]:
     """Rule delaunay with points for the polygons numbered ``index`` (their rings and points):
-    the rings' triangulations from the batch path (``triangulate_rings``, None where it
-    leaves a polygon to the engine) and every point inserted into them
-    (``points_batch.insert_points``), per polygon number; none where the batch path or the
-    insertion cannot take the input (the one-polygon builder then checks it)."""
+    the trees read off at once (``points_trees.trees_of_inserted``) where every check
+    passes; for the others the rings' triangulations from the batch path
+    (``triangulate_rings``, None where it leaves a polygon to the engine) and every point
+    inserted into them (``points_batch.insert_points``), per polygon number; none where the
+    batch path or the insertion cannot take the input (the one-polygon builder then checks
+    it)."""
     if not len(index):
-        return {}, {}
+        return {}, {}, {}
     try:
         found = triangulate_rings()
     except (ArithmeticError, ValueError, TypeError):
-        return {}, {}
+        return {}, {}, {}
     try:
         inserted = insert_points(polygons, found, points)
+        trees = trees_of_inserted(polygons, found, points, inserted)
     except (ArithmeticError, ValueError, TypeError, IndexError):
         inserted = [None] * len(index)
-    return dict(zip(index, found)), dict(zip(index, inserted))
+        trees = [None] * len(index)
+    done = {number: tree for number, tree in zip(index, trees) if tree is not None}
+    return done, dict(zip(index, found)), dict(zip(index, inserted))
 
 
 def _at_once_wanted(rule: str, planar_tolerance: float, invalid: str) -> bool:
@@ -312,12 +322,16 @@ def triangulate_packed(
                     found[index] = result
             return found
 
-        ring_meshes, inserted = _points_at_once(
+        trees, ring_meshes, inserted = _points_at_once(
             wanted.tolist(),
             [polygons.rings(i) for i in wanted.tolist()],
             [coordinates[starts[i] : starts[i] + counts[i]] for i in wanted.tolist()],
             triangulate_rings,
         )
+        for index, tree in trees.items():
+            decided[index] = True
+            report.one_more()
+            pieces.append(Piece.of(index, tree))
     for index in np.flatnonzero(~decided).tolist():
         report.one_more()
         rings = polygons.rings(index)

@@ -385,22 +385,6 @@ def _areas_add_up(
     bound = AREA_TOLERANCE * area + 16 * eps * (magnitude + ring_magnitude[polys[done]])
     good[done] = np.abs(total - area) <= bound
     return good
-    rows = ragged_index(trees.start[done], trees.count[done])
-    owner = np.repeat(np.arange(len(done)), trees.count[done])
-    corners = trees.triangles[rows] + flat.poly_vstart[polys[done]][owner][:, None]
-    x, y = wx[corners], flat.vy[corners]
-    x -= x[:, :1]
-    y -= y[:, :1]
-    left = x[:, 1] * y[:, 2]
-    right = y[:, 1] * x[:, 2]
-    total = np.bincount(owner, weights=np.abs(left - right), minlength=len(done))
-    magnitude = np.bincount(owner, weights=np.abs(left) + np.abs(right), minlength=len(done))
-    net, ring_magnitude = net_areas(flat, wx)
-    area = np.abs(net[polys[done]])
-    eps = np.finfo(np.float64).eps
-    bound = AREA_TOLERANCE * area + 16 * eps * (magnitude + ring_magnitude[polys[done]])
-    good[done] = np.abs(total - area) <= bound
-    return good
 
 
 def _piece(

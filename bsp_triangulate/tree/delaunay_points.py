@@ -11,6 +11,7 @@ sequence the tree stands for, so that no bridge has to be searched for.
 from __future__ import annotations
 
 from collections.abc import Callable
+from itertools import chain
 
 import numpy as np
 
@@ -86,10 +87,9 @@ def tree_of_cdt(
     across[wall] = -1
     across[twins[twins >= 0]] = -1
     root = int(np.flatnonzero(keys == rims[0])[0])
-    walk = _depth_first(across.tolist(), root, count)
-    if walk is None:
+    (slot, parent, depth, side), sizes = depth_first(across.tolist(), [root])
+    if sizes[0] != count:
         return None
-    slot, parent, depth, side = walk
     t, k = np.divmod(slot, 3)
     a, b, c = tri[t, (k + 1) % 3], tri[t, (k + 2) % 3], tri[t, k]
     return Triangulation(
@@ -101,47 +101,52 @@ def tree_of_cdt(
     )
 
 
-def _depth_first(
-    across: list[int], root: int, count: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-    """Per node in pre-order of :func:`tree_of_cdt`'s walk from the slot ``root``: the slot
-    of its base (the chord a -> b with the rest on its left, in its triangle), its parent,
-    depth and side; None where it does not reach all ``count`` triangles (``across``: per
-    slot, the slot of the same edge the other way round, or -1 at a ring edge)."""
-    used = bytearray(count)
+def depth_first(
+    across: list[int], roots: list[int]
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+    """:func:`tree_of_cdt`'s walk from each slot of ``roots`` in turn (``across``: per slot,
+    the slot of the same edge the other way round, or -1 at a ring edge): per node in
+    pre-order the slot of its base (the chord a -> b with the rest on its left, in its
+    triangle), its parent (numbered among all nodes), depth and side; and per root the number
+    of triangles its walk reached (no walk enters a triangle an earlier walk took)."""
+    used = bytearray(len(across) // 3)
     # (slot, V1 at a, parent, depth, side) of every node, as taken off the stack
     nodes: list[tuple[int, bool, int, int, int]] = []
-    stack = [(root, True, -1, 0, 0)]
-    pop, push, keep = stack.pop, stack.append, nodes.append
-    while stack:
-        entry = pop()
-        slot = entry[0]
-        t = slot // 3
-        if used[t]:
-            continue  # reached the other way round: this edge is a bridge
-        used[t] = 1
-        node = len(nodes)
-        keep(entry)
-        base = slot - slot % 3
-        # the base a -> b is the edge opposite the apex c (slot k: corner k)
-        upper = across[base + _AFTER_NEXT[slot - base]]  # across c -> a: the child on a c
-        lower = across[base + _NEXT[slot - base]]  # across b -> c: the child on c b
-        dep = entry[3] + 1
-        # the right child pushed first, taken last
-        if entry[1]:
-            if lower >= 0:
-                push((lower, False, node, dep, 2))
-            if upper >= 0:
-                push((upper, True, node, dep, 1))
-        else:
-            if upper >= 0:
-                push((upper, True, node, dep, 2))
-            if lower >= 0:
-                push((lower, False, node, dep, 1))
-    if len(nodes) != count:
-        return None
-    columns = np.array(nodes, dtype=np.int64).reshape(-1, 5).T.copy()
-    return columns[0], columns[2], columns[3], columns[4]
+    sizes = []
+    keep = nodes.append
+    for root in roots:
+        first = len(nodes)
+        stack = [(root, True, -1, 0, 0)]
+        pop, push = stack.pop, stack.append
+        while stack:
+            entry = pop()
+            slot = entry[0]
+            t = slot // 3
+            if used[t]:
+                continue  # reached the other way round: this edge is a bridge
+            used[t] = 1
+            node = len(nodes)
+            keep(entry)
+            base = slot - slot % 3
+            # the base a -> b is the edge opposite the apex c (slot k: corner k)
+            upper = across[base + _AFTER_NEXT[slot - base]]  # across c -> a: the child on a c
+            lower = across[base + _NEXT[slot - base]]  # across b -> c: the child on c b
+            dep = entry[3] + 1
+            # the right child pushed first, taken last
+            if entry[1]:
+                if lower >= 0:
+                    push((lower, False, node, dep, 2))
+                if upper >= 0:
+                    push((upper, True, node, dep, 1))
+            else:
+                if upper >= 0:
+                    push((upper, True, node, dep, 2))
+                if lower >= 0:
+                    push((lower, False, node, dep, 1))
+        sizes.append(len(nodes) - first)
+    flat = np.fromiter(chain.from_iterable(nodes), dtype=np.int64, count=5 * len(nodes))
+    columns = flat.reshape(-1, 5).T.copy()
+    return (columns[0], columns[2], columns[3], columns[4]), np.array(sizes, dtype=np.int64)
 
 
 # the triangle's slots k + 1 and k + 2 (mod 3) from its slot k

@@ -25,10 +25,12 @@ from ..triangulation import Triangulation
 class InsertedMesh:
     """A polygon's rings' triangulation with its points inserted: ``triangles`` (t, 3) rows
     of its vertices (ring vertices, then the points used, in the order given), counter-
-    clockwise in the output's XY; ``point_ids`` per given point its row there, or -1."""
+    clockwise in the output's XY; ``point_ids`` per given point its row there, or -1;
+    ``mirrored``: its working plane mirrors x (its outer ring is clockwise in XY)."""
 
     triangles: np.ndarray
     point_ids: np.ndarray
+    mirrored: bool = False
 
 
 def insert_points(
@@ -90,5 +92,6 @@ def insert_points(
         found[i] = InsertedMesh(
             tri[:, [1, 0, 2]] if mirror[k] < 0 else tri,
             point_rows[point_starts[k] : point_starts[k] + counts[k]],
+            bool(mirror[k] < 0),
         )
     return found
