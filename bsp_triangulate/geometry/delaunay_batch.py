@@ -54,8 +54,10 @@ class MeshSet:
             self.fixed = np.isin(keys, pairs.min(axis=1) * n + pairs.max(axis=1))
         self.region = np.asarray(region, dtype=np.int64).copy()
         self.changed = np.ones(t, dtype=bool)
-        # per triangle scratch for claims, kept at _FREE between uses
+        # per triangle scratch for claims, kept at _FREE between uses; per slot scratch for
+        # where a rewritten slot's edge goes, kept at -1
         self._claim = np.full(t, _FREE, dtype=np.int64)
+        self._moved = np.full(3 * t, -1, dtype=np.int64)
 
     @property
     def vertex_count(self) -> int:
@@ -212,6 +214,7 @@ class MeshSet:
             claim = np.full(size, _FREE, dtype=np.int64)
             claim[: len(self._claim)] = self._claim
             self._claim = claim
+            self._moved = np.full(3 * size, -1, dtype=np.int64)
 
     def _split(
         self, px: np.ndarray, py: np.ndarray, tri: np.ndarray, edge: np.ndarray, other: np.ndarray
@@ -337,7 +340,7 @@ class MeshSet:
         while len(dirty):
             n = across[dirty]
             keep = (n >= 0) & ~fixed[dirty]
-            s = np.unique(np.minimum(dirty[keep], n[keep]))
+            s = self._distinct(np.minimum(dirty[keep], n[keep]))
             n = across[s]
             k = s % 3
             base = s - k
@@ -366,6 +369,15 @@ class MeshSet:
                 gone = np.isin(lost // 3, flipped) | np.isin(across[lost] // 3, flipped)
                 lost = lost[~gone]
             dirty = np.concatenate([lost, rows.outer_slots()])
+
+    def _distinct(self, slots: np.ndarray) -> np.ndarray:
+        """The distinct values of ``slots`` (slot ids), in no particular order (no sort)."""
+        stamp = self._moved
+        rank = np.arange(len(slots))
+        stamp[slots] = rank
+        first = stamp[slots] == rank
+        stamp[slots] = -1
+        return slots[first]
 
     def _flip(self, rows: _Rows, s: np.ndarray, n: np.ndarray) -> None:
         """Flip the edge (b, c) of slot s in t = (a, b, c), d across it (slot n): t becomes
@@ -430,15 +442,11 @@ class _Rows:
         old = links[outer]
         new = slots[outer]
         neighbour = across[old]
-        remap_from = old
-        order = np.argsort(remap_from)
-        sorted_from = remap_from[order]
-        at = np.searchsorted(sorted_from, neighbour)
-        at = np.minimum(at, max(len(sorted_from) - 1, 0))
-        moved = (neighbour >= 0) & (sorted_from[at] == neighbour) if len(sorted_from) else None
-        target = neighbour.copy()
-        if moved is not None:
-            target[moved] = new[order[at[moved]]]
+        moved = mesh._moved
+        moved[old] = new
+        target = np.where(neighbour >= 0, moved[neighbour], -1)
+        np.copyto(target, neighbour, where=target < 0)
+        moved[old] = -1
         mesh.vertex[slots] = vertices
         mesh.fixed[slots] = fixed
         inner = ~outer

@@ -374,8 +374,52 @@ def incircle_many(
     signs = np.atleast_1d(np.sign(np.nan_to_num(det)).astype(np.int8))
     sure = np.atleast_1d(sure)
     if not sure.all():
-        signs = _one_by_one(signs, ~sure, incircle_exact, (ax, ay, bx, by, cx, cy, dx, dy))
+        coordinates = (ax, ay, bx, by, cx, cy, dx, dy)
+        arrays = _flat_arrays(coordinates)
+        shape = np.broadcast_shapes(signs.shape, sure.shape)
+        signs = np.broadcast_to(signs, shape).flatten()
+        unsure = np.flatnonzero(~np.broadcast_to(sure, shape))
+        # the corners of an axis-parallel rectangle (cell centres of a grid) lie on one
+        # circle: exactly 0, without the integer arithmetic
+        on_circle = _rectangle_corners(*(a[unsure] for a in arrays))
+        signs[unsure[on_circle]] = 0
+        left = np.zeros(len(signs), dtype=bool)
+        left[unsure[~on_circle]] = True
+        if left.any():
+            signs = _one_by_one(signs, left, incircle_exact, tuple(arrays))
+        signs = signs.reshape(shape)
     return signs
+
+
+def _flat_arrays(coordinates: tuple[np.ndarray | float, ...]) -> list[np.ndarray]:
+    """The coordinates broadcast together, as flat float64 arrays."""
+    return [
+        np.asarray(a, dtype=np.float64).ravel()
+        for a in np.broadcast_arrays(*(np.atleast_1d(c) for c in coordinates))
+    ]
+
+
+def _rectangle_corners(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+) -> np.ndarray:
+    """Where the four points are four distinct corners of one axis-parallel rectangle (two
+    x values, two y values, each taken twice): they lie on one circle (exact comparisons)."""
+    xs = np.sort(np.column_stack([ax, bx, cx, dx]), axis=1)
+    ys = np.sort(np.column_stack([ay, by, cy, dy]), axis=1)
+    two = (xs[:, 0] == xs[:, 1]) & (xs[:, 2] == xs[:, 3]) & (xs[:, 1] < xs[:, 2])
+    two &= (ys[:, 0] == ys[:, 1]) & (ys[:, 2] == ys[:, 3]) & (ys[:, 1] < ys[:, 2])
+    points = ((ax, ay), (bx, by), (cx, cy), (dx, dy))
+    for i in range(4):
+        for j in range(i + 1, 4):
+            two &= (points[i][0] != points[j][0]) | (points[i][1] != points[j][1])
+    return two
 
 
 def _one_by_one(
@@ -466,9 +510,49 @@ def incircle_sos_many(
 ) -> np.ndarray:
     """Vectorised :func:`incircle_sos` (int8, broadcasting)."""
     signs = incircle_many(ax, ay, bx, by, cx, cy, dx, dy)
-    ties = signs == 0
-    if ties.any():
-        signs = _one_by_one(signs, ties, cocircular_sign, (ax, ay, bx, by, cx, cy, dx, dy))
+    ties = np.flatnonzero(signs.ravel() == 0)
+    if len(ties):
+        arrays = _flat_arrays((ax, ay, bx, by, cx, cy, dx, dy))
+        flat = signs.ravel()  # a copy where signs is not contiguous
+        flat[ties] = cocircular_signs(*(a[ties] for a in arrays))
+        signs = flat.reshape(signs.shape)
+    return signs
+
+
+def cocircular_signs(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+) -> np.ndarray:
+    """Vectorised :func:`cocircular_sign` (int8)."""
+
+    def before(px: np.ndarray, py: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
+        return (px < qx) | ((px == qx) & (py < qy))
+
+    # the lowest of the four points in (x, y) order: 0 a, 1 b, 2 c, 3 d
+    lx, ly = ax.copy(), ay.copy()
+    low = np.zeros(len(ax), dtype=np.int8)
+    for number, (px, py) in enumerate(((bx, by), (cx, cy), (dx, dy)), start=1):
+        lower = before(px, py, lx, ly)
+        lx, ly = np.where(lower, px, lx), np.where(lower, py, ly)
+        low[lower] = number
+    # d beyond the side opposite the lowest corner: inside
+    side = np.where(
+        low == 0,
+        orient_many(bx, by, cx, cy, dx, dy),
+        np.where(
+            low == 1, orient_many(cx, cy, ax, ay, dx, dy), orient_many(ax, ay, bx, by, dx, dy)
+        ),
+    )
+    signs = np.where(side < 0, 1, -1).astype(np.int8)
+    signs[low == 3] = 1
+    corner = ((dx == ax) & (dy == ay)) | ((dx == bx) & (dy == by)) | ((dx == cx) & (dy == cy))
+    signs[corner] = 0
     return signs
 
 

@@ -20,7 +20,14 @@ import shapely
 from osgeo import ogr
 
 from bsp_triangulate import triangulate, triangulate_many
-from bsp_triangulate.geometry.predicates import incircle, incircle_many
+from bsp_triangulate.geometry.predicates import (
+    cocircular_sign,
+    cocircular_signs,
+    incircle,
+    incircle_many,
+    incircle_sos,
+    incircle_sos_many,
+)
 
 from ..conftest import SHARED_DATA
 from .checks import check_triangulation, used_rings
@@ -112,6 +119,30 @@ def test_incircle_matches_exact_arithmetic_near_cocircular_points() -> None:
     assert incircle(0, 0, 4, 0, 4, 4, 1, 1) == 1
     assert incircle(0, 0, 4, 0, 4, 4, 5, 5) == -1
     assert incircle(0, 0, 4, 4, 4, 0, 1, 1) == -1  # clockwise a, b, c: the sign flips
+
+
+@pytest.mark.parametrize("step", [0.1, 81.993426195884126, 1 / 3])
+def test_cell_centres_on_rectangles_and_their_ties_match_exact_arithmetic(step: float) -> None:
+    # points of a grid far from the origin (a DEM's cell centres): the corners of any
+    # axis-parallel rectangle are exactly cocircular, which the vectorised test sees without
+    # integer arithmetic; the tie rule, vectorised, decides as the scalar one
+    rnd = random.Random(7)
+    xs = [969491.275403656647541 + step * i for i in range(4)]
+    ys = [-6250296.99 + step * i for i in range(4)]
+    grid = [(x, y) for x in xs for y in ys]
+    cases = [[c for _ in range(4) for c in rnd.choice(grid)] for _ in range(3000)]
+    cases = [c for c in cases if len({tuple(c[0:2]), tuple(c[2:4]), tuple(c[4:6])}) == 3]
+    columns = np.array(cases).T
+    expected = [_incircle_fraction(c[0:2], c[2:4], c[4:6], c[6:8]) for c in cases]
+    np.testing.assert_array_equal(incircle_many(*columns), expected)
+    assert (np.array(expected) == 0).sum() > 100
+    ties = np.flatnonzero(np.array(expected) == 0)
+    np.testing.assert_array_equal(
+        cocircular_signs(*columns[:, ties]), [cocircular_sign(*cases[i]) for i in ties]
+    )
+    np.testing.assert_array_equal(
+        incircle_sos_many(*columns), [incircle_sos(*case) for case in cases]
+    )
 
 
 # --- the rule on data ---------------------------------------------------------------------------
