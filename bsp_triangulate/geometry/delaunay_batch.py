@@ -82,10 +82,11 @@ class MeshSet:
         px = np.asarray(px, dtype=np.float64)
         py = np.asarray(py, dtype=np.float64)
         ids = np.full(len(px), -1, dtype=np.int64)
-        pending = np.arange(len(px))
         near = np.asarray(start, dtype=np.int64).copy()
         if len(near) and (near.min() < 0 or near.max() >= self._nt):
             raise ValueError("a start triangle does not exist")
+        # a point equal to an earlier one of its region would find it a vertex: not looked for
+        pending = np.flatnonzero(self._first_of_equal(px, py, self.region[near]))
         while len(pending):
             tri, edge, found = self._locate(px[pending], py[pending], near[pending])
             pending, tri, edge = pending[found], tri[found], edge[found]
@@ -96,8 +97,10 @@ class MeshSet:
             if not len(pending):
                 break
             partner = np.where(other >= 0, other // 3, -1)
-            # one point per triangle (an edge point holds both of its edge's), the first wins
-            rank = np.arange(len(pending))
+            # one point per triangle (an edge point holds both of its edge's): the middle one
+            # of the triangle's points in the order given wins, so that each split leaves
+            # about as many on either side (the first would leave nearly all on one side)
+            rank = _middle_first(tri)
             claim = self._claim
             np.minimum.at(claim, tri, rank)
             paired = partner >= 0
@@ -112,6 +115,17 @@ class MeshSet:
             near[pending[~wins]] = tri[~wins]
             pending = pending[~wins]
         return ids
+
+    @staticmethod
+    def _first_of_equal(px: np.ndarray, py: np.ndarray, region: np.ndarray) -> np.ndarray:
+        """Mask of the points that repeat no earlier point of the same region."""
+        keep = np.ones(len(px), dtype=bool)
+        if len(px) < 2:
+            return keep
+        order = np.lexsort((np.arange(len(px)), py, px, region))
+        r, x, y = region[order], px[order], py[order]
+        keep[order[1:][(r[1:] == r[:-1]) & (x[1:] == x[:-1]) & (y[1:] == y[:-1])]] = False
+        return keep
 
     def _locate(
         self, px: np.ndarray, py: np.ndarray, start: np.ndarray
@@ -471,6 +485,20 @@ class _Rows:
 
 
 _FREE = np.iinfo(np.int64).max
+
+
+def _middle_first(tri: np.ndarray) -> np.ndarray:
+    """Per point (in the order given, ``tri`` its triangle) a distinct priority, lower first:
+    within each triangle's points, how far it is from their middle one, then its place."""
+    count = len(tri)
+    order = np.argsort(tri, kind="stable")
+    sorted_tri = tri[order]
+    start = np.flatnonzero(np.r_[True, sorted_tri[1:] != sorted_tri[:-1]])
+    size = np.diff(np.r_[start, count])
+    middle = np.repeat(start + size // 2, size)
+    priority = np.empty(count, dtype=np.int64)
+    priority[order] = np.abs(np.arange(count) - middle) * count + order
+    return priority
 
 
 def grown(array: np.ndarray, size: int) -> np.ndarray:
