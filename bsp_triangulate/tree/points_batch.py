@@ -26,11 +26,14 @@ class InsertedMesh:
     """A polygon's rings' triangulation with its points inserted: ``triangles`` (t, 3) rows
     of its vertices (ring vertices, then the points used, in the order given), counter-
     clockwise in the output's XY; ``point_ids`` per given point its row there, or -1;
-    ``mirrored``: its working plane mirrors x (its outer ring is clockwise in XY)."""
+    ``mirrored``: its working plane mirrors x (its outer ring is clockwise in XY);
+    ``across``: per slot ``3t + k`` (the edge from corner k + 1 to k + 2 of triangle t) the
+    slot of the same edge in the neighbouring triangle, or -1, where known."""
 
     triangles: np.ndarray
     point_ids: np.ndarray
     mirrored: bool = False
+    across: np.ndarray | None = None
 
 
 def insert_points(
@@ -83,15 +86,34 @@ def insert_points(
     row[ids[used]] = sizes[owner[used]] + rank[used] - first_rank[owner[used]]
     point_rows = np.where(used, row[np.maximum(ids, 0)], -1)
     mesh_region = mesh.region[: mesh.triangle_count]
-    local = row[mesh.triangles()[np.argsort(mesh_region, kind="stable")]]
+    by_region = np.argsort(mesh_region, kind="stable")
+    local = row[mesh.triangles()[by_region]]
     tri_counts = np.bincount(mesh_region, minlength=len(kept))
     tri_starts = np.cumsum(tri_counts) - tri_counts
+    # the links in the same order, each polygon's slots from 0
+    new_id = np.empty_like(by_region)
+    new_id[by_region] = np.arange(len(by_region))
+    linked = mesh.across[: 3 * mesh.triangle_count].reshape(-1, 3)[by_region].ravel()
+    slot_base = np.repeat(3 * tri_starts, 3 * tri_counts)
+    links = np.where(linked >= 0, 3 * new_id[linked // 3] + linked % 3 - slot_base, -1)
     point_starts = np.cumsum(counts) - counts
     for k, i in enumerate(kept):
         tri = local[tri_starts[k] : tri_starts[k] + tri_counts[k]]
+        across = links[3 * tri_starts[k] : 3 * (tri_starts[k] + tri_counts[k])]
         found[i] = InsertedMesh(
             tri[:, [1, 0, 2]] if mirror[k] < 0 else tri,
             point_rows[point_starts[k] : point_starts[k] + counts[k]],
             bool(mirror[k] < 0),
+            swapped_links(across) if mirror[k] < 0 else across,
         )
     return found
+
+
+def swapped_links(across: np.ndarray) -> np.ndarray:
+    """The links of triangles (per slot ``3t + k``: the slot across its edge, or -1) for the
+    same triangles with their first two corners swapped: slots 0 and 1 trade places."""
+    swapped = across.reshape(-1, 3)[:, [1, 0, 2]].ravel()
+    return np.where(swapped >= 0, swapped - swapped % 3 + _SWAP[swapped % 3], -1)
+
+
+_SWAP = np.array([1, 0, 2])

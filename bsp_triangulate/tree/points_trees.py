@@ -22,7 +22,7 @@ from ..geometry.rings_batch import ragged_index
 from ..triangulation import Triangulation, TriangulationError
 from .delaunay_points import depth_first
 from .one_polygon import AREA_TOLERANCE
-from .points_batch import InsertedMesh
+from .points_batch import InsertedMesh, swapped_links
 
 
 def trees_of_inserted(
@@ -36,9 +36,11 @@ def trees_of_inserted(
     for all polygons at once, or None where the polygon is not plainly one the batch path
     took or a check fails (the one-polygon builder then decides and names what is wrong).
 
-    Checked as that builder checks: no directed edge used twice, the edges with one triangle
+    Checked as that builder checks: each edge's two sides linked (the insertion's links where
+    every polygon has them, else no directed edge used twice), the edges with one triangle
     exactly the ring edges, every triangle reached by the walk, the used points no repeats,
-    and the triangles' absolute areas adding up to the polygon's (half its tolerance here)."""
+    and the triangles' absolute areas adding up to the polygon's (half its tolerance here:
+    with the links, that is what rules out a triangle turned over)."""
     found: list[Triangulation | None] = [None] * len(polygons)
     for number, (ring_mesh, done) in enumerate(zip(ring_meshes, inserted)):
         if ring_mesh is not None and done is not None and not (done.point_ids >= 0).any():
@@ -51,10 +53,20 @@ def trees_of_inserted(
     tri = parts.triangles
     owner = parts.region
     good = np.ones(len(parts.kept), dtype=bool)
-    across, repeated = edge_links(tri, n)
-    good[owner[np.flatnonzero(repeated) // 3]] = False
-    # the edges with one triangle are the ring edges, each once
     start, end = tri[:, [1, 2, 0]].ravel(), tri[:, [2, 0, 1]].ravel()
+    if parts.across is None:
+        across, repeated = edge_links(tri, n)
+        good[owner[np.flatnonzero(repeated) // 3]] = False
+    else:
+        # the insertion's links: each pairs two slots of the same edge, opposite ways
+        across = parts.across
+        linked = np.flatnonzero(across >= 0)
+        twin = across[linked]
+        wrong = (
+            (across[twin] != linked) | (start[twin] != end[linked]) | (end[twin] != start[linked])
+        )
+        good[owner[linked[wrong] // 3]] = False
+    # the edges with one triangle are the ring edges, each once
     rim = np.flatnonzero(across < 0)
     rim_keys = np.minimum(start[rim], end[rim]) * n + np.maximum(start[rim], end[rim])
     ring_keys = parts.ring_edge_keys()
@@ -112,6 +124,7 @@ class _Parts:
     x: np.ndarray
     y: np.ndarray
     triangles: np.ndarray
+    across: np.ndarray | None
     region: np.ndarray
     offsets: np.ndarray
     ring_edge_counts: np.ndarray
@@ -133,6 +146,7 @@ class _Parts:
     ) -> _Parts | None:
         """The polygons with a ring mesh and points inserted that are not ``found`` yet."""
         kept, vertices, point_ids, mirror, sizes, triangles, given_xy = [], [], [], [], [], [], []
+        links: list[np.ndarray] | None = []
         for number, (ring_mesh, done) in enumerate(zip(ring_meshes, inserted)):
             if ring_mesh is None or done is None or found[number] is not None:
                 continue
@@ -158,6 +172,15 @@ class _Parts:
             mirror.append(m)
             sizes.append(ring_sizes)
             triangles.append(done.triangles[:, [1, 0, 2]] if m < 0 else done.triangles)
+            if links is not None and (
+                done.across is None
+                or len(done.across) != 3 * len(done.triangles)
+                or not len(done.across)
+                or done.across.max() >= len(done.across)
+            ):
+                links = None  # linked below from the triangles
+            elif links is not None:
+                links.append(swapped_links(done.across) if m < 0 else done.across)
             given_xy.append(given[:, :2])
         if not kept:
             return None
@@ -177,6 +200,7 @@ class _Parts:
             x=every[:, 0] * np.repeat(mirror_array, counts),
             y=every[:, 1].copy(),
             triangles=np.concatenate(triangles) + np.repeat(offsets, triangle_counts)[:, None],
+            across=None if links is None else _linked(links, triangle_counts),
             region=np.repeat(np.arange(len(kept)), triangle_counts),
             offsets=offsets,
             ring_edge_counts=np.array([sum(per) for per in sizes], dtype=np.int64),
@@ -196,6 +220,14 @@ class _Parts:
         last = np.cumsum(self.ring_sizes) - 1
         end[last] = self.ring_starts
         return np.minimum(start, end) * n + np.maximum(start, end)
+
+
+def _linked(links: list[np.ndarray], triangle_counts: np.ndarray) -> np.ndarray:
+    """Per-polygon links (slots from 0 in each) as one array over all their slots."""
+    across = np.concatenate(links)
+    starts = np.cumsum(triangle_counts) - triangle_counts
+    base = np.repeat(3 * starts, 3 * triangle_counts)
+    return np.where(across >= 0, across + base, -1)
 
 
 def _used_points_first(given_xy: list[np.ndarray], point_ids: list[np.ndarray]) -> np.ndarray:

@@ -55,7 +55,7 @@ def test_no_point_used_gives_the_rings_own_tree() -> None:
     assert_same_fields(trees[1], triangulate(wide, points=inside, rule="delaunay"))
 
 
-@pytest.mark.parametrize("fault", ["missing", "doubled", "repeat used"])
+@pytest.mark.parametrize("fault", ["missing", "doubled", "repeat used", "links", "no links"])
 def test_a_mesh_that_fails_a_check_is_left_to_the_one_polygon_builder(fault: str) -> None:
     polygons, points = polygons_with_points(5, count=4)
     ring_meshes = list(triangulate_batch(polygons, "delaunay"))
@@ -68,6 +68,15 @@ def test_a_mesh_that_fails_a_check_is_left_to_the_one_polygon_builder(fault: str
         mesh = replace(mesh, triangles=mesh.triangles[1:])
     elif fault == "doubled":
         mesh = replace(mesh, triangles=np.concatenate([mesh.triangles, mesh.triangles[:1]]))
+    elif fault == "links":
+        # two slots that are no edge's two sides linked together
+        across = mesh.across.copy()
+        inner = np.flatnonzero(across >= 0)
+        across[inner[0]], across[inner[1]] = across[inner[1]], across[inner[0]]
+        mesh = replace(mesh, across=across)
+    elif fault == "no links":
+        # links unknown (one polygon): linked from the triangles, its own tree still read
+        mesh = replace(mesh, across=None)
     else:
         # the repeat used instead of the first (rows still in the order given)
         ids = mesh.point_ids.copy()
@@ -76,7 +85,10 @@ def test_a_mesh_that_fails_a_check_is_left_to_the_one_polygon_builder(fault: str
         mesh = replace(mesh, point_ids=ids)
     inserted[2] = mesh
     trees = trees_of_inserted(polygons, ring_meshes, points, inserted)
-    assert trees[2] is None
+    if fault == "no links":
+        assert_same_fields(trees[2], triangulate(polygons[2], points=points[2], rule="delaunay"))
+    else:
+        assert trees[2] is None
     for number in (0, 1, 3):
         want = triangulate(polygons[number], points=points[number], rule="delaunay")
         assert_same_fields(trees[number], want)
