@@ -11,7 +11,6 @@ sequence the tree stands for, so that no bridge has to be searched for.
 from __future__ import annotations
 
 from collections.abc import Callable
-from itertools import chain
 
 import numpy as np
 
@@ -110,43 +109,55 @@ def depth_first(
     triangle), its parent (numbered among all nodes), depth and side; and per root the number
     of triangles its walk reached (no walk enters a triangle an earlier walk took)."""
     used = bytearray(len(across) // 3)
-    # (slot, V1 at a, parent, depth, side) of every node, as taken off the stack
-    nodes: list[tuple[int, bool, int, int, int]] = []
+    # per node as taken off the stack: its base slot, parent, depth and side
+    slots: list[int] = []
+    parents: list[int] = []
+    depths: list[int] = []
+    sides: list[int] = []
+    keep_slot, keep_parent, keep_depth, keep_side = (
+        slots.append,
+        parents.append,
+        depths.append,
+        sides.append,
+    )
     sizes = []
-    keep = nodes.append
+    node = 0
     for root in roots:
-        first = len(nodes)
+        first = node
+        # (slot, V1 at a, parent, depth, side)
         stack = [(root, True, -1, 0, 0)]
         pop, push = stack.pop, stack.append
         while stack:
-            entry = pop()
-            slot = entry[0]
+            slot, at_a, parent, depth, side = pop()
             t = slot // 3
             if used[t]:
                 continue  # reached the other way round: this edge is a bridge
             used[t] = 1
-            node = len(nodes)
-            keep(entry)
-            base = slot - slot % 3
+            keep_slot(slot)
+            keep_parent(parent)
+            keep_depth(depth)
+            keep_side(side)
             # the base a -> b is the edge opposite the apex c (slot k: corner k)
-            upper = across[base + _AFTER_NEXT[slot - base]]  # across c -> a: the child on a c
-            lower = across[base + _NEXT[slot - base]]  # across b -> c: the child on c b
-            dep = entry[3] + 1
+            k = slot - 3 * t
+            base = slot - k
+            upper = across[base + _AFTER_NEXT[k]]  # across c -> a: the child on a c
+            lower = across[base + _NEXT[k]]  # across b -> c: the child on c b
+            depth += 1
             # the right child pushed first, taken last
-            if entry[1]:
+            if at_a:
                 if lower >= 0:
-                    push((lower, False, node, dep, 2))
+                    push((lower, False, node, depth, 2))
                 if upper >= 0:
-                    push((upper, True, node, dep, 1))
+                    push((upper, True, node, depth, 1))
             else:
                 if upper >= 0:
-                    push((upper, True, node, dep, 2))
+                    push((upper, True, node, depth, 2))
                 if lower >= 0:
-                    push((lower, False, node, dep, 1))
-        sizes.append(len(nodes) - first)
-    flat = np.fromiter(chain.from_iterable(nodes), dtype=np.int64, count=5 * len(nodes))
-    columns = flat.reshape(-1, 5).T.copy()
-    return (columns[0], columns[2], columns[3], columns[4]), np.array(sizes, dtype=np.int64)
+                    push((lower, False, node, depth, 1))
+            node += 1
+        sizes.append(node - first)
+    columns = (np.array(values, dtype=np.int64) for values in (slots, parents, depths, sides))
+    return tuple(columns), np.array(sizes, dtype=np.int64)
 
 
 # the triangle's slots k + 1 and k + 2 (mod 3) from its slot k
