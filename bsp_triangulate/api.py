@@ -17,7 +17,7 @@ from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
 from .rules import get_rule
 from .tree.one_polygon import _as_given, _triangulate
 from .tree.points_batch import InsertedMesh, insert_points
-from .tree.points_trees import trees_of_inserted
+from .tree.points_trees import trees_of_inserted, trees_of_known
 from .triangulation import Triangulation, TriangulationError
 
 
@@ -144,6 +144,16 @@ def triangulate_many(
         )
         for index, tree in trees.items():
             results[index] = tree
+        if meshes is not None:
+            known = [i for i in range(len(polygons)) if i not in taken and meshes[i] is not None]
+            for index, tree in _known_at_once(
+                known,
+                [polygons[i] for i in known],
+                [points[i] for i in known],
+                [meshes[i] for i in known],
+                plane,
+            ).items():
+                results[index] = tree
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
@@ -194,6 +204,25 @@ def _points_at_once(
         trees = [None] * len(index)
     done = {number: tree for number, tree in zip(index, trees) if tree is not None}
     return done, dict(zip(index, found)), dict(zip(index, inserted))
+
+
+def _known_at_once(
+    index: Sequence[int],
+    polygons: list[Sequence[object]],
+    points: list[object],
+    meshes: list[object],
+    plane: str,
+) -> dict[int, Triangulation]:
+    """Rule delaunay with points and known meshes for the polygons numbered ``index``: the
+    trees read off their meshes at once (``points_trees.trees_of_known``) where every check
+    passes, per polygon number (the one-polygon builder takes the others)."""
+    if not len(index):
+        return {}
+    try:
+        trees = trees_of_known(polygons, points, meshes, plane)
+    except (ArithmeticError, ValueError, TypeError, IndexError):
+        return {}
+    return {number: tree for number, tree in zip(index, trees) if tree is not None}
 
 
 def _at_once_wanted(rule: str, planar_tolerance: float, invalid: str) -> bool:
@@ -328,7 +357,20 @@ def triangulate_packed(
             [coordinates[starts[i] : starts[i] + counts[i]] for i in wanted.tolist()],
             triangulate_rings,
         )
-        for index, tree in trees.items():
+        known_trees = {}
+        if mesh_counts is not None:
+            known = np.flatnonzero(~decided & (counts > 0) & given)
+            known_trees = _known_at_once(
+                known.tolist(),
+                [polygons.rings(i) for i in known.tolist()],
+                [coordinates[starts[i] : starts[i] + counts[i]] for i in known.tolist()],
+                [
+                    mesh_rows[mesh_starts[i] : mesh_starts[i] + mesh_counts[i]]
+                    for i in known.tolist()
+                ],
+                plane,
+            )
+        for index, tree in (trees | known_trees).items():
             decided[index] = True
             report.one_more()
             pieces.append(Piece.of(index, tree))

@@ -14,9 +14,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..geometry.delaunay_mesh import edge_links
+from ..geometry.delaunay_mesh import delaunay_faults, edge_links
 from ..geometry.points import as_point_array
-from ..geometry.predicates import shoelace_products
+from ..geometry.predicates import area_surely_clear, ring_area_sign, shoelace_products
 from ..geometry.rings import normalise_rings
 from ..geometry.rings_batch import ragged_index
 from ..triangulation import Triangulation, TriangulationError
@@ -42,13 +42,105 @@ def trees_of_inserted(
     and the triangles' absolute areas adding up to the polygon's (half its tolerance here:
     with the links, that is what rules out a triangle turned over)."""
     found: list[Triangulation | None] = [None] * len(polygons)
+    pieces = []
     for number, (ring_mesh, done) in enumerate(zip(ring_meshes, inserted)):
-        if ring_mesh is not None and done is not None and not (done.point_ids >= 0).any():
+        if ring_mesh is None or done is None:
+            continue
+        if not (done.point_ids >= 0).any():
             # no point used: the rings' own tree, as the one-polygon builder makes it
             found[number] = replace(ring_mesh, point_ids=done.point_ids)
-    parts = _Parts.of(polygons, ring_meshes, points, inserted, found)
+            continue
+        piece = _Piece.of(number, polygons[number], points[number], done, "xy")
+        if piece is not None and np.array_equal(np.concatenate(piece.rings), ring_mesh.vertices):
+            pieces.append(piece)
+    _read_trees(pieces, found, known=False)
+    return found
+
+
+def trees_of_known(
+    polygons: Sequence[Sequence[object]],
+    points: Sequence[object],
+    meshes: Sequence[object],
+    plane: str,
+) -> list[Triangulation | None]:
+    """Per polygon with interior points and its mesh given (``mesh`` of
+    :func:`~bsp_triangulate.api.triangulate`): the tree read off that mesh, for all polygons at
+    once, where it is what the one-polygon builder takes from it; else None (that builder
+    then decides). Taken where the polygon works in XY, its points repeat none and every
+    one is a vertex of the mesh, the mesh passes the one-polygon builder's checks of a known
+    mesh (every triangle strictly counter-clockwise, every directed edge once, every interior
+    edge locally Delaunay under the tie rule, exactly) and of :func:`trees_of_inserted`,
+    and the polygon's area is surely not negligible."""
+    found: list[Triangulation | None] = [None] * len(polygons)
+    pieces = []
+    for number, (rings, given, mesh) in enumerate(zip(polygons, points, meshes)):
+        if mesh is None or given is None or not len(given):
+            continue
+        try:
+            triangles = np.asarray(mesh, dtype=np.int64)
+        except (TypeError, ValueError):
+            continue
+        piece = _Piece.of(number, rings, given, None, plane)
+        if piece is None or triangles.ndim != 2 or triangles.shape[1] != 3 or not len(triangles):
+            continue
+        ring_count = sum(len(ring) for ring in piece.rings)
+        count = ring_count + len(piece.given)
+        if triangles.min() < 0 or triangles.max() >= count:
+            continue
+        if np.count_nonzero(np.bincount(triangles.ravel(), minlength=count)[ring_count:]) != len(
+            piece.given
+        ):
+            continue  # a point the mesh leaves out: the one-polygon builder decides why
+        piece.mesh = InsertedMesh(
+            triangles,
+            ring_count + np.arange(len(piece.given)),
+            ring_area_sign(piece.rings[0][:, 0], piece.rings[0][:, 1]) < 0,
+        )
+        pieces.append(piece)
+    _read_trees(pieces, found, known=True)
+    return found
+
+
+@dataclass
+class _Piece:
+    """One polygon to read a tree for: its number, normalised rings (XY working plane), given
+    points as (m, 3) and mesh."""
+
+    number: int
+    rings: list[np.ndarray]
+    given: np.ndarray
+    mesh: InsertedMesh | None
+
+    @classmethod
+    def of(
+        cls, number: int, rings: object, points: object, mesh: InsertedMesh | None, plane: str
+    ) -> _Piece | None:
+        """The piece, or None where the rings or points do not normalise, the working plane
+        is not XY, a ring has fewer than 3 vertices or the mesh's point rows are not the used
+        points' in the order given."""
+        try:
+            clean, axes = normalise_rings(rings, plane)
+            given = as_point_array(points)
+        except TriangulationError:
+            return None
+        if axes != (0, 1) or not clean or min(len(ring) for ring in clean) < 3:
+            return None
+        if mesh is not None:
+            used = mesh.point_ids >= 0
+            ring_count = sum(len(ring) for ring in clean)
+            if len(mesh.point_ids) != len(given) or not np.array_equal(
+                mesh.point_ids[used], ring_count + np.arange(int(used.sum()))
+            ):
+                return None
+        return cls(number, clean, given, mesh)
+
+
+def _read_trees(pieces: list[_Piece], found: list[Triangulation | None], known: bool) -> None:
+    """Into ``found``: the tree of every piece whose mesh passes the checks (``known``: also
+    the known-mesh checks of :func:`trees_of_known`)."""
+    parts = _Parts.of(pieces)
     if parts is None:
-        return found
+        return
     n = len(parts.x)
     tri = parts.triangles
     owner = parts.region
@@ -66,6 +158,8 @@ def trees_of_inserted(
             (across[twin] != linked) | (start[twin] != end[linked]) | (end[twin] != start[linked])
         )
         good[owner[linked[wrong] // 3]] = False
+    if known:
+        good[owner[np.flatnonzero(delaunay_faults(parts.x, parts.y, tri, ties=True))]] = False
     # the edges with one triangle are the ring edges, each once
     rim = np.flatnonzero(across < 0)
     rim_keys = np.minimum(start[rim], end[rim]) * n + np.maximum(start[rim], end[rim])
@@ -81,7 +175,7 @@ def trees_of_inserted(
     good &= (roots >= 0) & (np.bincount(owner[root_slots // 3], minlength=len(good)) == 1)
     good &= parts.points_first & _areas_add_up(parts)
     if not good.any():
-        return found
+        return
     (slot, parent, depth, side), reached = depth_first(across.tolist(), roots[good].tolist())
     taken = np.flatnonzero(good)
     good[taken[reached != parts.triangle_counts[taken]]] = False
@@ -104,7 +198,6 @@ def trees_of_inserted(
             side=side[nodes].astype(np.int8),
             point_ids=parts.point_ids[number],
         )
-    return found
 
 
 @dataclass
@@ -136,41 +229,21 @@ class _Parts:
     outer: np.ndarray
 
     @classmethod
-    def of(
-        cls,
-        polygons: Sequence[Sequence[object]],
-        ring_meshes: Sequence[Triangulation | None],
-        points: Sequence[object],
-        inserted: Sequence[InsertedMesh | None],
-        found: Sequence[Triangulation | None],
-    ) -> _Parts | None:
-        """The polygons with a ring mesh and points inserted that are not ``found`` yet."""
+    def of(cls, pieces: list[_Piece]) -> _Parts | None:
+        """The pieces laid out one after another, or None where there are none."""
+        if not pieces:
+            return None
         kept, vertices, point_ids, mirror, sizes, triangles, given_xy = [], [], [], [], [], [], []
         links: list[np.ndarray] | None = []
-        for number, (ring_mesh, done) in enumerate(zip(ring_meshes, inserted)):
-            if ring_mesh is None or done is None or found[number] is not None:
-                continue
-            try:
-                clean, _ = normalise_rings(polygons[number], "xy")
-                given = as_point_array(points[number])
-            except TriangulationError:
-                continue
-            ring_sizes = [len(ring) for ring in clean]
-            ring_count = len(ring_mesh.vertices)
+        for piece in pieces:
+            done = piece.mesh
             used = done.point_ids >= 0
-            if (
-                min(ring_sizes) < 3
-                or len(done.point_ids) != len(given)
-                or not np.array_equal(np.concatenate(clean), ring_mesh.vertices)
-                or not np.array_equal(done.point_ids[used], ring_count + np.arange(int(used.sum())))
-            ):
-                continue
             m = -1.0 if done.mirrored else 1.0
-            kept.append(number)
-            vertices.append(np.concatenate([ring_mesh.vertices, given[used]]))
+            kept.append(piece.number)
+            vertices.append(np.concatenate([*piece.rings, piece.given[used]]))
             point_ids.append(done.point_ids)
             mirror.append(m)
-            sizes.append(ring_sizes)
+            sizes.append([len(ring) for ring in piece.rings])
             triangles.append(done.triangles[:, [1, 0, 2]] if m < 0 else done.triangles)
             if links is not None and (
                 done.across is None
@@ -181,7 +254,7 @@ class _Parts:
                 links = None  # linked below from the triangles
             elif links is not None:
                 links.append(swapped_links(done.across) if m < 0 else done.across)
-            given_xy.append(given[:, :2])
+            given_xy.append(piece.given[:, :2])
         if not kept:
             return None
         counts = np.array([len(v) for v in vertices], dtype=np.int64)
@@ -250,13 +323,14 @@ def _used_points_first(given_xy: list[np.ndarray], point_ids: list[np.ndarray]) 
 def _areas_add_up(parts: _Parts) -> np.ndarray:
     """Per polygon of ``parts``: its triangles' absolute areas add up to its net area in the
     working plane (``one_polygon.check_area``'s test with half its tolerance, so that what
-    passes here passes there; the rest is left to that check)."""
+    passes here passes there; the rest is left to that check), and that area is surely not
+    negligible (``one_polygon.negligible_area``, with a margin for any summation order)."""
     count = len(parts.kept)
     ring_rows = ragged_index(parts.offsets, parts.ring_edge_counts)
-    ring_owner = np.repeat(np.arange(len(parts.ring_sizes)), parts.ring_sizes)
-    x0, y0 = parts.x[parts.ring_starts], parts.y[parts.ring_starts]
-    x = parts.x[ring_rows] - x0[ring_owner]
-    y = parts.y[ring_rows] - y0[ring_owner]
+    vertex_owner = np.repeat(np.arange(count), parts.ring_edge_counts)
+    # every ring from its polygon's first vertex, as the engine's guard takes them
+    x = parts.x[ring_rows] - parts.x[parts.offsets][vertex_owner]
+    y = parts.y[ring_rows] - parts.y[parts.offsets][vertex_owner]
     local_starts = np.cumsum(parts.ring_sizes) - parts.ring_sizes
     left, right = shoelace_products(x, y, local_starts, local_starts + parts.ring_sizes - 1)
     rings = np.abs(np.add.reduceat(left - right, local_starts))
@@ -264,10 +338,9 @@ def _areas_add_up(parts: _Parts) -> np.ndarray:
         parts.ring_owner, weights=np.where(parts.outer, rings, -rings), minlength=count
     )
     ring_magnitude = np.bincount(
-        np.repeat(parts.ring_owner, parts.ring_sizes),
-        weights=np.abs(left) + np.abs(right),
-        minlength=count,
+        vertex_owner, weights=np.abs(left) + np.abs(right), minlength=count
     )
+    clear = area_surely_clear(net, ring_magnitude, parts.ring_edge_counts)
     corners = parts.triangles
     tx, ty = parts.x[corners], parts.y[corners]
     tx -= tx[:, :1]
@@ -278,4 +351,4 @@ def _areas_add_up(parts: _Parts) -> np.ndarray:
     magnitude = np.bincount(parts.region, weights=np.abs(left) + np.abs(right), minlength=count)
     eps = np.finfo(np.float64).eps
     bound = 0.5 * AREA_TOLERANCE * net + 16 * eps * (magnitude + ring_magnitude)
-    return (net > 0) & (np.abs(total - net) <= bound)
+    return clear & (net > 0) & (np.abs(total - net) <= bound)

@@ -10,9 +10,11 @@ import numpy as np
 import pytest
 
 from bsp_triangulate import triangulate
+from bsp_triangulate.geometry.delaunay_mesh import edge_links
+from bsp_triangulate.geometry.predicates import orient_many
 from bsp_triangulate.tree.batch import triangulate_batch
 from bsp_triangulate.tree.points_batch import insert_points
-from bsp_triangulate.tree.points_trees import trees_of_inserted
+from bsp_triangulate.tree.points_trees import trees_of_inserted, trees_of_known
 
 from ..random_polygons import random_polygon
 from ..test_points import random_points
@@ -92,3 +94,66 @@ def test_a_mesh_that_fails_a_check_is_left_to_the_one_polygon_builder(fault: str
     for number in (0, 1, 3):
         want = triangulate(polygons[number], points=points[number], rule="delaunay")
         assert_same_fields(trees[number], want)
+
+
+def known_meshes(polygons: list, points: list) -> tuple[list, list]:
+    """Per polygon its points inside only, and the mesh triangulate makes with them."""
+    inside, meshes = [], []
+    for rings, given in zip(polygons, points):
+        result = triangulate(rings, points=given, rule="delaunay")
+        kept = given[result.point_ids >= 0]
+        inside.append(kept)
+        meshes.append(triangulate(rings, points=kept, rule="delaunay").triangles)
+    return inside, meshes
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_trees_read_off_known_meshes_equal_one_polygon_at_a_time(seed: int) -> None:
+    polygons, points = polygons_with_points(seed)
+    points, meshes = known_meshes(polygons, points)
+    trees = trees_of_known(polygons, points, meshes, "auto")
+    for rings, given, mesh, tree in zip(polygons, points, meshes, trees):
+        if not len(given):
+            assert tree is None  # no points: not a mesh with points, the batch path's
+            continue
+        assert_same_fields(tree, triangulate(rings, points=given, rule="delaunay", mesh=mesh))
+
+
+@pytest.mark.parametrize("fault", ["not delaunay", "a point left out", "steep", "rows"])
+def test_a_known_mesh_the_one_polygon_builder_would_not_take_is_left_to_it(fault: str) -> None:
+    polygons, points = polygons_with_points(8, count=4)
+    points, meshes = known_meshes(polygons, points)
+    if fault == "not delaunay":
+        # an interior edge turned the other way: a valid triangulation, not a Delaunay one
+        mesh = meshes[2].copy()
+        across, _ = edge_links(mesh, int(mesh.max()) + 1)
+        for slot in np.flatnonzero(across >= 0):
+            t, k = divmod(int(slot), 3)
+            u, j = divmod(int(across[slot]), 3)
+            a, b, c, d = mesh[t, k], mesh[t, (k + 1) % 3], mesh[t, (k + 2) % 3], mesh[u, j]
+            flipped = np.array([[a, b, d], [a, d, c]])
+            px, py = polygons_xy(polygons[2], points[2])
+            corners = [c[flipped[:, i]] for i in range(3) for c in (px, py)]
+            if (orient_many(*corners) > 0).all():
+                mesh[t], mesh[u] = flipped
+                break
+        meshes[2] = mesh
+    elif fault == "a point left out":
+        points[2] = np.vstack([points[2], points[2][:1] + np.array([1e-3, 1e-3, 0.0])])
+    elif fault == "steep":
+        # the same polygon stood up in XZ: its working plane is not XY
+        polygons[2] = [[(x, 0.0, y) for x, y, *_ in ring] for ring in polygons[2]]
+        points[2] = points[2][:, [0, 2, 1]]
+    else:
+        meshes[2] = meshes[2] + 1  # rows off by one: the last is no vertex
+    trees = trees_of_known(polygons, points, meshes, "auto")
+    assert trees[2] is None
+    for number in (0, 1, 3):
+        want = triangulate(polygons[number], points=points[number], rule="delaunay")
+        assert_same_fields(trees[number], want)
+
+
+def polygons_xy(rings: list, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The x and y of the rings' vertices (as the engine keeps them), then of the points."""
+    result = triangulate(rings, points=points, rule="delaunay")
+    return result.vertices[:, 0], result.vertices[:, 1]
