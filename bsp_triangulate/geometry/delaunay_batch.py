@@ -200,19 +200,11 @@ class MeshSet:
         """The corners (n, 3) of the triangles ``t`` and the exact signs (n, 3) of the points
         against their edges: column k for the edge from corner k + 1 to corner k + 2."""
         corners = self.vertex[(3 * t)[:, None] + np.arange(3)]
-        x, y = self.x, self.y
-        signs = [
-            orient_many(
-                x[corners[:, (k + 1) % 3]],
-                y[corners[:, (k + 1) % 3]],
-                x[corners[:, (k + 2) % 3]],
-                y[corners[:, (k + 2) % 3]],
-                px,
-                py,
-            )
-            for k in range(3)
-        ]
-        return corners, np.stack(signs, axis=1)
+        cx, cy = self.x[corners], self.y[corners]
+        px = np.asarray(px, dtype=np.float64).reshape(-1, 1)
+        py = np.asarray(py, dtype=np.float64).reshape(-1, 1)
+        signs = orient_many(cx[:, _NEXT], cy[:, _NEXT], cx[:, _PREV], cy[:, _PREV], px, py)
+        return corners, signs
 
     def _reserve(self, vertices: int, triangles: int) -> None:
         """Room for this many more vertices and triangles."""
