@@ -637,6 +637,11 @@ def containing_triangles(
         part = slice(first, last)
         point = np.repeat(where[part], counts[part])
         candidate = owner[ragged_index(lo[part], counts[part])]
+        # a closed triangle's points are in its closed box (exact comparisons)
+        qx, qy = px[point], py[point]
+        boxed = (x0[candidate] <= qx) & (qx <= x1[candidate])
+        boxed &= (y0[candidate] <= qy) & (qy <= y1[candidate])
+        point, candidate = point[boxed], candidate[boxed]
         held = np.ones(len(point), dtype=bool)
         corner_x, corner_y = tx[candidate], ty[candidate]
         for k in range(3):
