@@ -141,6 +141,7 @@ def triangulate_many(
             [polygons[i] for i in wanted],
             [points[i] for i in wanted],
             lambda: triangulate_batch([polygons[i] for i in wanted], rule, plane=plane),
+            plane,
         )
         for index, tree in trees.items():
             results[index] = tree
@@ -180,6 +181,7 @@ def _points_at_once(
     polygons: list[Sequence[object]],
     points: list[object],
     triangulate_rings: Callable[[], list[Triangulation | None]],
+    plane: str,
 ) -> tuple[
     dict[int, Triangulation], dict[int, Triangulation | None], dict[int, InsertedMesh | None]
 ]:
@@ -196,12 +198,14 @@ def _points_at_once(
         found = triangulate_rings()
     except (ArithmeticError, ValueError, TypeError):
         return {}, {}, {}
-    try:
-        inserted = insert_points(polygons, found, points)
-        trees = trees_of_inserted(polygons, found, points, inserted)
-    except (ArithmeticError, ValueError, TypeError, IndexError):
-        inserted = [None] * len(index)
-        trees = [None] * len(index)
+    inserted: list[InsertedMesh | None] = [None] * len(index)
+    trees: list[Triangulation | None] = [None] * len(index)
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        try:
+            inserted = insert_points(polygons, found, points)
+            trees = trees_of_inserted(polygons, found, points, inserted, plane)
+        except (ArithmeticError, ValueError, TypeError, IndexError):
+            trees = [None] * len(index)
     done = {number: tree for number, tree in zip(index, trees) if tree is not None}
     return done, dict(zip(index, found)), dict(zip(index, inserted))
 
@@ -218,10 +222,11 @@ def _known_at_once(
     passes, per polygon number (the one-polygon builder takes the others)."""
     if not len(index):
         return {}
-    try:
-        trees = trees_of_known(polygons, points, meshes, plane)
-    except (ArithmeticError, ValueError, TypeError, IndexError):
-        return {}
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        try:
+            trees = trees_of_known(polygons, points, meshes, plane)
+        except (ArithmeticError, ValueError, TypeError, IndexError):
+            return {}
     return {number: tree for number, tree in zip(index, trees) if tree is not None}
 
 
@@ -356,6 +361,7 @@ def triangulate_packed(
             [polygons.rings(i) for i in wanted.tolist()],
             [coordinates[starts[i] : starts[i] + counts[i]] for i in wanted.tolist()],
             triangulate_rings,
+            plane,
         )
         known_trees = {}
         if mesh_counts is not None:

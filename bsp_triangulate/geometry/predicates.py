@@ -410,10 +410,12 @@ def _rectangle_corners(
     dy: np.ndarray,
 ) -> np.ndarray:
     """Where the four points are four distinct corners of one axis-parallel rectangle (two
-    x values, two y values, each taken twice): they lie on one circle (exact comparisons)."""
+    x values, two y values, each taken twice, all finite): they lie on one circle (exact
+    comparisons)."""
     xs = np.sort(np.column_stack([ax, bx, cx, dx]), axis=1)
     ys = np.sort(np.column_stack([ay, by, cy, dy]), axis=1)
-    two = (xs[:, 0] == xs[:, 1]) & (xs[:, 2] == xs[:, 3]) & (xs[:, 1] < xs[:, 2])
+    two = np.isfinite(xs).all(axis=1) & np.isfinite(ys).all(axis=1)
+    two &= (xs[:, 0] == xs[:, 1]) & (xs[:, 2] == xs[:, 3]) & (xs[:, 1] < xs[:, 2])
     two &= (ys[:, 0] == ys[:, 1]) & (ys[:, 2] == ys[:, 3]) & (ys[:, 1] < ys[:, 2])
     points = ((ax, ay), (bx, by), (cx, cy), (dx, dy))
     for i in range(4):
@@ -529,7 +531,8 @@ def cocircular_signs(
     dx: np.ndarray,
     dy: np.ndarray,
 ) -> np.ndarray:
-    """Vectorised :func:`cocircular_sign` (int8)."""
+    """Vectorised :func:`cocircular_sign` (int8, one per row of the broadcast inputs)."""
+    ax, ay, bx, by, cx, cy, dx, dy = _flat_arrays((ax, ay, bx, by, cx, cy, dx, dy))
 
     def before(px: np.ndarray, py: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
         return (px < qx) | ((px == qx) & (py < qy))

@@ -30,28 +30,32 @@ def trees_of_inserted(
     ring_meshes: Sequence[Triangulation | None],
     points: Sequence[object],
     inserted: Sequence[InsertedMesh | None],
+    plane: str = "auto",
 ) -> list[Triangulation | None]:
-    """Per polygon (as :func:`insert_points` takes them, with its results): the BSP tree read
+    """Per polygon (as :func:`insert_points` takes them, with its results; ``plane`` as
+    given to the engine): the BSP tree read
     off its inserted mesh by the one-polygon builder's walk (``delaunay_points.tree_of_cdt``),
     for all polygons at once, or None where the polygon is not plainly one the batch path
     took or a check fails (the one-polygon builder then decides and names what is wrong).
 
     Checked as that builder checks: each edge's two sides linked (the insertion's links where
     every polygon has them, else no directed edge used twice), the edges with one triangle
-    exactly the ring edges, every triangle reached by the walk, the used points no repeats,
-    and the triangles' absolute areas adding up to the polygon's (half its tolerance here:
-    with the links, that is what rules out a triangle turned over)."""
+    all ring edges and as many as the ring edges, every triangle reached by the walk, the
+    used points no repeats, and the triangles' absolute areas adding up to the polygon's
+    (half its tolerance here; with the links, this is the check that catches a triangle
+    turned over, beyond that tolerance, as in the one-polygon builder)."""
     found: list[Triangulation | None] = [None] * len(polygons)
     pieces = []
     for number, (ring_mesh, done) in enumerate(zip(ring_meshes, inserted)):
         if ring_mesh is None or done is None:
             continue
+        piece = _Piece.of(number, polygons[number], points[number], done, plane)
+        if piece is None or not np.array_equal(np.concatenate(piece.rings), ring_mesh.vertices):
+            continue
         if not (done.point_ids >= 0).any():
             # no point used: the rings' own tree, as the one-polygon builder makes it
             found[number] = replace(ring_mesh, point_ids=done.point_ids)
-            continue
-        piece = _Piece.of(number, polygons[number], points[number], done, "xy")
-        if piece is not None and np.array_equal(np.concatenate(piece.rings), ring_mesh.vertices):
+        else:
             pieces.append(piece)
     _read_trees(pieces, found, known=False)
     return found
@@ -326,13 +330,23 @@ def _areas_add_up(parts: _Parts) -> np.ndarray:
     passes here passes there; the rest is left to that check), and that area is surely not
     negligible (``one_polygon.negligible_area``, with a margin for any summation order)."""
     count = len(parts.kept)
+    # every vertex from its polygon's first, as the engine's guard takes them, scaled by a
+    # power of two (exact) that keeps the products away from underflow and overflow
+    sizes = np.diff(np.append(parts.offsets, len(parts.x)))
+    owner = np.repeat(np.arange(count), sizes)
+    x = parts.x - parts.x[parts.offsets][owner]
+    y = parts.y - parts.y[parts.offsets][owner]
+    span = np.maximum.reduceat(np.maximum(np.abs(x), np.abs(y)), parts.offsets)
+    spread = (span > 0) & np.isfinite(span)
+    scale = np.ldexp(1.0, -np.frexp(np.where(spread, span, 1.0))[1])
+    x *= scale[owner]
+    y *= scale[owner]
     ring_rows = ragged_index(parts.offsets, parts.ring_edge_counts)
-    vertex_owner = np.repeat(np.arange(count), parts.ring_edge_counts)
-    # every ring from its polygon's first vertex, as the engine's guard takes them
-    x = parts.x[ring_rows] - parts.x[parts.offsets][vertex_owner]
-    y = parts.y[ring_rows] - parts.y[parts.offsets][vertex_owner]
+    vertex_owner = owner[ring_rows]
     local_starts = np.cumsum(parts.ring_sizes) - parts.ring_sizes
-    left, right = shoelace_products(x, y, local_starts, local_starts + parts.ring_sizes - 1)
+    left, right = shoelace_products(
+        x[ring_rows], y[ring_rows], local_starts, local_starts + parts.ring_sizes - 1
+    )
     rings = np.abs(np.add.reduceat(left - right, local_starts))
     net = np.bincount(
         parts.ring_owner, weights=np.where(parts.outer, rings, -rings), minlength=count
@@ -340,9 +354,9 @@ def _areas_add_up(parts: _Parts) -> np.ndarray:
     ring_magnitude = np.bincount(
         vertex_owner, weights=np.abs(left) + np.abs(right), minlength=count
     )
-    clear = area_surely_clear(net, ring_magnitude, parts.ring_edge_counts)
+    clear = spread & area_surely_clear(net, ring_magnitude, parts.ring_edge_counts)
     corners = parts.triangles
-    tx, ty = parts.x[corners], parts.y[corners]
+    tx, ty = x[corners], y[corners]
     tx -= tx[:, :1]
     ty -= ty[:, :1]
     left = tx[:, 1] * ty[:, 2]

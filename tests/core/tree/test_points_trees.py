@@ -4,12 +4,13 @@ builder's results field by field, and every polygon whose mesh fails a check lef
 from __future__ import annotations
 
 import random
+import warnings
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from bsp_triangulate import triangulate
+from bsp_triangulate import TriangulationError, triangulate, triangulate_many
 from bsp_triangulate.geometry.delaunay_mesh import edge_links
 from bsp_triangulate.geometry.predicates import orient_many
 from bsp_triangulate.tree.batch import triangulate_batch
@@ -157,3 +158,48 @@ def polygons_xy(rings: list, points: np.ndarray) -> tuple[np.ndarray, np.ndarray
     """The x and y of the rings' vertices (as the engine keeps them), then of the points."""
     result = triangulate(rings, points=points, rule="delaunay")
     return result.vertices[:, 0], result.vertices[:, 1]
+
+
+@pytest.mark.parametrize(
+    "bad", [[[float("nan"), 1.0]], [[9.0, 9.0, float("nan")]], [[9.0, 9.0, 0.0, 0.0]]]
+)
+def test_points_that_do_not_parse_fail_as_one_by_one_even_when_none_is_used(bad: list) -> None:
+    square = [[(0, 0), (4, 0), (4, 4), (0, 4)]]
+    given = np.array(bad)
+    with pytest.raises(TriangulationError):
+        triangulate(square, points=given, rule="delaunay")
+    results = triangulate_many(
+        [square, square], points=[given, given], rule="delaunay", on_error="return"
+    )
+    assert all(isinstance(result, TriangulationError) for result in results)
+
+
+def test_a_known_mesh_of_a_sliver_with_subnormal_products_is_negligible_as_one_by_one() -> None:
+    # coordinates so small that the shoelace products underflow unless scaled first
+    ring = [
+        (0.0, 0.0),
+        (9.382931509201358e-158,) * 2,
+        (4.691465754600679e-158, 4.691465754600683e-158),
+    ]
+    given = np.array([(4.691465754600679e-158, 4.6914657546006804e-158, 0.0)])
+    mesh = np.array([[0, 1, 3], [1, 2, 3], [2, 0, 3]])
+    want = triangulate([ring], points=given, rule="delaunay", mesh=mesh)
+    got = triangulate_many(
+        [[ring], [ring]], points=[given, given], meshes=[mesh, mesh], rule="delaunay"
+    )
+    assert len(want.triangles) == 0
+    for result in got:
+        assert_same_fields(result, want)
+
+
+def test_huge_coordinates_with_known_meshes_raise_no_warning() -> None:
+    scale = 1e155
+    square = [[(0.0, 0.0), (4 * scale, 0.0), (4 * scale, 4 * scale), (0.0, 4 * scale)]]
+    given = np.array([[scale, scale, 0.0], [2 * scale, 1.5 * scale, 0.0]])
+    mesh = triangulate(square, points=given, rule="delaunay").triangles
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        results = triangulate_many(
+            [square, square], points=[given, given], meshes=[mesh, mesh], rule="delaunay"
+        )
+    assert_same_fields(results[0], triangulate(square, points=given, rule="delaunay", mesh=mesh))
