@@ -134,7 +134,7 @@ def triangulate_many(
         wanted = [
             i
             for i in range(len(polygons))
-            if i not in taken and (meshes is None or meshes[i] is None)
+            if i not in taken and (meshes is None or not _mesh_given(meshes[i]))
         ]
         trees, ring_meshes, inserted = _points_at_once(
             wanted,
@@ -146,7 +146,7 @@ def triangulate_many(
         for index, tree in trees.items():
             results[index] = tree
         if meshes is not None:
-            known = [i for i in range(len(polygons)) if i not in taken and meshes[i] is not None]
+            known = [i for i in range(len(polygons)) if i not in taken and _mesh_given(meshes[i])]
             for index, tree in _known_at_once(
                 known,
                 [polygons[i] for i in known],
@@ -208,6 +208,17 @@ def _points_at_once(
             trees = [None] * len(index)
     done = {number: tree for number, tree in zip(index, trees) if tree is not None}
     return done, dict(zip(index, found)), dict(zip(index, inserted))
+
+
+def _mesh_given(mesh: object) -> bool:
+    """A polygon's ``mesh`` holds triangles (None or an empty one: no mesh, as packed counts
+    of 0 are)."""
+    if mesh is None:
+        return False
+    try:
+        return len(mesh) > 0  # type: ignore[arg-type]
+    except TypeError:
+        return True  # not a sequence: the one-polygon builder says what is wrong
 
 
 def _known_at_once(

@@ -13,6 +13,7 @@ import pytest
 from bsp_triangulate import TriangulationError, triangulate, triangulate_many
 from bsp_triangulate.geometry.delaunay_mesh import edge_links
 from bsp_triangulate.geometry.predicates import orient_many
+from bsp_triangulate.tree import one_polygon
 from bsp_triangulate.tree.batch import triangulate_batch
 from bsp_triangulate.tree.points_batch import insert_points
 from bsp_triangulate.tree.points_trees import trees_of_inserted, trees_of_known
@@ -203,3 +204,18 @@ def test_huge_coordinates_with_known_meshes_raise_no_warning() -> None:
             [square, square], points=[given, given], meshes=[mesh, mesh], rule="delaunay"
         )
     assert_same_fields(results[0], triangulate(square, points=given, rule="delaunay", mesh=mesh))
+
+
+def test_an_empty_mesh_counts_as_none_and_the_points_are_inserted_at_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # as a packed count of 0 does: the polygon joins the others' insertion
+    polygons, points = polygons_with_points(3, count=4)
+    own = []
+    original = one_polygon._delaunay_mesh
+    monkeypatch.setattr(one_polygon, "_delaunay_mesh", lambda *a: own.append(1) or original(*a))
+    empty = [np.zeros((0, 3), dtype=np.int64)] * len(polygons)
+    results = triangulate_many(polygons, points=points, meshes=empty, rule="delaunay")
+    assert not own
+    for rings, given, result in zip(polygons, points, results):
+        assert_same_fields(result, triangulate(rings, points=given, rule="delaunay"))
