@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .delaunay_mesh import edge_links
+from .points import first_occurrences
 from .predicates import incircle_sos_many, orient_many
 
 # slots (k + 1) % 3 and (k + 2) % 3 of local slot k
@@ -86,7 +87,7 @@ class MeshSet:
         if len(near) and (near.min() < 0 or near.max() >= self._nt):
             raise ValueError("a start triangle does not exist")
         # a point equal to an earlier one of its region would find it a vertex: not looked for
-        pending = np.flatnonzero(self._first_of_equal(px, py, self.region[near]))
+        pending = np.flatnonzero(first_occurrences(px, py, self.region[near]))
         while len(pending):
             tri, edge, found = self._locate(px[pending], py[pending], near[pending])
             pending, tri, edge = pending[found], tri[found], edge[found]
@@ -115,17 +116,6 @@ class MeshSet:
             near[pending[~wins]] = tri[~wins]
             pending = pending[~wins]
         return ids
-
-    @staticmethod
-    def _first_of_equal(px: np.ndarray, py: np.ndarray, region: np.ndarray) -> np.ndarray:
-        """Mask of the points that repeat no earlier point of the same region."""
-        keep = np.ones(len(px), dtype=bool)
-        if len(px) < 2:
-            return keep
-        order = np.lexsort((np.arange(len(px)), py, px, region))
-        r, x, y = region[order], px[order], py[order]
-        keep[order[1:][(r[1:] == r[:-1]) & (x[1:] == x[:-1]) & (y[1:] == y[:-1])]] = False
-        return keep
 
     def _locate(
         self, px: np.ndarray, py: np.ndarray, start: np.ndarray

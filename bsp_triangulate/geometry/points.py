@@ -43,14 +43,21 @@ def as_point_array(points: object) -> np.ndarray:
     return np.ascontiguousarray(array)
 
 
-def first_occurrences(px: np.ndarray, py: np.ndarray) -> np.ndarray:
-    """Mask of the points that do not repeat an earlier point (equal x and y)."""
+def first_occurrences(
+    px: np.ndarray, py: np.ndarray, group: np.ndarray | None = None
+) -> np.ndarray:
+    """Mask of the points that do not repeat an earlier point (equal x and y; with
+    ``group``, one key per point, an earlier point of the same group)."""
     keep = np.ones(len(px), dtype=bool)
     if len(px) < 2:
         return keep
-    order = np.lexsort((np.arange(len(px)), py, px))
+    keys = (np.arange(len(px)), py, px) if group is None else (np.arange(len(px)), py, px, group)
+    order = np.lexsort(keys)
     sx, sy = px[order], py[order]
     repeat = (sx[1:] == sx[:-1]) & (sy[1:] == sy[:-1])
+    if group is not None:
+        sorted_group = group[order]
+        repeat &= sorted_group[1:] == sorted_group[:-1]
     keep[order[1:][repeat]] = False
     return keep
 

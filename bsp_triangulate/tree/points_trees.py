@@ -15,9 +15,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry.delaunay_mesh import delaunay_faults, edge_links
-from ..geometry.points import as_point_array
-from ..geometry.predicates import area_surely_clear, ring_area_sign, shoelace_products
-from ..geometry.rings import normalise_rings
+from ..geometry.points import as_point_array, first_occurrences
+from ..geometry.predicates import area_surely_clear, shoelace_products
+from ..geometry.rings import normalise_rings, xy_mirror
 from ..geometry.rings_batch import ragged_index
 from ..triangulation import Triangulation, TriangulationError
 from .delaunay_points import depth_first
@@ -98,7 +98,7 @@ def trees_of_known(
         piece.mesh = InsertedMesh(
             triangles,
             ring_count + np.arange(len(piece.given)),
-            ring_area_sign(piece.rings[0][:, 0], piece.rings[0][:, 1]) < 0,
+            xy_mirror(piece.rings) < 0,
         )
         pieces.append(piece)
     _read_trees(pieces, found, known=True)
@@ -259,8 +259,6 @@ class _Parts:
             elif links is not None:
                 links.append(swapped_links(done.across) if m < 0 else done.across)
             given_xy.append(piece.given[:, :2])
-        if not kept:
-            return None
         counts = np.array([len(v) for v in vertices], dtype=np.int64)
         offsets = np.cumsum(counts) - counts
         mirror_array = np.array(mirror)
@@ -316,11 +314,7 @@ def _used_points_first(given_xy: list[np.ndarray], point_ids: list[np.ndarray]) 
     owner = np.repeat(np.arange(len(given_xy)), counts)
     xy = np.concatenate(given_xy)
     used = np.concatenate(point_ids) >= 0
-    order = np.lexsort((np.arange(len(xy)), xy[:, 1], xy[:, 0], owner))
-    so, sx, sy = owner[order], xy[order, 0], xy[order, 1]
-    repeat = (so[1:] == so[:-1]) & (sx[1:] == sx[:-1]) & (sy[1:] == sy[:-1])
-    again = order[1:][repeat]
-    good[owner[again[used[again]]]] = False
+    good[owner[used & ~first_occurrences(xy[:, 0], xy[:, 1], owner)]] = False
     return good
 
 
