@@ -3,9 +3,9 @@
 The constrained Delaunay triangulation of a polygon's rings is made from any triangulation of
 them by flips; the points are then inserted one at a time with flips
 (``geometry/delaunay_mesh.py``, the ring edges as constraints), and the BSP tree is read off
-the finished triangulation by a depth-first walk from the outer ring's first edge, which
-never crosses a ring edge: the interior edges it does not cross are the bridges of the
-sequence the tree stands for, so that no bridge has to be searched for.
+the finished triangulation level by level from the outer ring's first edge
+(``breadth_first.py``), never across a ring edge: the interior edges it does not cross are
+the bridges of the sequence the tree stands for, so that no bridge has to be searched for.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import numpy as np
 
 from ..geometry.delaunay_mesh import DelaunayMesh, edge_links, slot_keys
 from ..triangulation import Triangulation
+from .breadth_first import breadth_first
 
 
 def points_mesh(
@@ -60,10 +61,11 @@ def tree_of_cdt(
     an edge of the triangulation, another edge is not shared by two triangles, a directed edge
     is used twice, or the triangles are not all reached from the root.
 
-    The tree is the depth-first walk over the triangles (docs/algorithm.md, section 5b): the
-    root on the outer ring's first edge, each node's left child across its new side at V1,
-    then its right child, never across a ring edge nor into a triangle already in the tree.
-    The interior edges it does not cross are the bridges of the sequence it stands for.
+    The tree grows breadth-first over the triangles (docs/algorithm.md, section 5b): the root
+    on the outer ring's first edge, each node's left child across its new side at V1, its
+    right child across the one at V2, never across a ring edge nor into a triangle already in
+    the tree. The interior edges it does not cross are the bridges of the sequence it stands
+    for.
     """
     if tick is not None:
         tick(0.9)
@@ -86,7 +88,7 @@ def tree_of_cdt(
     across[wall] = -1
     across[twins[twins >= 0]] = -1
     root = int(np.flatnonzero(keys == rims[0])[0])
-    (slot, parent, depth, side), sizes = depth_first(across.tolist(), [root])
+    (slot, parent, depth, side), sizes = breadth_first(across, np.array([root]))
     if sizes[0] != count:
         return None
     t, k = np.divmod(slot, 3)
@@ -98,68 +100,3 @@ def tree_of_cdt(
         depth=depth,
         side=side.astype(np.int8),
     )
-
-
-def depth_first(
-    across: list[int], roots: list[int]
-) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
-    """:func:`tree_of_cdt`'s walk from each slot of ``roots`` in turn (``across``: per slot,
-    the slot of the same edge the other way round, or -1 at a ring edge): per node in
-    pre-order the slot of its base (the chord a -> b with the rest on its left, in its
-    triangle), its parent (numbered among all nodes), depth and side; and per root the number
-    of triangles its walk reached (no walk enters a triangle an earlier walk took)."""
-    used = bytearray(len(across) // 3)
-    # per node as taken off the stack: its base slot, parent, depth and side
-    slots: list[int] = []
-    parents: list[int] = []
-    depths: list[int] = []
-    sides: list[int] = []
-    keep_slot, keep_parent, keep_depth, keep_side = (
-        slots.append,
-        parents.append,
-        depths.append,
-        sides.append,
-    )
-    sizes = []
-    node = 0
-    for root in roots:
-        first = node
-        # (slot, V1 at a, parent, depth, side)
-        stack = [(root, True, -1, 0, 0)]
-        pop, push = stack.pop, stack.append
-        while stack:
-            slot, at_a, parent, depth, side = pop()
-            t = slot // 3
-            if used[t]:
-                continue  # reached the other way round: this edge is a bridge
-            used[t] = 1
-            keep_slot(slot)
-            keep_parent(parent)
-            keep_depth(depth)
-            keep_side(side)
-            # the base a -> b is the edge opposite the apex c (slot k: corner k)
-            k = slot - 3 * t
-            base = slot - k
-            upper = across[base + _AFTER_NEXT[k]]  # across c -> a: the child on a c
-            lower = across[base + _NEXT[k]]  # across b -> c: the child on c b
-            depth += 1
-            # the right child pushed first, taken last
-            if at_a:
-                if lower >= 0:
-                    push((lower, False, node, depth, 2))
-                if upper >= 0:
-                    push((upper, True, node, depth, 1))
-            else:
-                if upper >= 0:
-                    push((upper, True, node, depth, 2))
-                if lower >= 0:
-                    push((lower, False, node, depth, 1))
-            node += 1
-        sizes.append(node - first)
-    columns = (np.array(values, dtype=np.int64) for values in (slots, parents, depths, sides))
-    return tuple(columns), np.array(sizes, dtype=np.int64)
-
-
-# the triangle's slots k + 1 and k + 2 (mod 3) from its slot k
-_NEXT = (1, 2, 0)
-_AFTER_NEXT = (2, 0, 1)

@@ -1457,7 +1457,7 @@ def _delaunay_by_insertion(
     walls: tuple[np.ndarray, np.ndarray],
     tick: Callable[[float], None] | None,
 ) -> Triangulation | None:
-    """The tree read off the ``mesh`` of :func:`_delaunay_mesh` (its depth-first walk, section
+    """The tree read off the ``mesh`` of :func:`_delaunay_mesh` (read breadth-first, section
     5b; ``walls``: the ring edges' start and end vertices); None where the mesh does not
     triangulate the rings."""
     return tree_of_cdt(mesh, prepared.vertices, walls, prepared.mirrored, tick)

@@ -2,8 +2,8 @@
 interior points, docs/algorithm.md, section 5b).
 
 ``points_batch.insert_points`` leaves each polygon's constrained Delaunay triangulation with
-its points; here the one-polygon builder's depth-first walk (``delaunay_points``) reads every
-tree in one loop, and its checks (the ring edges, the edges shared by two triangles, the
+its points; here the one-polygon builder's reading (``breadth_first``) takes every tree at
+once, and its checks (the ring edges, the edges shared by two triangles, the
 triangles reached, the areas) run on all polygons together.
 """
 
@@ -20,7 +20,7 @@ from ..geometry.predicates import area_surely_clear, shoelace_products
 from ..geometry.rings import normalise_rings, xy_mirror
 from ..geometry.rings_batch import ragged_index
 from ..triangulation import Triangulation, TriangulationError
-from .delaunay_points import depth_first
+from .breadth_first import breadth_first
 from .one_polygon import AREA_TOLERANCE
 from .points_batch import InsertedMesh, swapped_links
 
@@ -180,7 +180,7 @@ def _read_trees(pieces: list[_Piece], found: list[Triangulation | None], known: 
     good &= parts.points_first & _areas_add_up(parts)
     if not good.any():
         return
-    (slot, parent, depth, side), reached = depth_first(across.tolist(), roots[good].tolist())
+    (slot, parent, depth, side), reached = breadth_first(across, roots[good])
     taken = np.flatnonzero(good)
     good[taken[reached != parts.triangle_counts[taken]]] = False
     node_starts = np.cumsum(reached) - reached

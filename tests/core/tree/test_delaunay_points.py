@@ -126,14 +126,16 @@ def fan_of_square() -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarra
     return vertices, fan, walls
 
 
-def test_the_walk_goes_left_first_and_leaves_one_bridge_per_point() -> None:
+def test_the_tree_grows_level_by_level_and_leaves_one_bridge_per_point() -> None:
     vertices, fan, walls = fan_of_square()
     result = tree_of_cdt(fan, vertices, walls, mirrored=False)
-    # root on 0 -> 1, then across its new side at V1 (0 4) and around the point: the root's
-    # other new side (1 4) is reached the other way round and stays the one bridge
-    np.testing.assert_array_equal(result.triangles, [[0, 1, 4], [0, 4, 3], [3, 4, 2], [2, 4, 1]])
-    np.testing.assert_array_equal(result.parent, [-1, 0, 1, 2])
-    np.testing.assert_array_equal(result.side, [0, 1, 2, 1])
+    # root on 0 -> 1; its children across 0 4 (left) and 1 4 (right) make level 1; both reach
+    # the last triangle (across 4 3 and across 4 2), and the left child, first in the level,
+    # takes it: 2 4 stays the one bridge. Rows in pre-order
+    np.testing.assert_array_equal(result.triangles, [[0, 1, 4], [0, 4, 3], [3, 4, 2], [4, 1, 2]])
+    np.testing.assert_array_equal(result.parent, [-1, 0, 1, 0])
+    np.testing.assert_array_equal(result.depth, [0, 1, 2, 1])
+    np.testing.assert_array_equal(result.side, [0, 1, 2, 2])
     check_tree(result.triangles, result.parent, result.depth, result.side)
     mirrored = tree_of_cdt(fan, vertices, walls, mirrored=True)
     np.testing.assert_array_equal(mirrored.triangles, result.triangles[:, [1, 0, 2]])
