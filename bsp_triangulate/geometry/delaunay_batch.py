@@ -1,14 +1,15 @@
 """Many constrained Delaunay triangulations in flat numpy arrays, points inserted in batches.
 
-The layout of :class:`.delaunay_mesh.DelaunayMesh` (slot ``3t + k``: vertex k of triangle t
-and the edge opposite it; ``across`` the neighbour's slot or -1 on the boundary; ``fixed``:
-never flipped) for many regions at once: vertex and triangle ids are global, regions share
-none. A batch inserts at most one point per triangle at a time (1 -> 3 inside, 2 -> 4 on an
-interior edge, 1 -> 2 on a boundary edge), all together, then flips every edge that is not
-locally Delaunay (:func:`.predicates.incircle_sos_many`) in passes of flips that share no
-triangle, until none is left. The symbolic tie rule makes the constrained Delaunay
-triangulation unique, so the triangles are those that ``DelaunayMesh`` makes one point at a
-time; only their ids differ.
+The layout of :class:`.delaunay_mesh.DelaunayMesh` (slot ``3t + k``: vertex k of triangle t and
+the edge opposite it; ``across`` the neighbour's slot or -1 on the boundary; ``fixed``: never
+flipped) for many regions at once: vertex and triangle ids are global, regions share none.
+Points go in levels, coarse to fine (every 2^k-th point of the order given first), so that only
+a level's points are looked for; a batch inserts at most one point per triangle at a time (1 ->
+3 inside, 2 -> 4 on an interior edge, 1 -> 2 on a boundary edge), all together, then flips
+every edge that is not locally Delaunay (:func:`.predicates.incircle_sos_many`) in passes of
+flips that share no triangle, until none is left. The symbolic tie rule makes the constrained
+Delaunay triangulation unique, so the triangles are those that ``DelaunayMesh`` makes one point
+at a time; only their ids differ.
 """
 
 from __future__ import annotations
@@ -83,13 +84,53 @@ class MeshSet:
         px = np.asarray(px, dtype=np.float64)
         py = np.asarray(py, dtype=np.float64)
         ids = np.full(len(px), -1, dtype=np.int64)
-        near = np.asarray(start, dtype=np.int64).copy()
-        if len(near) and (near.min() < 0 or near.max() >= self._nt):
+        origin = np.asarray(start, dtype=np.int64)
+        if len(origin) and (origin.min() < 0 or origin.max() >= self._nt):
             raise ValueError("a start triangle does not exist")
+        near = origin.copy()
         # a point equal to an earlier one of its region would find it a vertex: not looked for
-        pending = np.flatnonzero(first_occurrences(px, py, self.region[near]))
+        region = self.region[near]
+        waiting = np.flatnonzero(first_occurrences(px, py, region))
+        # levels of every 2^k-th point in the order given, coarse to fine: each level adds
+        # about as many points as the mesh has triangles where it goes, so a round inserts
+        # most of its level and only that level's points are looked for (a point's search
+        # starts from where the point before it in the order went)
+        stride = 1 << max(0, int(np.ceil(np.log2(max(1.0, len(waiting) / max(1, self._nt))))))
+        ranks = np.arange(len(waiting))
+        while stride:
+            level = waiting[ranks % stride == 0]
+            waiting, ranks = waiting[ranks % stride != 0], ranks[ranks % stride != 0]
+            stride //= 2
+            if not len(level):
+                continue
+            before = np.maximum.accumulate(np.where(ids >= 0, np.arange(len(px)), -1))[level]
+            hint = before >= 0
+            hint[hint] = region[before[hint]] == region[level[hint]]
+            if hint.any():
+                # a triangle at each vertex (any one)
+                slots = np.arange(3 * self._nt)
+                at_vertex = np.empty(self._nv, dtype=np.int64)
+                at_vertex[self.vertex[slots]] = slots // 3
+                near[level[hint]] = at_vertex[ids[before[hint]]]
+            self._insert_level(px, py, level, near, ids, origin, boundary)
+        return ids
+
+    def _insert_level(
+        self,
+        px: np.ndarray,
+        py: np.ndarray,
+        pending: np.ndarray,
+        near: np.ndarray,
+        ids: np.ndarray,
+        origin: np.ndarray,
+        boundary: bool,
+    ) -> None:
+        """Insert the points ``pending`` in rounds of at most one per triangle, each looked
+        for from its triangle ``near`` (then from ``origin``); their vertex ids into ``ids``."""
         while len(pending):
-            tri, edge, found = self._locate(px[pending], py[pending], near[pending])
+            tri, edge, found = self._locate(
+                px[pending], py[pending], near[pending], origin[pending]
+            )
             pending, tri, edge = pending[found], tri[found], edge[found]
             other = np.where(edge >= 0, self.across[3 * tri + np.maximum(edge, 0)], -1)
             if not boundary:
@@ -115,15 +156,32 @@ class MeshSet:
             )
             near[pending[~wins]] = tri[~wins]
             pending = pending[~wins]
-        return ids
 
     def _locate(
-        self, px: np.ndarray, py: np.ndarray, start: np.ndarray
+        self, px: np.ndarray, py: np.ndarray, start: np.ndarray, again: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per point: the triangle holding it (closed), the local edge it lies on (-1:
         strictly inside) and whether it was found and is no vertex. Visibility walks from
-        ``start`` in lock-step; a point whose walk is blocked or long is looked for among
-        all triangles of its region."""
+        ``start`` in lock-step; a point whose walk is blocked or long walks again from
+        ``again`` where given, and is then looked for among all triangles of its region."""
+        if again is not None:
+            tri, edge, found, lost = self._walk(px, py, start)
+            if len(lost):
+                tri[lost], edge[lost], found[lost] = self._locate(px[lost], py[lost], again[lost])
+            return tri, edge, found
+        tri, edge, found, lost = self._walk(px, py, start)
+        if len(lost):
+            region = self.region[tri[lost]]
+            for r in np.unique(region).tolist():
+                among = np.flatnonzero(self.region[: self._nt] == r)
+                for i in lost[region == r].tolist():
+                    tri[i], edge[i], found[i] = self._scan(px[i], py[i], among)
+        return tri, edge, found
+
+    def _walk(
+        self, px: np.ndarray, py: np.ndarray, start: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_locate`'s walks; also the points whose walk was blocked or long."""
         count = len(px)
         tri = start.copy()
         edge = np.full(count, -1, dtype=np.int64)
@@ -162,14 +220,7 @@ class MeshSet:
             stuck.append(moving[~can])
             todo = moving[can]
         stuck.append(todo)
-        lost = np.concatenate(stuck)
-        if len(lost):
-            region = self.region[tri[lost]]
-            for r in np.unique(region).tolist():
-                among = np.flatnonzero(self.region[: self._nt] == r)
-                for i in lost[region == r].tolist():
-                    tri[i], edge[i], found[i] = self._scan(px[i], py[i], among)
-        return tri, edge, found
+        return tri, edge, found, np.concatenate(stuck)
 
     def _scan(self, px: float, py: float, among: np.ndarray) -> tuple[int, int, bool]:
         """:meth:`_locate` of one point among the triangles ``among`` (its region's)."""

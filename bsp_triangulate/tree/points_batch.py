@@ -74,6 +74,7 @@ def insert_points(
     ids = np.full(len(px), -1, dtype=np.int64)
     inside = np.flatnonzero(start >= 0)
     order = inside[hilbert_order(px[inside], py[inside])]
+    order = order[np.argsort(owner[order], kind="stable")]  # polygon by polygon
     mesh = MeshSet(x, y, triangles, region)
     ids[order] = mesh.insert(px[order], py[order], start[order], boundary=False)
     # rows: ring vertices keep theirs; the used points follow them in the order given

@@ -167,3 +167,35 @@ def test_random_polygons_random_starts_several_batches(seed: int):
     assert coordinate_triangles(mesh.x[:n], mesh.y[:n], mesh.triangles()) == (
         coordinate_triangles(np.array(one_by_one.x), np.array(one_by_one.y), one_by_one.triangles())
     )
+
+
+def test_points_in_levels_from_hints_across_a_notch(monkeypatch):
+    # a U: the points alternate between its two arms, so the point before each in the order
+    # (the level's hint) is across the notch, where a walk is blocked by the boundary; the
+    # walk then starts again from the point's own start triangle, and no region is scanned
+    from bsp_triangulate.geometry.delaunay_mesh import containing_triangles
+
+    outer = np.array(
+        [(0.0, 0.0), (30, 0), (30, 40), (20, 40), (20, 10), (10, 10), (10, 40), (0, 40)]
+    )
+    t = triangulate([outer], rule="delaunay")
+    v, triangles = t.vertices[:, :2], t.triangles
+    rng = np.random.default_rng(3)
+    left = np.column_stack([rng.uniform(0.5, 9.5, 300), rng.uniform(11, 39.5, 300)])
+    right = left + np.array([20.0, 0.0])
+    xy = np.stack([left, right], axis=1).reshape(-1, 2)  # left, right, left, ...
+    start = containing_triangles(v[:, 0], v[:, 1], triangles, xy[:, 0], xy[:, 1])
+    assert (start >= 0).all()
+    scans = []
+    original = MeshSet._scan
+    monkeypatch.setattr(MeshSet, "_scan", lambda self, *a: scans.append(1) or original(self, *a))
+    mesh = MeshSet(v[:, 0], v[:, 1], triangles, np.zeros(len(triangles), int))
+    ids = mesh.insert(xy[:, 0], xy[:, 1], start)
+    assert (ids >= 0).all() and not scans
+    one_by_one = DelaunayMesh(v[:, 0], v[:, 1], triangles)
+    one_by_one.insert_many(xy[:, 0], xy[:, 1])
+    check_links(mesh)
+    n = mesh.vertex_count
+    assert coordinate_triangles(mesh.x[:n], mesh.y[:n], mesh.triangles()) == (
+        coordinate_triangles(np.array(one_by_one.x), np.array(one_by_one.y), one_by_one.triangles())
+    )
