@@ -392,30 +392,33 @@ class MeshSet:
             k = s % 3
             base = s - k
             a, b, c, d = vertex[s], vertex[base + _NEXT[k]], vertex[base + _PREV[k]], vertex[n]
-            bad = incircle_sos_many(x[a], y[a], x[b], y[b], x[c], y[c], x[d], y[d]) > 0
-            s, n = s[bad], n[bad]
-            if not len(s):
+            bad = np.flatnonzero(
+                incircle_sos_many(x[a], y[a], x[b], y[b], x[c], y[c], x[d], y[d]) > 0
+            )
+            if not len(bad):
                 break
+            s, n = s[bad], n[bad]
             t1, t2 = s // 3, n // 3
             np.minimum.at(claim, t1, s)
             np.minimum.at(claim, t2, s)
             wins = (claim[t1] == s) & (claim[t2] == s)
             claim[t1] = _FREE
             claim[t2] = _FREE
-            lost = s[~wins]
-            flipped = np.zeros(0, dtype=np.int64)
-            if len(lost):
-                flipped = np.concatenate([t1[wins], t2[wins]])
-            rows = _Rows()
-            self._flip(rows, s[wins], n[wins])
-            rows.write(self)
+            won = bad[wins]
+            outer = self._flip(s[wins], n[wins], a[won], b[won], c[won], d[won])
             self.changed[t1[wins]] = True
             self.changed[t2[wins]] = True
+            lost = s[~wins]
             if len(lost):
                 # a loser whose triangle a winner flipped is one of the winner's outer edges
-                gone = np.isin(lost // 3, flipped) | np.isin(across[lost] // 3, flipped)
+                mark = self._claim
+                mark[t1[wins]] = 0
+                mark[t2[wins]] = 0
+                gone = (mark[lost // 3] == 0) | (mark[across[lost] // 3] == 0)
+                mark[t1[wins]] = _FREE
+                mark[t2[wins]] = _FREE
                 lost = lost[~gone]
-            dirty = np.concatenate([lost, rows.outer_slots()])
+            dirty = np.concatenate([lost, outer])
 
     def _distinct(self, slots: np.ndarray) -> np.ndarray:
         """The distinct values of ``slots`` (slot ids), in no particular order (no sort)."""
@@ -426,22 +429,44 @@ class MeshSet:
         stamp[slots] = -1
         return slots[first]
 
-    def _flip(self, rows: _Rows, s: np.ndarray, n: np.ndarray) -> None:
-        """Flip the edge (b, c) of slot s in t = (a, b, c), d across it (slot n): t becomes
-        (a, b, d) and the neighbour (a, d, c)."""
-        v, f = self.vertex, self.fixed
+    def _flip(
+        self,
+        s: np.ndarray,
+        n: np.ndarray,
+        a: np.ndarray,
+        b: np.ndarray,
+        c: np.ndarray,
+        d: np.ndarray,
+    ) -> np.ndarray:
+        """Flip the edge (b, c) of slot s in t = (a, b, c), d across it (slot n), for flips
+        that share no triangle: t becomes (a, b, d) and the neighbour (a, d, c). Returns the
+        slots of the four outer edges (to check next)."""
+        vertex, across, fixed, moved = self.vertex, self.across, self.fixed, self._moved
         k = s % 3
         base = s - k
         j = n % 3
         q = n - j
-        a, b, c, d = v[s], v[base + _NEXT[k]], v[base + _PREV[k]], v[n]
-        s_bd, s_dc = q + _NEXT[j], q + _PREV[j]
-        s_ca, s_ab = base + _NEXT[k], base + _PREV[k]
-        t, t2 = base // 3, q // 3
-        rows.add(t, t, (a, b, d), (s_bd, q + 2, s_ab), (True, False, True), (f[s_bd], 0, f[s_ab]))
-        rows.add(
-            t2, t2, (a, d, c), (s_dc, s_ca, base + 1), (True, True, False), (f[s_dc], f[s_ca], 0)
-        )
+        # the outer edges' old slots (b d, a b, d c, c a) and the slots they move to
+        old = np.concatenate([q + _NEXT[j], base + _PREV[k], q + _PREV[j], base + _NEXT[k]])
+        new = np.concatenate([base, base + 2, q, q + 1])
+        held = fixed[old]
+        # each outer edge links to wherever its other side is after every flip of the pass
+        neighbour = across[old]
+        moved[old] = new
+        target = np.where(neighbour >= 0, moved[neighbour], -1)
+        np.copyto(target, neighbour, where=target < 0)
+        moved[old] = -1
+        vertex[base], vertex[base + 1], vertex[base + 2] = a, b, d
+        vertex[q], vertex[q + 1], vertex[q + 2] = a, d, c
+        fixed[new] = held
+        fixed[base + 1] = False
+        fixed[q + 2] = False
+        across[base + 1] = q + 2
+        across[q + 2] = base + 1
+        across[new] = target
+        linked = target >= 0
+        across[target[linked]] = new[linked]
+        return new
 
 
 class _Rows:
