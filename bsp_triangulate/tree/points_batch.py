@@ -27,8 +27,10 @@ class InsertedMesh:
     of its vertices (ring vertices, then the points used, in the order given), counter-
     clockwise in the output's XY; ``point_ids`` per given point its row there, or -1;
     ``mirrored``: its working plane mirrors x (its outer ring is clockwise in XY);
-    ``across``: per slot ``3t + k`` (the edge from corner k + 1 to k + 2 of triangle t) the
-    slot of the same edge in the neighbouring triangle, or -1, where known."""
+    ``across``: where known, the links of the triangles as they are in the working plane
+    (``triangles`` with their first two corners swapped where ``mirrored``): per slot
+    ``3t + k`` (the edge from corner k + 1 to k + 2 of triangle t) the slot of the same edge
+    in the neighbouring triangle, or -1."""
 
     triangles: np.ndarray
     point_ids: np.ndarray
@@ -105,16 +107,6 @@ def insert_points(
             tri[:, [1, 0, 2]] if mirror[k] < 0 else tri,
             point_rows[point_starts[k] : point_starts[k] + counts[k]],
             bool(mirror[k] < 0),
-            swapped_links(across) if mirror[k] < 0 else across,
+            across,
         )
     return found
-
-
-def swapped_links(across: np.ndarray) -> np.ndarray:
-    """The links of triangles (per slot ``3t + k``: the slot across its edge, or -1) for the
-    same triangles with their first two corners swapped: slots 0 and 1 trade places."""
-    swapped = across.reshape(-1, 3)[:, [1, 0, 2]].ravel()
-    return np.where(swapped >= 0, swapped - swapped % 3 + _SWAP[swapped % 3], -1)
-
-
-_SWAP = np.array([1, 0, 2])

@@ -22,7 +22,7 @@ from ..geometry.rings_batch import ragged_index
 from ..triangulation import Triangulation, TriangulationError
 from .breadth_first import breadth_first
 from .one_polygon import AREA_TOLERANCE
-from .points_batch import InsertedMesh, swapped_links
+from .points_batch import InsertedMesh
 
 
 def trees_of_inserted(
@@ -257,7 +257,7 @@ class _Parts:
             ):
                 links = None  # linked below from the triangles
             elif links is not None:
-                links.append(swapped_links(done.across) if m < 0 else done.across)
+                links.append(done.across)
             given_xy.append(piece.given[:, :2])
         counts = np.array([len(v) for v in vertices], dtype=np.int64)
         offsets = np.cumsum(counts) - counts
