@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from .geometry.predicates import orient_many
 from .geometry.rings import PLANES, normalise_rings
 from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
 from .rules import get_rule
@@ -198,16 +199,53 @@ def _points_at_once(
         found = triangulate_rings()
     except (ArithmeticError, ValueError, TypeError):
         return {}, {}, {}
+    rough = _rough_ring_meshes(polygons, found, plane)
     inserted: list[InsertedMesh | None] = [None] * len(index)
     trees: list[Triangulation | None] = [None] * len(index)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         try:
-            inserted = insert_points(polygons, found, points)
-            trees = trees_of_inserted(polygons, found, points, inserted, plane)
+            inserted = insert_points(polygons, found, points, rough)
+            trees = trees_of_inserted(polygons, found, points, inserted, plane, rough)
         except (ArithmeticError, ValueError, TypeError, IndexError):
             trees = [None] * len(index)
     done = {number: tree for number, tree in zip(index, trees) if tree is not None}
     return done, dict(zip(index, found)), dict(zip(index, inserted))
+
+
+def _rough_ring_meshes(
+    polygons: list[Sequence[object]], found: list[Triangulation | None], plane: str
+) -> list[bool]:
+    """Where the batch path left a polygon's rings (``found`` None: most often too many
+    vertices), their triangulation under rule first into ``found``, to be flipped into their
+    constrained Delaunay one by the insertion; per polygon whether it is such a one. Left
+    out where rule first fails, the rings share a point (vertices of equal x, y) or a
+    triangle is not strictly counter-clockwise in XY (working plane other than XY), which
+    the one-polygon builder decides."""
+    rough = [False] * len(found)
+    for number, mesh in enumerate(found):
+        if mesh is not None:
+            continue
+        try:
+            with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+                first = _triangulate(
+                    polygons[number],
+                    rule="first",
+                    planar_tolerance=0.0,
+                    invalid="fail",
+                    plane=plane,
+                )
+        except (TriangulationError, ArithmeticError, ValueError, TypeError):
+            continue
+        xy = first.vertices[:, :2]
+        corners = xy[first.triangles]
+        if (
+            len(first.triangles)
+            and len(np.unique(xy, axis=0)) == len(xy)
+            and (orient_many(*(corners[:, k, axis] for k in range(3) for axis in (0, 1))) > 0).all()
+        ):
+            # every triangle strictly counter-clockwise in XY (not so in another working plane)
+            found[number], rough[number] = first, True
+    return rough
 
 
 def _mesh_given(mesh: object) -> bool:

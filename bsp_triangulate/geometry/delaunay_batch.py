@@ -73,6 +73,14 @@ class MeshSet:
         """(t, 3) vertex ids of every triangle, counter-clockwise."""
         return self.vertex[: 3 * self._nt].reshape(-1, 3)
 
+    def make_delaunay(self, triangles: np.ndarray) -> None:
+        """Flip the edges of ``triangles`` (and those beyond, in turn) until every edge is
+        locally Delaunay: any triangulation of a region becomes its constrained Delaunay
+        one (Lawson), the boundary and fixed edges kept."""
+        triangles = np.asarray(triangles, dtype=np.int64)
+        if len(triangles):
+            self._flip_all((3 * triangles[:, None] + np.arange(3)).ravel())
+
     def insert(
         self, px: np.ndarray, py: np.ndarray, start: np.ndarray, boundary: bool = True
     ) -> np.ndarray:

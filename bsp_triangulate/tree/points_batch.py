@@ -42,11 +42,14 @@ def insert_points(
     polygons: Sequence[Sequence[object]],
     ring_meshes: Sequence[Triangulation | None],
     points: Sequence[object],
+    rough: Sequence[bool] | None = None,
 ) -> list[InsertedMesh | None]:
     """Per polygon (rings as given, its rings' constrained Delaunay triangulation from the
     batch path or None, its points (m, 2 or 3) in XY): its :class:`InsertedMesh`, or None
-    where it has no ring triangulation. A point is used where it lies strictly inside a
-    triangle or on an edge between two, and is no vertex or repeat of an earlier point."""
+    where it has no ring triangulation. ``rough``: per polygon, whether its ring
+    triangulation is any one, flipped here into the constrained Delaunay one first. A point
+    is used where it lies strictly inside a triangle or on an edge between two, and is no
+    vertex or repeat of an earlier point."""
     kept = [
         i
         for i, mesh in enumerate(ring_meshes)
@@ -78,6 +81,9 @@ def insert_points(
     order = inside[hilbert_order(px[inside], py[inside])]
     order = order[np.argsort(owner[order], kind="stable")]  # polygon by polygon
     mesh = MeshSet(x, y, triangles, region)
+    if rough is not None:
+        flip = np.flatnonzero(np.array([rough[i] for i in kept], dtype=bool)[region])
+        mesh.make_delaunay(flip)
     ids[order] = mesh.insert(px[order], py[order], start[order], boundary=False)
     # rows: ring vertices keep theirs; the used points follow them in the order given
     used = ids >= 0

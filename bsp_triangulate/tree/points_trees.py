@@ -31,9 +31,10 @@ def trees_of_inserted(
     points: Sequence[object],
     inserted: Sequence[InsertedMesh | None],
     plane: str = "auto",
+    rough: Sequence[bool] | None = None,
 ) -> list[Triangulation | None]:
     """Per polygon (as :func:`insert_points` takes them, with its results; ``plane`` as
-    given to the engine): the BSP tree read
+    given to the engine; ``rough`` as :func:`insert_points` takes it): the BSP tree read
     off its inserted mesh by the one-polygon builder's walk (``delaunay_points.tree_of_cdt``),
     for all polygons at once, or None where the polygon is not plainly one the batch path
     took or a check fails (the one-polygon builder then decides and names what is wrong).
@@ -53,8 +54,10 @@ def trees_of_inserted(
         if piece is None or not np.array_equal(np.concatenate(piece.rings), ring_mesh.vertices):
             continue
         if not (done.point_ids >= 0).any():
-            # no point used: the rings' own tree, as the one-polygon builder makes it
-            found[number] = replace(ring_mesh, point_ids=done.point_ids)
+            # no point used: the rings' own tree, as the one-polygon builder makes it (a
+            # rough ring mesh is not: that builder decides)
+            if rough is None or not rough[number]:
+                found[number] = replace(ring_mesh, point_ids=done.point_ids)
         else:
             pieces.append(piece)
     _read_trees(pieces, found, known=False)

@@ -219,3 +219,39 @@ def test_an_empty_mesh_counts_as_none_and_the_points_are_inserted_at_once(
     assert not own
     for rings, given, result in zip(polygons, points, results):
         assert_same_fields(result, triangulate(rings, points=given, rule="delaunay"))
+
+
+def wavy_polygon(count: int, clockwise: bool = False) -> list[np.ndarray]:
+    """An outer ring of ``count`` vertices (more than the batch path takes) around a square
+    island."""
+    angle = np.linspace(0.0, 2 * np.pi, count, endpoint=False)
+    radius = 50.0 + 8.0 * np.sin(7 * angle)
+    outer = np.column_stack([radius * np.cos(angle), radius * np.sin(angle), np.zeros(count)])
+    island = np.array([(-5.0, -5.0, 0.0), (-5.0, 5.0, 0.0), (5.0, 5.0, 0.0), (5.0, -5.0, 0.0)])
+    rings = [np.round(outer, 3), island]
+    return [ring[::-1] for ring in rings] if clockwise else rings
+
+
+def test_large_polygons_take_a_rough_ring_mesh_and_the_one_polygon_results(monkeypatch) -> None:
+    # rings the batch path leaves (over 256 vertices) are triangulated under rule first and
+    # flipped by the insertion: the same fields as one polygon at a time, without the engine
+    from bsp_triangulate import api
+
+    rng = np.random.default_rng(4)
+    polygons = [wavy_polygon(400), wavy_polygon(300, clockwise=True), wavy_polygon(20)]
+    wall = [np.column_stack([np.linspace(0, 40, 300), np.zeros(300), np.zeros(300)])]
+    wall[0] = np.vstack([wall[0], [(40.0, 0.0, 10.0), (0.0, 0.0, 10.0)]])
+    polygons.append(wall)  # steep: a working plane other than XY, left to the engine
+    points = [np.column_stack([rng.uniform(-30, 30, (200, 2)), rng.uniform(0, 9, 200)])] * 3
+    points.append(np.array([(10.0, 0.0, 5.0), (20.0, 0.0, 5.0)]))
+    engine = []
+    original = api._engine_result
+    monkeypatch.setattr(
+        api,
+        "_engine_result",
+        lambda rings, *a, **k: engine.append(len(rings[0])) or original(rings, *a, **k),
+    )
+    results = triangulate_many(polygons, points=points, rule="delaunay")
+    assert engine == [302]
+    for rings, given, result in zip(polygons, points, results):
+        assert_same_fields(result, triangulate(rings, points=given, rule="delaunay"))
