@@ -289,43 +289,56 @@ class MeshSet:
         # new triangle ids: two per point, one per boundary-edge point
         per_point = np.where(inside | interior, 2, 1)
         new_start = first_new + np.cumsum(per_point) - per_point
-        rows = _Rows()
+        dirty = []
         i = np.flatnonzero(inside)
         if len(i):
-            self._split_inside(rows, ids[i], tri[i], new_start[i])
+            dirty.append(self._split_inside(ids[i], tri[i], new_start[i]))
         e = np.flatnonzero(~inside)
         if len(e):
+            rows = _Rows()
             self._split_edges(rows, ids[e], tri[e], edge[e], other[e], new_start[e])
-        touched = rows.write(self)
-        self.region[first_new : self._nt] = self.region[rows.source_of_new(first_new, self._nt)]
-        self.changed[touched // 3] = True
+            touched = rows.write(self)
+            made = rows.new_rows(first_new)
+            self.region[made] = self.region[rows.source_of(made)]
+            self.changed[touched // 3] = True
+            dirty.append(rows.outer_slots())
         # edges opposite the new vertices may not be locally Delaunay
-        self._flip_all(rows.outer_slots())
+        self._flip_all(np.concatenate(dirty))
         return ids
 
-    def _split_inside(self, rows: _Rows, p: np.ndarray, t: np.ndarray, new: np.ndarray) -> None:
-        """1 -> 3: (p, b, c) keeps id t, (p, c, a) and (p, a, b) are the new ids."""
+    def _split_inside(self, p: np.ndarray, t: np.ndarray, new: np.ndarray) -> np.ndarray:
+        """1 -> 3, for triangles that no other split of the batch touches: (p, b, c) keeps id
+        t, (p, c, a) and (p, a, b) are the new ids. Returns the slots of the outer edges."""
+        vertex, across, fixed, moved = self.vertex, self.across, self.fixed, self._moved
         base, s1, s2 = 3 * t, 3 * new, 3 * (new + 1)
-        v = self.vertex
-        a, b, c = v[base], v[base + 1], v[base + 2]
-        f = self.fixed
-        rows.add(t, t, (p, b, c), (base, s1 + 2, s2 + 1), (True, False, False), (f[base], 0, 0))
-        rows.add(
-            new,
-            t,
-            (p, c, a),
-            (base + 1, s2 + 2, base + 1),
-            (True, False, False),
-            (f[base + 1], 0, 0),
-        )
-        rows.add(
-            new + 1,
-            t,
-            (p, a, b),
-            (base + 2, base + 2, s1 + 1),
-            (True, False, False),
-            (f[base + 2], 0, 0),
-        )
+        a, b, c = vertex[base], vertex[base + 1], vertex[base + 2]
+        # the edge b c keeps its slot; c a and a b move to the new triangles
+        old = np.concatenate([base + 1, base + 2])
+        moved_to = np.concatenate([s1, s2])
+        held = fixed[old]
+        neighbour = across[old]
+        moved[old] = moved_to
+        target = np.where(neighbour >= 0, moved[neighbour], -1)
+        np.copyto(target, neighbour, where=target < 0)
+        moved[old] = -1
+        vertex[base] = p
+        vertex[s1], vertex[s1 + 1], vertex[s1 + 2] = p, c, a
+        vertex[s2], vertex[s2 + 1], vertex[s2 + 2] = p, a, b
+        fixed[moved_to] = held
+        for slot in (base + 1, base + 2, s1 + 1, s1 + 2, s2 + 1, s2 + 2):
+            fixed[slot] = False
+        for one, two in ((base + 1, s1 + 2), (base + 2, s2 + 1), (s1 + 1, s2 + 2)):
+            across[one] = two
+            across[two] = one
+        across[moved_to] = target
+        linked = target >= 0
+        across[target[linked]] = moved_to[linked]
+        self.region[new] = self.region[t]
+        self.region[new + 1] = self.region[t]
+        self.changed[t] = True
+        self.changed[new] = True
+        self.changed[new + 1] = True
+        return np.concatenate([base, s1, s2])
 
     def _split_edges(
         self,
@@ -542,12 +555,15 @@ class _Rows:
         """The slots of the outer edges written (to check for flips)."""
         return self._outer
 
-    def source_of_new(self, first: int, end: int) -> np.ndarray:
-        """The triangle each new id ``first .. end - 1`` was made from."""
-        source = np.empty(end - first, dtype=np.int64)
-        new = self._tri >= first
-        source[self._tri[new] - first] = self._source[new]
-        return source
+    def new_rows(self, first: int) -> np.ndarray:
+        """The triangle ids written from ``first`` on (new ones)."""
+        return self._tri[self._tri >= first]
+
+    def source_of(self, made: np.ndarray) -> np.ndarray:
+        """The triangle each of the ids ``made`` (written here) was made from."""
+        order = np.argsort(self._tri, kind="stable")
+        at = order[np.searchsorted(self._tri[order], made)]
+        return self._source[at]
 
 
 _FREE = np.iinfo(np.int64).max
