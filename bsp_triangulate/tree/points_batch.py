@@ -75,15 +75,15 @@ def insert_points(
     owner = np.repeat(np.arange(len(kept)), counts)
     px = np.concatenate([p[:, 0] for p in given]) * mirror[owner]
     py = np.concatenate([p[:, 1] for p in given])
-    start = containing_triangles(x, y, triangles, px, py, region, owner)
+    mesh = MeshSet(x, y, triangles, region)
+    if rough is not None:
+        flip = np.flatnonzero(np.array([rough[i] for i in kept], dtype=bool)[region])
+        mesh.make_delaunay(flip)  # before the points are looked for: far fewer slivers
+    start = containing_triangles(x, y, mesh.triangles(), px, py, region, owner)
     ids = np.full(len(px), -1, dtype=np.int64)
     inside = np.flatnonzero(start >= 0)
     order = inside[hilbert_order(px[inside], py[inside])]
     order = order[np.argsort(owner[order], kind="stable")]  # polygon by polygon
-    mesh = MeshSet(x, y, triangles, region)
-    if rough is not None:
-        flip = np.flatnonzero(np.array([rough[i] for i in kept], dtype=bool)[region])
-        mesh.make_delaunay(flip)
     ids[order] = mesh.insert(px[order], py[order], start[order], boundary=False)
     # rows: ring vertices keep theirs; the used points follow them in the order given
     used = ids >= 0
