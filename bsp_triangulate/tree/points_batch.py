@@ -60,7 +60,7 @@ def insert_points(
         return found
     sizes = np.array([len(ring_meshes[i].vertices) for i in kept], dtype=np.int64)
     offsets = np.cumsum(sizes) - sizes
-    mirror = np.array([xy_mirror(polygons[i]) for i in kept])
+    mirror = _mirrors(polygons, ring_meshes, kept)
     x = np.concatenate([ring_meshes[i].vertices[:, 0] * m for i, m in zip(kept, mirror)])
     y = np.concatenate([ring_meshes[i].vertices[:, 1] for i in kept])
     triangles = np.concatenate(
@@ -116,3 +116,22 @@ def insert_points(
             across,
         )
     return found
+
+
+def _mirrors(
+    polygons: Sequence[Sequence[object]],
+    ring_meshes: Sequence[Triangulation | None],
+    kept: list[int],
+) -> np.ndarray:
+    """Per polygon ``kept``: -1.0 where its outer ring is clockwise in XY, else 1.0. Read off
+    the triangle on the outer ring's first edge (vertices 0 and 1), the first of its ring
+    mesh: counter-clockwise, it lists 0 before 1 exactly where the polygon lies left of that
+    edge; else (no such first triangle) from the ring itself."""
+    first = np.array([ring_meshes[i].triangles[0] for i in kept], dtype=np.int64).reshape(-1, 3)
+    after = first[:, [1, 2, 0]]
+    forward = ((first == 0) & (after == 1)).any(axis=1)
+    backward = ((first == 1) & (after == 0)).any(axis=1)
+    mirror = np.where(forward, 1.0, -1.0)
+    for k in np.flatnonzero(forward == backward).tolist():
+        mirror[k] = xy_mirror(polygons[kept[k]])
+    return mirror

@@ -255,3 +255,19 @@ def test_large_polygons_take_a_rough_ring_mesh_and_the_one_polygon_results(monke
     assert engine == [302]
     for rings, given, result in zip(polygons, points, results):
         assert_same_fields(result, triangulate(rings, points=given, rule="delaunay"))
+
+
+def test_mirrors_read_off_the_first_triangle_or_the_ring() -> None:
+    from bsp_triangulate.geometry.rings import xy_mirror
+    from bsp_triangulate.tree.points_batch import _mirrors
+
+    rnd = random.Random(8)
+    polygons = [random_polygon(rnd, islands=1) for _ in range(6)]
+    polygons[1::2] = [[ring[::-1] for ring in rings] for rings in polygons[1::2]]
+    meshes = [triangulate(rings, rule="delaunay") for rings in polygons]
+    # a mesh whose first row is not on the outer ring's first edge: the ring decides
+    meshes[2] = replace(meshes[2], triangles=meshes[2].triangles[::-1].copy())
+    meshes[3] = replace(meshes[3], triangles=meshes[3].triangles[::-1].copy())
+    expected = [xy_mirror(rings) for rings in polygons]
+    assert sorted(set(expected)) == [-1.0, 1.0]
+    assert _mirrors(polygons, meshes, list(range(6))).tolist() == expected
