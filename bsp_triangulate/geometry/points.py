@@ -51,8 +51,8 @@ def first_occurrences(
     keep = np.ones(len(px), dtype=bool)
     if len(px) < 2:
         return keep
-    keys = (np.arange(len(px)), py, px) if group is None else (np.arange(len(px)), py, px, group)
-    order = np.lexsort(keys)
+    # lexsort is stable: equal points stay in the order given, the first one first
+    order = np.lexsort((py, px) if group is None else (py, px, group))
     sx, sy = px[order], py[order]
     repeat = (sx[1:] == sx[:-1]) & (sy[1:] == sy[:-1])
     if group is not None:
