@@ -75,7 +75,7 @@ def compare(
     polygons: Sequence[Rings],
     points: Sequence[np.ndarray],
     budget: float | None,
-    rounds: int = 3,
+    rounds: int = 5,
 ) -> tuple[str, list[Row]]:
     """A Markdown table and rows: both times (best of ``rounds``), triangles, the ratio."""
     vertices = sum(len(ring) for rings in polygons for ring in rings)
@@ -148,7 +148,7 @@ def main() -> None:
         plane="xy",
     )
     points = [result.points for result in results]
-    print(compare(polygons, points, arguments.budget, 1 if arguments.quick else 3)[0])
+    print(compare(polygons, points, arguments.budget, 1 if arguments.quick else 5)[0])
 
 
 if __name__ == "__main__":

@@ -634,7 +634,7 @@ def run_tables(
     text += failed or ["All refined meshes are within their tolerance."]
     rows += [Row("fidelity check", "FAIL", line) for line in failed]
     if compiled and cdt_input is not None:
-        table, cdt_rows = bench_cdt.compare(*cdt_input, budget, rounds=1 if quick else 3)
+        table, cdt_rows = bench_cdt.compare(*cdt_input, budget, rounds=1 if quick else 5)
         text += ["", f"**{CDT_CASE}**", "", table]
         rows += [Row(CDT_CASE, row.measure, row.value, row.unit, row.note) for row in cdt_rows]
     return "\n".join(text), rows

@@ -111,17 +111,47 @@ class MeshSet:
             stride //= 2
             if not len(level):
                 continue
-            before = np.maximum.accumulate(np.where(ids >= 0, np.arange(len(px)), -1))[level]
-            hint = before >= 0
-            hint[hint] = region[before[hint]] == region[level[hint]]
-            if hint.any():
-                # a triangle at each vertex (any one)
-                slots = np.arange(3 * self._nt)
-                at_vertex = np.empty(self._nv, dtype=np.int64)
-                at_vertex[self.vertex[slots]] = slots // 3
-                near[level[hint]] = at_vertex[ids[before[hint]]]
+            self._hint(px, py, level, near, ids, region)
             self._insert_level(px, py, level, near, ids, origin, boundary)
         return ids
+
+    def _hint(
+        self,
+        px: np.ndarray,
+        py: np.ndarray,
+        level: np.ndarray,
+        near: np.ndarray,
+        ids: np.ndarray,
+        region: np.ndarray,
+    ) -> None:
+        """Into ``near``: for each point of ``level``, a triangle at the vertex of the nearer
+        of the points inserted before and after it in the order given (of its region)."""
+        placed = ids >= 0
+        if not placed.any():
+            return
+        count = len(px)
+        before = np.maximum.accumulate(np.where(placed, np.arange(count), -1))[level]
+        after = np.minimum.accumulate(np.where(placed, np.arange(count), count)[::-1])[::-1]
+        after = after[level]
+        has_before = before >= 0
+        has_before[has_before] = region[before[has_before]] == region[level[has_before]]
+        has_after = after < count
+        has_after[has_after] = region[after[has_after]] == region[level[has_after]]
+        if not (has_before | has_after).any():
+            return
+        vertex_before = ids[np.maximum(before, 0)]
+        vertex_after = ids[np.minimum(after, count - 1)]
+        qx, qy = px[level], py[level]
+        far_before = (self.x[vertex_before] - qx) ** 2 + (self.y[vertex_before] - qy) ** 2
+        far_after = (self.x[vertex_after] - qx) ** 2 + (self.y[vertex_after] - qy) ** 2
+        take_after = has_after & (~has_before | (far_after < far_before))
+        chosen = np.where(take_after, vertex_after, vertex_before)
+        hinted = has_before | has_after
+        # a triangle at each vertex (any one)
+        slots = np.arange(3 * self._nt)
+        at_vertex = np.empty(self._nv, dtype=np.int64)
+        at_vertex[self.vertex[slots]] = slots // 3
+        near[level[hinted]] = at_vertex[chosen[hinted]]
 
     def _insert_level(
         self,
