@@ -112,36 +112,50 @@ def triangulate_many(
     # polygons with interior points go to the one-polygon builder
     plain = [i for i in range(len(polygons)) if points is None or _point_count(points[i]) == 0]
     results: list = [None] * len(polygons)
-    if planar_tolerance <= 0 and len(plain) > 1:
-        # many small polygons in lock-step; it leaves (None) what it does not decide exactly
-        from .tree.batch import triangulate_batch
-
-        batch = [polygons[i] for i in plain]
-        flags = None if proven is None else [proven[i] for i in plain]
-        try:
-            decided = list(triangulate_batch(batch, rule, proven=flags, plane=plane))
-        except (ArithmeticError, ValueError, TypeError):
-            # malformed or non-finite input broke the lock-step path: batch only the polygons
-            # that normalise, the engine names the ring of the others
-            decided = _batch_well_formed(batch, rule, triangulate_batch, plane)
-        for index, done in zip(plain, decided):
-            results[index] = done
-    ring_meshes: dict[int, Triangulation | None] = {}
-    inserted: dict[int, InsertedMesh | None] = {}
-    if points is not None and _at_once_wanted(rule, planar_tolerance, invalid):
-        from .tree.batch import triangulate_batch
-
-        taken = set(plain)
-        wanted = [
+    at_once = points is not None and _at_once_wanted(rule, planar_tolerance, invalid)
+    taken = set(plain)
+    wanted = (
+        [
             i
             for i in range(len(polygons))
             if i not in taken and (meshes is None or not _mesh_given(meshes[i]))
         ]
+        if at_once
+        else []
+    )
+    from .tree.batch import triangulate_batch
+
+    wanted_rings: list[Triangulation | None] | None = None
+    if planar_tolerance <= 0 and (len(plain) > 1 or wanted):
+        # many small polygons in lock-step, those with points for their rings alone (one
+        # call: its rounds serve both); it leaves (None) what it does not decide exactly
+        batch = [polygons[i] for i in plain + wanted]
+        flags = None if proven is None else [proven[i] for i in plain] + [False] * len(wanted)
+        try:
+            decided = list(triangulate_batch(batch, rule, proven=flags, plane=plane))
+            wanted_rings = decided[len(plain) :]
+        except (ArithmeticError, ValueError, TypeError):
+            # malformed or non-finite input broke the lock-step path: batch only the polygons
+            # that normalise, the engine names the ring of the others
+            decided = (
+                _batch_well_formed(batch[: len(plain)], rule, triangulate_batch, plane)
+                if len(plain) > 1
+                else [None] * len(plain)
+            )
+        for index, done in zip(plain, decided):
+            results[index] = done
+    ring_meshes: dict[int, Triangulation | None] = {}
+    inserted: dict[int, InsertedMesh | None] = {}
+    if at_once:
         trees, ring_meshes, inserted = _points_at_once(
             wanted,
             [polygons[i] for i in wanted],
             [points[i] for i in wanted],
-            lambda: triangulate_batch([polygons[i] for i in wanted], rule, plane=plane),
+            lambda: (
+                wanted_rings
+                if wanted_rings is not None
+                else triangulate_batch([polygons[i] for i in wanted], rule, plane=plane)
+            ),
             plane,
         )
         for index, tree in trees.items():
