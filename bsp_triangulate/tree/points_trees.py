@@ -187,24 +187,38 @@ def _read_trees(pieces: list[_Piece], found: list[Triangulation | None], known: 
     taken = np.flatnonzero(good)
     good[taken[reached != parts.triangle_counts[taken]]] = False
     node_starts = np.cumsum(reached) - reached
-    t, k = np.divmod(slot, 3)
-    a, b, c = tri[t, (k + 1) % 3], tri[t, (k + 2) % 3], tri[t, k]
+    # every node's triangle in the output's XY (base vertices swapped where mirrored), its
+    # parent numbered within its polygon: one pass over all, then a slice per polygon
+    node_owner = np.repeat(taken, reached)
+    k = slot % 3
+    corner = tri.ravel()
+    base = slot - k
+    start_v, end_v = corner[base + _NEXT[k]], corner[base + _AFTER_NEXT[k]]
+    swap = parts.mirror[node_owner] < 0
+    local = np.empty((len(slot), 3), dtype=np.int64)
+    shift = parts.offsets[node_owner]
+    local[:, 0] = np.where(swap, end_v, start_v) - shift
+    local[:, 1] = np.where(swap, start_v, end_v) - shift
+    local[:, 2] = corner[slot] - shift
+    parent = np.where(parent >= 0, parent - np.repeat(node_starts, reached), -1)
+    side = side.astype(np.int8)
     for number, at, size in zip(taken.tolist(), node_starts.tolist(), reached.tolist()):
         if not good[number]:
             continue
         nodes = slice(at, at + size)
-        offset = parts.offsets[number]
-        ends = (a[nodes] - offset, b[nodes] - offset, c[nodes] - offset)
-        mirrored = parts.mirror[number] < 0
-        up = parent[nodes]
         found[parts.kept[number]] = Triangulation(
             vertices=parts.vertices[number],
-            triangles=np.column_stack([ends[1], ends[0], ends[2]] if mirrored else ends),
-            parent=np.where(up >= 0, up - at, -1),
-            depth=depth[nodes].copy(),
-            side=side[nodes].astype(np.int8),
+            triangles=local[nodes],
+            parent=parent[nodes],
+            depth=depth[nodes],
+            side=side[nodes],
             point_ids=parts.point_ids[number],
         )
+
+
+# the triangle's slots k + 1 and k + 2 (mod 3) from its slot k
+_NEXT = np.array([1, 2, 0])
+_AFTER_NEXT = np.array([2, 0, 1])
 
 
 @dataclass
