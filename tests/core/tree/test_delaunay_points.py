@@ -1,5 +1,5 @@
 """Rule "delaunay" with interior points: the points inserted into the rings' triangulation
-and the tree read off it by a depth-first walk give the recursion's triangles, as a valid BSP
+and the tree read off it breadth-first give the recursion's triangles, as a valid BSP
 tree (docs/algorithm.md, section 5b)."""
 
 from __future__ import annotations
