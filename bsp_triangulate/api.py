@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from .geometry.delaunay_mesh import edge_links
 from .geometry.predicates import orient_many
 from .geometry.rings import PLANES, normalise_rings
 from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
@@ -232,9 +233,10 @@ def _rough_ring_meshes(
     """Where the batch path left a polygon's rings (``found`` None: most often too many
     vertices), their triangulation under rule first into ``found``, to be flipped into their
     constrained Delaunay one by the insertion; per polygon whether it is such a one. Left
-    out where rule first fails, the rings share a point (vertices of equal x, y) or a
-    triangle is not strictly counter-clockwise in XY (working plane other than XY), which
-    the one-polygon builder decides."""
+    out where rule first fails, the rings share a point (vertices of equal x, y), a
+    triangle is not strictly counter-clockwise in XY (working plane other than XY) or the
+    mesh's outline is not the rings' edges (a vertex on another ring's edge), which the
+    one-polygon builder decides."""
     rough = [False] * len(found)
     for number, mesh in enumerate(found):
         if mesh is not None:
@@ -256,10 +258,32 @@ def _rough_ring_meshes(
             len(first.triangles)
             and len(np.unique(xy, axis=0)) == len(xy)
             and (orient_many(*(corners[:, k, axis] for k in range(3) for axis in (0, 1))) > 0).all()
+            and _rims_are_ring_edges(polygons[number], first, plane)
         ):
             # every triangle strictly counter-clockwise in XY (not so in another working plane)
             found[number], rough[number] = first, True
     return rough
+
+
+def _rims_are_ring_edges(rings: Sequence[object], mesh: Triangulation, plane: str) -> bool:
+    """Whether the edges with one triangle of ``mesh`` are exactly the edges of the
+    normalised ``rings`` (not so where a vertex lies on another edge, which the engine
+    splits there)."""
+    clean, _ = normalise_rings(rings, plane)
+    sizes = np.array([len(ring) for ring in clean], dtype=np.int64)
+    n = int(sizes.sum())
+    if n != len(mesh.vertices):
+        return False
+    first = np.repeat(np.cumsum(sizes) - sizes, sizes)
+    start = np.arange(n)
+    end = np.where(start + 1 < first + np.repeat(sizes, sizes), start + 1, first)
+    ring_keys = np.sort(np.minimum(start, end) * n + np.maximum(start, end))
+    across, repeated = edge_links(mesh.triangles, n)
+    rim = np.flatnonzero(across < 0)
+    tri = mesh.triangles
+    a, b = tri[:, [1, 2, 0]].ravel()[rim], tri[:, [2, 0, 1]].ravel()[rim]
+    rim_keys = np.sort(np.minimum(a, b) * n + np.maximum(a, b))
+    return not repeated.any() and np.array_equal(rim_keys, ring_keys)
 
 
 def _mesh_given(mesh: object) -> bool:

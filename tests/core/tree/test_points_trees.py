@@ -271,3 +271,22 @@ def test_mirrors_read_off_the_first_triangle_or_the_ring() -> None:
     expected = [xy_mirror(rings) for rings in polygons]
     assert sorted(set(expected)) == [-1.0, 1.0]
     assert _mirrors(polygons, meshes, list(range(6))).tolist() == expected
+
+
+@pytest.mark.parametrize(
+    "case", ["island vertex on the outer edge", "clockwise", "through a vertex"]
+)
+def test_rings_that_touch_along_an_edge_are_left_to_the_one_polygon_builder(case: str) -> None:
+    # a rough ring mesh (rule first) splits the edge the other ring touches: its outline is
+    # not the ring edges, so the polygon is not inserted at once (it was, and then failed)
+    outer = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)]
+    island = [(5.0, 0.0), (4.0, 2.0), (6.0, 2.0)]
+    if case == "through a vertex":
+        outer = [(0.0, 0.0), (5.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)]
+        island = [(4.0, 0.0), (6.0, 0.0), (5.0, 2.0)][::-1]
+    rings = [outer, island]
+    if case == "clockwise":
+        rings = [ring[::-1] for ring in rings]
+    points = np.array([(2.0, 5.0), (7.5, 6.0)])
+    result = triangulate_many([rings], points=[points], rule="delaunay", on_error="return")[0]
+    assert_same_fields(result, triangulate(rings, points=points, rule="delaunay"))
