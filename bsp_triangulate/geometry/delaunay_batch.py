@@ -339,30 +339,22 @@ class MeshSet:
     def _split_inside(self, p: np.ndarray, t: np.ndarray, new: np.ndarray) -> np.ndarray:
         """1 -> 3, for triangles that no other split of the batch touches: (p, b, c) keeps id
         t, (p, c, a) and (p, a, b) are the new ids. Returns the slots of the outer edges."""
-        vertex, across, fixed, moved = self.vertex, self.across, self.fixed, self._moved
+        vertex, across, fixed = self.vertex, self.across, self.fixed
         base, s1, s2 = 3 * t, 3 * new, 3 * (new + 1)
         a, b, c = vertex[base], vertex[base + 1], vertex[base + 2]
         # the edge b c keeps its slot; c a and a b move to the new triangles
         old = np.concatenate([base + 1, base + 2])
         moved_to = np.concatenate([s1, s2])
-        held = fixed[old]
-        neighbour = across[old]
-        moved[old] = moved_to
-        target = np.where(neighbour >= 0, moved[neighbour], -1)
-        np.copyto(target, neighbour, where=target < 0)
-        moved[old] = -1
+        fixed[moved_to] = fixed[old]
+        self._relink(old, moved_to)
         vertex[base] = p
         vertex[s1], vertex[s1 + 1], vertex[s1 + 2] = p, c, a
         vertex[s2], vertex[s2 + 1], vertex[s2 + 2] = p, a, b
-        fixed[moved_to] = held
         for slot in (base + 1, base + 2, s1 + 1, s1 + 2, s2 + 1, s2 + 2):
             fixed[slot] = False
         for one, two in ((base + 1, s1 + 2), (base + 2, s2 + 1), (s1 + 1, s2 + 2)):
             across[one] = two
             across[two] = one
-        across[moved_to] = target
-        linked = target >= 0
-        across[target[linked]] = moved_to[linked]
         self.region[new] = self.region[t]
         self.region[new + 1] = self.region[t]
         self.changed[t] = True
@@ -480,6 +472,20 @@ class MeshSet:
         stamp[slots] = -1
         return slots[first]
 
+    def _relink(self, old: np.ndarray, new: np.ndarray) -> None:
+        """Edges rewritten together (no slot twice) move from the slots ``old`` to ``new``:
+        link each to wherever its other side is after all of them move. Reads the links of
+        ``old`` first, so call it before any other link of those triangles is written."""
+        across, moved = self.across, self._moved
+        neighbour = across[old]
+        moved[old] = new
+        target = np.where(neighbour >= 0, moved[neighbour], -1)
+        np.copyto(target, neighbour, where=target < 0)
+        moved[old] = -1
+        across[new] = target
+        linked = target >= 0
+        across[target[linked]] = new[linked]
+
     def _flip(
         self,
         s: np.ndarray,
@@ -492,7 +498,7 @@ class MeshSet:
         """Flip the edge (b, c) of slot s in t = (a, b, c), d across it (slot n), for flips
         that share no triangle: t becomes (a, b, d) and the neighbour (a, d, c). Returns the
         slots of the four outer edges (to check next)."""
-        vertex, across, fixed, moved = self.vertex, self.across, self.fixed, self._moved
+        vertex, across, fixed = self.vertex, self.across, self.fixed
         k = s % 3
         base = s - k
         j = n % 3
@@ -500,23 +506,14 @@ class MeshSet:
         # the outer edges' old slots (b d, a b, d c, c a) and the slots they move to
         old = np.concatenate([q + _NEXT[j], base + _PREV[k], q + _PREV[j], base + _NEXT[k]])
         new = np.concatenate([base, base + 2, q, q + 1])
-        held = fixed[old]
-        # each outer edge links to wherever its other side is after every flip of the pass
-        neighbour = across[old]
-        moved[old] = new
-        target = np.where(neighbour >= 0, moved[neighbour], -1)
-        np.copyto(target, neighbour, where=target < 0)
-        moved[old] = -1
+        fixed[new] = fixed[old]
+        self._relink(old, new)
         vertex[base], vertex[base + 1], vertex[base + 2] = a, b, d
         vertex[q], vertex[q + 1], vertex[q + 2] = a, d, c
-        fixed[new] = held
         fixed[base + 1] = False
         fixed[q + 2] = False
         across[base + 1] = q + 2
         across[q + 2] = base + 1
-        across[new] = target
-        linked = target >= 0
-        across[target[linked]] = new[linked]
         return new
 
 
@@ -564,19 +561,11 @@ class _Rows:
         # where each outer edge's old slot goes: its edge's new slot
         old = links[outer]
         new = slots[outer]
-        neighbour = across[old]
-        moved = mesh._moved
-        moved[old] = new
-        target = np.where(neighbour >= 0, moved[neighbour], -1)
-        np.copyto(target, neighbour, where=target < 0)
-        moved[old] = -1
+        mesh._relink(old, new)
         mesh.vertex[slots] = vertices
         mesh.fixed[slots] = fixed
         inner = ~outer
         across[slots[inner]] = links[inner]
-        across[new] = target
-        linked = target >= 0
-        across[target[linked]] = new[linked]
         self._outer = new
         self._tri, self._source = tri, source
         return slots.ravel()
