@@ -12,14 +12,13 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from .geometry.delaunay_mesh import edge_links
-from .geometry.predicates import orient_many
 from .geometry.rings import PLANES, normalise_rings
 from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
 from .rules import get_rule
 from .tree.one_polygon import _as_given, _triangulate
 from .tree.points_batch import InsertedMesh, insert_points
 from .tree.points_trees import trees_of_inserted, trees_of_known
+from .tree.rough_rings import rough_ring_meshes
 from .triangulation import Triangulation, TriangulationError
 
 
@@ -214,7 +213,7 @@ def _points_at_once(
         found = triangulate_rings()
     except (ArithmeticError, ValueError, TypeError):
         return {}, {}, {}
-    rough = _rough_ring_meshes(polygons, found, plane)
+    rough = rough_ring_meshes(polygons, found, plane)
     inserted: list[InsertedMesh | None] = [None] * len(index)
     trees: list[Triangulation | None] = [None] * len(index)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
@@ -225,65 +224,6 @@ def _points_at_once(
             trees = [None] * len(index)
     done = {number: tree for number, tree in zip(index, trees) if tree is not None}
     return done, dict(zip(index, found)), dict(zip(index, inserted))
-
-
-def _rough_ring_meshes(
-    polygons: list[Sequence[object]], found: list[Triangulation | None], plane: str
-) -> list[bool]:
-    """Where the batch path left a polygon's rings (``found`` None: most often too many
-    vertices), their triangulation under rule first into ``found``, to be flipped into their
-    constrained Delaunay one by the insertion; per polygon whether it is such a one. Left
-    out where rule first fails, the rings share a point (vertices of equal x, y), a
-    triangle is not strictly counter-clockwise in XY (working plane other than XY) or the
-    mesh's outline is not the rings' edges (a vertex on another ring's edge), which the
-    one-polygon builder decides."""
-    rough = [False] * len(found)
-    for number, mesh in enumerate(found):
-        if mesh is not None:
-            continue
-        try:
-            with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-                first = _triangulate(
-                    polygons[number],
-                    rule="first",
-                    planar_tolerance=0.0,
-                    invalid="fail",
-                    plane=plane,
-                )
-        except (TriangulationError, ArithmeticError, ValueError, TypeError):
-            continue
-        xy = first.vertices[:, :2]
-        corners = xy[first.triangles]
-        if (
-            len(first.triangles)
-            and len(np.unique(xy, axis=0)) == len(xy)
-            and (orient_many(*(corners[:, k, axis] for k in range(3) for axis in (0, 1))) > 0).all()
-            and _rims_are_ring_edges(polygons[number], first, plane)
-        ):
-            # every triangle strictly counter-clockwise in XY (not so in another working plane)
-            found[number], rough[number] = first, True
-    return rough
-
-
-def _rims_are_ring_edges(rings: Sequence[object], mesh: Triangulation, plane: str) -> bool:
-    """Whether the edges with one triangle of ``mesh`` are exactly the edges of the
-    normalised ``rings`` (not so where a vertex lies on another edge, which the engine
-    splits there)."""
-    clean, _ = normalise_rings(rings, plane)
-    sizes = np.array([len(ring) for ring in clean], dtype=np.int64)
-    n = int(sizes.sum())
-    if n != len(mesh.vertices):
-        return False
-    first = np.repeat(np.cumsum(sizes) - sizes, sizes)
-    start = np.arange(n)
-    end = np.where(start + 1 < first + np.repeat(sizes, sizes), start + 1, first)
-    ring_keys = np.sort(np.minimum(start, end) * n + np.maximum(start, end))
-    across, repeated = edge_links(mesh.triangles, n)
-    rim = np.flatnonzero(across < 0)
-    tri = mesh.triangles
-    a, b = tri[:, [1, 2, 0]].ravel()[rim], tri[:, [2, 0, 1]].ravel()[rim]
-    rim_keys = np.sort(np.minimum(a, b) * n + np.maximum(a, b))
-    return not repeated.any() and np.array_equal(rim_keys, ring_keys)
 
 
 def _mesh_given(mesh: object) -> bool:

@@ -71,6 +71,16 @@ def ragged_index(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     return out
 
 
+def ring_edge_keys(starts: np.ndarray, sizes: np.ndarray, n: int) -> np.ndarray:
+    """Every edge of the closed rings (ring r: the vertices ``starts[r]`` to ``starts[r] +
+    sizes[r] - 1`` of ``n``) as the integer min * n + max of its ends."""
+    start = ragged_index(starts, sizes)
+    end = start + 1
+    filled = sizes > 0
+    end[(np.cumsum(sizes) - 1)[filled]] = starts[filled]  # each ring's last back to its first
+    return np.minimum(start, end) * n + np.maximum(start, end)
+
+
 def covers_in_order(starts: np.ndarray, counts: np.ndarray, total: int) -> bool:
     """The ranges [starts, starts + counts) are the positions 0 .. total - 1 one after
     another: ``ragged_index(starts, counts)`` is then ``arange(total)``, and a gather by it

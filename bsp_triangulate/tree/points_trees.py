@@ -18,7 +18,7 @@ from ..geometry.delaunay_mesh import delaunay_faults, edge_links
 from ..geometry.points import as_point_array, first_occurrences
 from ..geometry.predicates import area_surely_clear, shoelace_products
 from ..geometry.rings import normalise_rings, xy_mirror
-from ..geometry.rings_batch import ragged_index
+from ..geometry.rings_batch import ragged_index, ring_edge_keys
 from ..triangulation import Triangulation, TriangulationError
 from .breadth_first import breadth_first
 from .one_polygon import AREA_TOLERANCE
@@ -170,7 +170,7 @@ def _read_trees(pieces: list[_Piece], found: list[Triangulation | None], known: 
     # the edges with one triangle are the ring edges, each once
     rim = np.flatnonzero(across < 0)
     rim_keys = np.minimum(start[rim], end[rim]) * n + np.maximum(start[rim], end[rim])
-    ring_keys = parts.ring_edge_keys()
+    ring_keys = ring_edge_keys(parts.ring_starts, parts.ring_sizes, n)
     rim_owner = owner[rim // 3]
     good[rim_owner[~np.isin(rim_keys, ring_keys)]] = False
     good &= np.bincount(rim_owner, minlength=len(good)) == parts.ring_edge_counts
@@ -303,15 +303,6 @@ class _Parts:
             ring_sizes=ring_sizes,
             outer=within == 0,
         )
-
-    def ring_edge_keys(self) -> np.ndarray:
-        """Every ring edge as the integer min * n + max of its ends (n vertices in all)."""
-        n = len(self.x)
-        start = ragged_index(self.ring_starts, self.ring_sizes)
-        end = start + 1
-        last = np.cumsum(self.ring_sizes) - 1
-        end[last] = self.ring_starts
-        return np.minimum(start, end) * n + np.maximum(start, end)
 
 
 def _linked(links: list[np.ndarray], triangle_counts: np.ndarray) -> np.ndarray:
