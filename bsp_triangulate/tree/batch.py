@@ -157,12 +157,29 @@ def batch_pieces(
     decided = np.zeros(count, dtype=bool)
     again: list[np.ndarray] = []
 
+    def parts(index: np.ndarray, limit: int) -> list[tuple[np.ndarray, FlatRings, str]]:
+        """The polygons ``index`` normalised, as (polygons, rings, rule) to triangulate:
+        under rule elevation, the level polygons (one z) apart under rule first, which gives
+        them the same apexes (all candidates equally close: the first correct one taken)
+        with far fewer tests."""
+        flat = flatten(index, limit)
+        if rule != "elevation":
+            return [(index, flat, rule)]
+        level = _level(flat)
+        if level.all() or not level.any():
+            return [(index, flat, "first" if level.all() else rule)]
+        return [
+            (part, flatten(part, limit), name)
+            for part, name in ((index[level], "first"), (index[~level], rule))
+        ]
+
     def run(index: np.ndarray, limit: int) -> None:
-        group = _triangulate(flatten(index, limit), rule, known[index])
-        # a tree to build again keeps its place (and its incomplete rows) in the piece
-        pieces.append(_globalised(group.piece(), index))
-        decided[pieces[-1].index] = True
-        again.append(index[group.again()])
+        for part, rings, name in parts(index, limit):
+            group = _triangulate(rings, name, known[part])
+            # a tree to build again keeps its place (and its incomplete rows) in the piece
+            pieces.append(_globalised(group.piece(), part))
+            decided[pieces[-1].index] = True
+            again.append(part[group.again()])
 
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         # groups of moderate size keep the working arrays in the cache
@@ -176,14 +193,30 @@ def batch_pieces(
             # the trees that the proven-valid shortcut left incomplete, with every table, all
             # in one group (a few such trees would keep each group going for as many rounds
             # as a whole group)
-            valid = np.ones(len(redo), dtype=bool)
-            built = _triangulate(flatten(redo, MID_VERTICES), rule, valid, False)
-            fixed = _globalised(built.piece(), redo)
-            pieces = [
-                _take_over(piece, wanted, fixed) if len(wanted) else piece
-                for piece, wanted in zip(pieces, again)
-            ]
+            for part, rings, name in parts(redo, MID_VERTICES):
+                valid = np.ones(len(part), dtype=bool)
+                fixed = _globalised(_triangulate(rings, name, valid, False).piece(), part)
+                pieces = [
+                    _take_over(piece, mine, fixed) if len(mine) else piece
+                    for piece, mine in (
+                        (piece, wanted[np.isin(wanted, part)])
+                        for piece, wanted in zip(pieces, again)
+                    )
+                ]
     return pieces
+
+
+def _level(flat: FlatRings) -> np.ndarray:
+    """Per polygon of ``flat``: all its vertices have the same z (exactly)."""
+    count = flat.poly_vcount
+    level = np.ones(len(count), dtype=bool)
+    some = np.flatnonzero(count > 0)
+    if len(some):
+        start = flat.poly_vstart[some]
+        high = np.maximum.reduceat(flat.vz, start)
+        low = np.minimum.reduceat(flat.vz, start)
+        level[some] = high == low
+    return level
 
 
 def _take_over(piece: Piece, wanted: np.ndarray, fixed: Piece) -> Piece:

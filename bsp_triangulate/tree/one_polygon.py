@@ -380,6 +380,7 @@ class _Tree:
         # the last long base's blockers: in a chain of nodes that each cut off a few
         # vertices, the next base's far candidates are mostly blocked by the same edges
         self._recent: list[int] = []
+        self._z_steps: list[int] | None = None  # rule "elevation": see _level
 
     @property
     def grid(self) -> SegmentGrid | None:
@@ -430,10 +431,25 @@ class _Tree:
             return -1
         return rule.choose(np.concatenate(found), v1, v2, self.sz)
 
+    def _level(self, lo: int, hi: int) -> bool:
+        """The candidates of sub-polygon [lo, hi] all have the same z (exactly): rule
+        "elevation" then finds them all equally close and takes the first correct one in
+        candidate order, which is rule "first"'s apex."""
+        if type(self.rule) is not ElevationRule:
+            return False
+        if self._z_steps is None:
+            # how many positions up to p have another z than the one before
+            z = self.sz
+            self._z_steps = np.concatenate([[0], np.cumsum(z[1:] != z[:-1])]).tolist()
+        return hi - lo < 3 or self._z_steps[hi - 1] == self._z_steps[lo + 1]
+
     def _closest_apex(self, lo: int, hi: int, v1: int, v2: int) -> int:
         """:meth:`_apex` under rule "elevation": the facing candidates are tested closest
         elevation first, until no untested one can be as close as the closest correct one;
-        the rule then chooses among the correct ones found, as among all of them."""
+        the rule then chooses among the correct ones found, as among all of them. Where all
+        candidates are level, the first correct one (:meth:`_level`)."""
+        if self._level(lo, hi):
+            return self._first_apex(lo, hi)
         if self.boxes is not None and hi - lo > _WINDOWED:
             if self._windows is None:
                 self._windows = ElevationWindows(self.sz)
@@ -943,7 +959,8 @@ class _Tree:
         if type(self.rule) is FirstRule:
             return "first"
         if type(self.rule) is ElevationRule:
-            return "elevation"
+            # a level sequence: every node's apex is rule first's (see _level)
+            return "first" if self._level(0, self.m) else "elevation"
         if type(self.rule) is DelaunayRule:
             return "delaunay"
         return None
