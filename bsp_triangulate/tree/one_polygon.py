@@ -483,10 +483,32 @@ class _Tree:
             if len(good):
                 found.append(good)
                 best = min(best, float((approx[good] + error[good]).min()))
+                order = self._without_level_of(order, start, zc, zc[good])
         if not found:
             return -1
         # in candidate order, as the rule expects
         return self.rule.choose(candidates[np.sort(np.concatenate(found))], v1, v2, z)
+
+    @property
+    def _ties_in_order(self) -> bool:
+        """The rule is rule "elevation" itself, whose ties go to the first in candidate order."""
+        return type(self.rule) is ElevationRule
+
+    def _without_level_of(
+        self, order: np.ndarray, start: int, zc: np.ndarray, levels: np.ndarray
+    ) -> np.ndarray:
+        """``order`` (indices into the candidates, by closeness, candidate order among
+        equals) without its untested entries (from ``start``) whose z is one of ``levels``,
+        the z of correct candidates found. Such a candidate is exactly as close as one of
+        them and comes after it in candidate order (equal z, equal float value: the stable
+        order keeps candidate order), so the rule cannot choose it."""
+        if not self._ties_in_order or start >= len(order):
+            return order
+        rest = order[start:]
+        keep = ~np.isin(zc[rest], levels)
+        if keep.all():
+            return order
+        return np.concatenate([order[:start], rest[keep]])
 
     def _closest_apex_windows(self, lo: int, hi: int, v1: int, v2: int) -> int:
         """:meth:`_closest_apex` for long sub-polygons: the candidates come band by band,
@@ -561,8 +583,11 @@ class _Tree:
         first, stopping as soon as no untested one can be as close as a correct one."""
         widest = float(error.max())
         approx_list, error_list = approx.tolist(), error.tolist()
+        zc = self.sz[candidates]
+        z_list = zc.tolist()
         blockers = self._carried(lo, hi)
         found: list[int] = []
+        levels: set[float] = set()  # the z of the correct candidates found
         best = math.inf
         start, size = 0, 1
         while start < len(order):
@@ -575,12 +600,18 @@ class _Tree:
                 # the edges that blocked earlier candidates, against the whole chunk at once
                 kept = self._not_blocked_by(lo, hi, chunk, blockers)
                 chosen = chosen[np.isin(chunk, kept)]
+            known = len(levels)
             for index in chosen.tolist():
                 if found and approx_list[index] - widest > best:
                     break  # every untested candidate is surely farther than a correct one
+                if z_list[index] in levels and self._ties_in_order:
+                    continue  # after a correct one at its z: it cannot be chosen
                 if not self._blocked(lo, hi, int(candidates[index]), blockers):
                     found.append(index)
+                    levels.add(z_list[index])
                     best = min(best, approx_list[index] + error_list[index])
+            if len(levels) > known:
+                order = self._without_level_of(order, start, zc, np.array(list(levels)))
         self._recent = blockers
         if not found:
             return -1

@@ -78,3 +78,18 @@ def test_all_level_batch_takes_rule_first_apexes():
     elevation = triangulate_many(polygons, rule="elevation", plane="xy")
     first = triangulate_many(polygons, rule="first", plane="xy")
     assert [fields(r) for r in elevation] == [fields(r) for r in first]
+
+
+@pytest.mark.parametrize("step", [1.0, 5.0])
+def test_terraced_wavy_shell_gives_the_tree_of_testing_every_tie(
+    step: float, monkeypatch: pytest.MonkeyPatch
+):
+    """Elevations in whole steps (as SRTM's metres): once a candidate at one z is correct,
+    the later ones at that z are skipped; the tree is the one of testing all of them."""
+    rings = [
+        np.column_stack([ring, np.round((300.0 + 40.0 * np.sin(ring[:, 0] / 17.0)) / step) * step])
+        for ring in wavy_shell_with_islands(1500, 1)
+    ]
+    skipping = triangulate(rings, rule="elevation", plane="xy")
+    monkeypatch.setattr(one_polygon._Tree, "_ties_in_order", property(lambda self: False))
+    assert fields(skipping) == fields(triangulate(rings, rule="elevation", plane="xy"))
