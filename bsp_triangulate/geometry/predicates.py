@@ -37,6 +37,13 @@ def _diff_error(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> np.ndarray:
     return (a - avirt) + (bvirt - b)
 
 
+def sum_error(
+    a: np.ndarray | float, b: np.ndarray | float, x: np.ndarray | float
+) -> np.ndarray | float:
+    """Rounding error of x = fl(a + b): a + b - x exactly (arrays or floats)."""
+    return _diff_error(a, -b, x)
+
+
 def _product_error(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Rounding error of x = fl(a * b) (Dekker's two-product)."""
     c = _SPLITTER * a

@@ -33,6 +33,7 @@ from ..geometry.predicates import (
     incircle_sos_many,
     orient_many,
     strictly_between,
+    sum_error,
 )
 from ..geometry.predicates_batch import crossing, orient_items, orient_rows, row_bound
 from ..geometry.rings_batch import ragged_index
@@ -984,10 +985,16 @@ def _elevation_apex(
         has = first < take
         pick = starts + np.minimum(first, sizes - 1)  # index into left
         a, e, z = approx[left], error[left], zc[left]
-        # sure where every other candidate left after it is surely farther or at the same
-        # elevation (then after it in candidate order: the rule's tie-break picks it too)
+        # sure where every other candidate left after it is surely farther, or at the same
+        # elevation (then after it in candidate order: the rule's tie-break picks it too),
+        # or exactly as far on the other side of the mean and after it in candidate order
+        # (terraced elevations: base corners on two levels, candidates on both)
         limit = (a + e)[pick][group]
-        farther = (rank <= first[group]) | (a - e > limit) | (z == z[pick][group])
+        z_pick = z[pick][group]
+        farther = (rank <= first[group]) | (a - e > limit) | (z == z_pick)
+        position = c[left]
+        later = position < position[pick][group]
+        farther |= later & _mirrored(z, z_pick, sz[v1][o], sz[v2][o])
         sure = has & np.logical_and.reduceat(farther, starts)
         nodes = o[starts]
         found[nodes[sure]] = True
@@ -1008,6 +1015,13 @@ def _elevation_apex(
         found[chosen] = True
         apex[chosen] = _choose_elevation(sz, owner[good], c[good], v1, v2)
     return found, apex
+
+
+def _mirrored(zd: np.ndarray, zc: np.ndarray, z1: np.ndarray, z2: np.ndarray) -> np.ndarray:
+    """Exactly zd + zc = z1 + z2 (so zd and zc are exactly as far from the mean of z1 and
+    z2), where both float sums are exact (else False)."""
+    left, right = zd + zc, z1 + z2
+    return (left == right) & (sum_error(zd, zc, left) == 0) & (sum_error(z1, z2, right) == 0)
 
 
 def _by_owner(owner: np.ndarray, key: np.ndarray) -> np.ndarray:

@@ -26,6 +26,7 @@ from ..geometry.predicates import (
     shoelace_products,
     strictly_between,
     strictly_between_one,
+    sum_error,
 )
 from ..geometry.rings import PreparedRings, normalise_rings, prepare, ring_label
 from ..geometry.spatial_index import ChainBoxes, SegmentGrid
@@ -584,10 +585,16 @@ class _Tree:
         widest = float(error.max())
         approx_list, error_list = approx.tolist(), error.tolist()
         zc = self.sz[candidates]
-        z_list = zc.tolist()
+        z_list, position = zc.tolist(), candidates.tolist()
         blockers = self._carried(lo, hi)
         found: list[int] = []
         levels: set[float] = set()  # the z of the correct candidates found
+        # z exactly as far on the other side of the mean as a correct candidate found ->
+        # that candidate's position (a candidate there and after it cannot be chosen)
+        mirrors: dict[float, int] = {}
+        z1, z2 = float(self.sz[v1]), float(self.sz[v2])
+        total = z1 + z2
+        exact_total = sum_error(z1, z2, total) == 0.0 and self._ties_in_order
         best = math.inf
         start, size = 0, 1
         while start < len(order):
@@ -604,12 +611,18 @@ class _Tree:
             for index in chosen.tolist():
                 if found and approx_list[index] - widest > best:
                     break  # every untested candidate is surely farther than a correct one
-                if z_list[index] in levels and self._ties_in_order:
+                z = z_list[index]
+                if z in levels and self._ties_in_order:
                     continue  # after a correct one at its z: it cannot be chosen
-                if not self._blocked(lo, hi, int(candidates[index]), blockers):
+                if position[index] < mirrors.get(z, -1):
+                    continue  # exactly as far as a correct one, and after it
+                if not self._blocked(lo, hi, position[index], blockers):
                     found.append(index)
-                    levels.add(z_list[index])
+                    levels.add(z)
                     best = min(best, approx_list[index] + error_list[index])
+                    mirror = total - z
+                    if exact_total and sum_error(total, -z, mirror) == 0.0:
+                        mirrors[mirror] = max(mirrors.get(mirror, -1), position[index])
             if len(levels) > known:
                 order = self._without_level_of(order, start, zc, np.array(list(levels)))
         self._recent = blockers

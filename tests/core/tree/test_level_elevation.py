@@ -93,3 +93,21 @@ def test_terraced_wavy_shell_gives_the_tree_of_testing_every_tie(
     skipping = triangulate(rings, rule="elevation", plane="xy")
     monkeypatch.setattr(one_polygon._Tree, "_ties_in_order", property(lambda self: False))
     assert fields(skipping) == fields(triangulate(rings, rule="elevation", plane="xy"))
+
+
+@pytest.mark.parametrize("step", [1.0, 0.5])
+def test_terraced_small_polygons_batched_give_the_one_polygon_builder_trees(step: float):
+    """Whole-step elevations put a base's corners on two levels and candidates on both,
+    exactly as far from the mean: the lock-step builder takes a correct candidate once every
+    one left is farther, at its level, or at the mirrored level after it in candidate order.
+    The trees are the one-polygon builder's (which tests candidates its own way)."""
+    polygons = [
+        [
+            np.column_stack([ring, np.round(3.0 * np.sin(ring[:, 0] / 3.0) / step) * step])
+            for ring in rings
+        ]
+        for rings in small_polygons(300, 3)
+    ]
+    batched = triangulate_many(polygons, rule="elevation", plane="xy")
+    one_by_one = [triangulate(rings, rule="elevation", plane="xy") for rings in polygons]
+    assert [fields(r) for r in batched] == [fields(r) for r in one_by_one]
