@@ -7,8 +7,10 @@ candidates in order of that value and stopping once every untested one is surely
 than a correct one found gives the rule's choice. The order comes from *windows*: the
 positions of a range sorted by z once, shared by every node whose range lies inside and is
 at least an eighth of it; a node walks outwards from its target value in its window, band by
-band, so its cost follows the candidates it looks at, not its size. In pre-order the windows
-of finished subtrees are never needed again, so they form a stack.
+band, so its cost follows the candidates it looks at, not its size. Equal elevations keep
+candidate order in a window, so that on plateaus (terraced elevations) the first correct one
+of a level comes first and the rest of its level can be skipped. In pre-order the windows of
+finished subtrees are never needed again, so they form a stack.
 """
 
 from __future__ import annotations
@@ -28,22 +30,22 @@ class ElevationWindows:
 
     def __init__(self, z: np.ndarray) -> None:
         self.z = z
-        # (lo, hi, positions lo < p < hi sorted by z (stable), 2 z of those, largest |z|,
-        # distinct values)
-        self._stack: list[tuple[int, int, np.ndarray, np.ndarray, float, int]] = []
+        # (lo, hi, positions lo < p < hi sorted by z (stable, candidate order among equal
+        # ones), 2 z of those, largest |z|)
+        self._stack: list[tuple[int, int, np.ndarray, np.ndarray, float]] = []
 
-    def _window(self, lo: int, hi: int) -> tuple[int, int, np.ndarray, np.ndarray, float, int]:
+    def _window(self, lo: int, hi: int) -> tuple[int, int, np.ndarray, np.ndarray, float]:
         stack = self._stack
         while stack and not (stack[-1][0] <= lo and hi <= stack[-1][1]):
             stack.pop()
         if stack and stack[-1][1] - stack[-1][0] <= _SPREAD * (hi - lo):
             return stack[-1]
-        positions = np.arange(lo + 1, hi, dtype=np.int64)
+        # in candidate order (decreasing), which the stable sort keeps among equal z
+        positions = np.arange(hi - 1, lo, -1, dtype=np.int64)
         values = self.z[positions]
         order = np.argsort(values, kind="stable")
         doubled = 2.0 * values[order]
-        distinct = 1 + int(np.count_nonzero(doubled[1:] != doubled[:-1]))
-        window = (lo, hi, positions[order], doubled, float(np.abs(values).max()), distinct)
+        window = (lo, hi, positions[order], doubled, float(np.abs(values).max()))
         stack.append(window)
         return window
 
@@ -51,7 +53,7 @@ class ElevationWindows:
         """Bands of the candidates lo < p < hi by closeness of 2 z to ``target`` (z1 + z2):
         per band the candidates (in no particular order) and a lower bound of
         |2 z - target| (the same float value) for every candidate of the later bands."""
-        _, _, order, doubled, _, _ = self._window(lo, hi)
+        _, _, order, doubled, _ = self._window(lo, hi)
         right = int(np.searchsorted(doubled, target))
         left = right  # the band is [left, right) of the window's order, growing both ways
         size = _FIRST_BAND
@@ -68,12 +70,6 @@ class ElevationWindows:
                 floor = min(floor, abs(float(doubled[right]) - target))
             inside = picked[(picked > lo) & (picked < hi)]
             yield inside, floor
-
-    def mostly_distinct(self, lo: int, hi: int) -> bool:
-        """At least half the elevations of the window serving lo .. hi differ (equal ones
-        cannot be told apart by closeness: a plateau is better tested in candidate order)."""
-        window = self._window(lo, hi)
-        return 2 * window[5] >= len(window[2])
 
     def widest_z(self, lo: int, hi: int) -> float:
         """The largest |z| of the window serving the range lo .. hi."""

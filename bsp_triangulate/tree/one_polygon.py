@@ -454,8 +454,7 @@ class _Tree:
         if self.boxes is not None and hi - lo > _WINDOWED:
             if self._windows is None:
                 self._windows = ElevationWindows(self.sz)
-            if self._windows.mostly_distinct(lo, hi):
-                return self._closest_apex_windows(lo, hi, v1, v2)
+            return self._closest_apex_windows(lo, hi, v1, v2)
         sx, sy, z = self.sx, self.sy, self.sz
         candidates = np.arange(hi - 1, lo, -1)
         candidates = candidates[facing_candidates(sx, sy, lo, hi, candidates, self.exact)]
@@ -525,9 +524,16 @@ class _Tree:
         blockers = self._carried(lo, hi)
         found: list[int] = []
         best = math.inf
+        # a z exactly as far from the mean as a correct candidate found (its own, or the
+        # other side's) -> that candidate's position: a candidate at that z after it in
+        # candidate order (a smaller position) cannot be chosen
+        after: dict[float, int] = {}
+        total = z1 + z2
+        exact_total = sum_error(z1, z2, total) == 0.0
+        ties = self._ties_in_order
         shadows: Shadows | None = None
         tested = 0
-        for band, floor in windows.bands(lo, hi, z1 + z2):
+        for band, floor in windows.bands(lo, hi, total):
             if shadows is None and tested > _SCALAR_CANDIDATES:
                 shadows = self._shadows(lo, hi, blockers)
             lazy = len(band) <= _LAZY_BAND
@@ -544,11 +550,13 @@ class _Tree:
                 approx = np.abs(2.0 * zc - z1 - z2)
                 error = _EPS8 * (2.0 * np.abs(zc) + abs(z1) + abs(z2)) + 1e-300
                 approx_list, error_list = approx.tolist(), error.tolist()
-                band_list = band.tolist()
+                band_list, z_list = band.tolist(), zc.tolist()
                 for index in np.argsort(approx, kind="stable").tolist():
                     if found and approx_list[index] - widest > best:
                         break  # this band's others too are surely farther than a correct one
                     c = band_list[index]
+                    if c < after.get(z_list[index], -1):
+                        continue  # exactly as far as a correct one, and after it
                     # narrow bands: each test only when the candidate's turn comes
                     if lazy and not facing_one(xs, ys, lo, hi, c):
                         continue
@@ -558,6 +566,12 @@ class _Tree:
                     if not self._blocked(lo, hi, c, blockers):
                         found.append(c)
                         best = min(best, approx_list[index] + error_list[index])
+                        if ties:
+                            level = z_list[index]
+                            after[level] = max(after.get(level, -1), c)
+                            mirror = total - level
+                            if exact_total and sum_error(total, -level, mirror) == 0.0:
+                                after[mirror] = max(after.get(mirror, -1), c)
                     elif shadows is not None:
                         shadows.add_edge(blockers[0])
             if found and floor - widest > best:
