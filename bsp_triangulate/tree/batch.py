@@ -196,13 +196,10 @@ def batch_pieces(
             for part, rings, name in parts(redo, MID_VERTICES):
                 valid = np.ones(len(part), dtype=bool)
                 fixed = _globalised(_triangulate(rings, name, valid, False).piece(), part)
-                pieces = [
-                    _take_over(piece, mine, fixed) if len(mine) else piece
-                    for piece, mine in (
-                        (piece, wanted[np.isin(wanted, part)])
-                        for piece, wanted in zip(pieces, again)
-                    )
-                ]
+                for k, wanted in enumerate(again):
+                    mine = wanted[np.isin(wanted, part)]
+                    if len(mine):
+                        pieces[k] = _take_over(pieces[k], mine, fixed)
     return pieces
 
 

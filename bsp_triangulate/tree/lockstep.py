@@ -958,7 +958,8 @@ def _elevation_apex(
     v1 = np.where(at_hi, hi, lo)
     v2 = np.where(at_hi, lo, hi)
     zc = sz[c]
-    approx, error = _elevation_distance(zc, sz[v1][owner], sz[v2][owner])
+    z1, z2 = sz[v1], sz[v2]  # per node
+    approx, error = _elevation_distance(zc, z1[owner], z2[owner])
     # per node its candidates closest first (the first in candidate order among equally
     # close ones); rounds test each node's next 1, 2, 4, ... closest at once (a candidate
     # found not correct drops out), then all that are left
@@ -994,7 +995,7 @@ def _elevation_apex(
         farther = (rank <= first[group]) | (a - e > limit) | (z == z_pick)
         position = c[left]
         later = position < position[pick][group]
-        farther |= later & _mirrored(z, z_pick, sz[v1][o], sz[v2][o])
+        farther |= later & _mirrored(z, z_pick, z1[o], z2[o])
         sure = has & np.logical_and.reduceat(farther, starts)
         nodes = o[starts]
         found[nodes[sure]] = True

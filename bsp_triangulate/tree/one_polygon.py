@@ -328,6 +328,36 @@ def _circle_reach(ax: float, ay: float, bx: float, by: float, cx: float, cy: flo
     return reach * (1.0 + 1e-6) + 1e-300
 
 
+class _Ties:
+    """Rule elevation's correct candidates found on one base (z1, z2), by the elevations
+    exactly as far from the base's mean as theirs: their own z, and the one on the other
+    side (z1 + z2 - z, where that and z1 + z2 are exact). A candidate at such an elevation
+    and after one of them in candidate order (a smaller position) cannot be chosen: the rule
+    breaks ties by candidate order. Inactive (nothing settled) for other rules."""
+
+    def __init__(self, z1: float, z2: float, active: bool) -> None:
+        self.total = z1 + z2
+        self.active = active
+        self.mirrors = active and sum_error(z1, z2, self.total) == 0.0
+        self.after: dict[float, int] = {}  # elevation -> largest position found at it
+        self.levels: list[float] = []  # the distinct z of the correct candidates found
+
+    def settled(self, z: float, position: int) -> bool:
+        """The candidate at ``position`` with elevation ``z`` cannot be chosen."""
+        return position < self.after.get(z, -1)
+
+    def add(self, z: float, position: int) -> None:
+        """Record the correct candidate at ``position`` with elevation ``z``."""
+        if not self.active:
+            return
+        if z not in self.levels:
+            self.levels.append(z)
+        self.after[z] = max(self.after.get(z, -1), position)
+        mirror = self.total - z
+        if self.mirrors and sum_error(self.total, -z, mirror) == 0.0:
+            self.after[mirror] = max(self.after.get(mirror, -1), position)
+
+
 def _remember(blockers: list[int], edge: int) -> None:
     """Put ``edge`` first in the short list of recent blockers."""
     if edge in blockers:
@@ -436,7 +466,7 @@ class _Tree:
         """The candidates of sub-polygon [lo, hi] all have the same z (exactly): rule
         "elevation" then finds them all equally close and takes the first correct one in
         candidate order, which is rule "first"'s apex."""
-        if type(self.rule) is not ElevationRule:
+        if not self._ties_in_order:
             return False
         if self._z_steps is None:
             # how many positions up to p have another z than the one before
@@ -524,16 +554,10 @@ class _Tree:
         blockers = self._carried(lo, hi)
         found: list[int] = []
         best = math.inf
-        # a z exactly as far from the mean as a correct candidate found (its own, or the
-        # other side's) -> that candidate's position: a candidate at that z after it in
-        # candidate order (a smaller position) cannot be chosen
-        after: dict[float, int] = {}
-        total = z1 + z2
-        exact_total = sum_error(z1, z2, total) == 0.0
-        ties = self._ties_in_order
+        ties = _Ties(z1, z2, self._ties_in_order)
         shadows: Shadows | None = None
         tested = 0
-        for band, floor in windows.bands(lo, hi, total):
+        for band, floor in windows.bands(lo, hi, z1 + z2):
             if shadows is None and tested > _SCALAR_CANDIDATES:
                 shadows = self._shadows(lo, hi, blockers)
             lazy = len(band) <= _LAZY_BAND
@@ -555,8 +579,8 @@ class _Tree:
                     if found and approx_list[index] - widest > best:
                         break  # this band's others too are surely farther than a correct one
                     c = band_list[index]
-                    if c < after.get(z_list[index], -1):
-                        continue  # exactly as far as a correct one, and after it
+                    if ties.settled(z_list[index], c):
+                        continue
                     # narrow bands: each test only when the candidate's turn comes
                     if lazy and not facing_one(xs, ys, lo, hi, c):
                         continue
@@ -566,12 +590,7 @@ class _Tree:
                     if not self._blocked(lo, hi, c, blockers):
                         found.append(c)
                         best = min(best, approx_list[index] + error_list[index])
-                        if ties:
-                            level = z_list[index]
-                            after[level] = max(after.get(level, -1), c)
-                            mirror = total - level
-                            if exact_total and sum_error(total, -level, mirror) == 0.0:
-                                after[mirror] = max(after.get(mirror, -1), c)
+                        ties.add(z_list[index], c)
                     elif shadows is not None:
                         shadows.add_edge(blockers[0])
             if found and floor - widest > best:
@@ -602,13 +621,7 @@ class _Tree:
         z_list, position = zc.tolist(), candidates.tolist()
         blockers = self._carried(lo, hi)
         found: list[int] = []
-        levels: set[float] = set()  # the z of the correct candidates found
-        # z exactly as far on the other side of the mean as a correct candidate found ->
-        # that candidate's position (a candidate there and after it cannot be chosen)
-        mirrors: dict[float, int] = {}
-        z1, z2 = float(self.sz[v1]), float(self.sz[v2])
-        total = z1 + z2
-        exact_total = sum_error(z1, z2, total) == 0.0 and self._ties_in_order
+        ties = _Ties(float(self.sz[v1]), float(self.sz[v2]), self._ties_in_order)
         best = math.inf
         start, size = 0, 1
         while start < len(order):
@@ -621,24 +634,18 @@ class _Tree:
                 # the edges that blocked earlier candidates, against the whole chunk at once
                 kept = self._not_blocked_by(lo, hi, chunk, blockers)
                 chosen = chosen[np.isin(chunk, kept)]
-            known = len(levels)
+            known = len(ties.levels)
             for index in chosen.tolist():
                 if found and approx_list[index] - widest > best:
                     break  # every untested candidate is surely farther than a correct one
-                z = z_list[index]
-                if z in levels and self._ties_in_order:
-                    continue  # after a correct one at its z: it cannot be chosen
-                if position[index] < mirrors.get(z, -1):
-                    continue  # exactly as far as a correct one, and after it
+                if ties.settled(z_list[index], position[index]):
+                    continue
                 if not self._blocked(lo, hi, position[index], blockers):
                     found.append(index)
-                    levels.add(z)
+                    ties.add(z_list[index], position[index])
                     best = min(best, approx_list[index] + error_list[index])
-                    mirror = total - z
-                    if exact_total and sum_error(total, -z, mirror) == 0.0:
-                        mirrors[mirror] = max(mirrors.get(mirror, -1), position[index])
-            if len(levels) > known:
-                order = self._without_level_of(order, start, zc, np.array(list(levels)))
+            if len(ties.levels) > known:
+                order = self._without_level_of(order, start, zc, np.array(ties.levels))
         self._recent = blockers
         if not found:
             return -1
