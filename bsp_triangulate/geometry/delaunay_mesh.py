@@ -597,6 +597,8 @@ def containing_triangles(
         return found
     tx, ty = x[tri], y[tri]
     x0, x1, y0, y1 = tx.min(axis=1), tx.max(axis=1), ty.min(axis=1), ty.max(axis=1)
+    # contiguous columns: gathers of whole rows of three are several times slower
+    corners = [np.ascontiguousarray(tri[:, k]) for k in range(3)]
     left, bottom = float(x0.min()), float(y0.min())
     span = max(float(x1.max()) - left, float(y1.max()) - bottom)
     side = max(1, math.isqrt(count))
@@ -642,20 +644,12 @@ def containing_triangles(
         boxed = (x0[candidate] <= qx) & (qx <= x1[candidate])
         boxed &= (y0[candidate] <= qy) & (qy <= y1[candidate])
         point, candidate = point[boxed], candidate[boxed]
-        held = np.ones(len(point), dtype=bool)
-        corner_x, corner_y = tx[candidate], ty[candidate]
+        # edge by edge, each test on the pairs left (most fail the first)
         for k in range(3):
-            a, b = (k + 1) % 3, (k + 2) % 3
-            sides = orient_many(
-                corner_x[:, a],
-                corner_y[:, a],
-                corner_x[:, b],
-                corner_y[:, b],
-                px[point],
-                py[point],
-            )
-            held &= sides >= 0
-        found[point[held]] = candidate[held]
+            a, b = corners[(k + 1) % 3][candidate], corners[(k + 2) % 3][candidate]
+            held = orient_many(x[a], y[a], x[b], y[b], px[point], py[point]) >= 0
+            point, candidate = point[held], candidate[held]
+        found[point] = candidate
         first = last
     return found
 

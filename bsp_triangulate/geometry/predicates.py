@@ -7,7 +7,6 @@ values, so no result depends on rounding.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from fractions import Fraction
 
 import numpy as np
@@ -375,27 +374,91 @@ def incircle_many(
     strictly outside, 0 on it (the sign flips for clockwise a, b, c). Float64 with Shewchuk's
     static bound; entries within it are re-decided exactly.
     """
-    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        det, bound = _incircle_float(ax, ay, bx, by, cx, cy, dx, dy)
-        sure = (np.abs(det) > bound) & np.isfinite(det) & np.isfinite(bound)
-    signs = np.atleast_1d(np.sign(np.nan_to_num(det)).astype(np.int8))
-    sure = np.atleast_1d(sure)
+    coordinates = (ax, ay, bx, by, cx, cy, dx, dy)
+    arrays = np.broadcast_arrays(*(np.asarray(c, dtype=np.float64) for c in coordinates))
+    shape = arrays[0].shape
+    flat = [a.reshape(-1) for a in arrays]  # views, copies only for broadcast tables
+    signs, sure = _incircle_filter(*flat)
     if not sure.all():
-        coordinates = (ax, ay, bx, by, cx, cy, dx, dy)
-        arrays = _flat_arrays(coordinates)
-        shape = np.broadcast_shapes(signs.shape, sure.shape)
-        signs = np.broadcast_to(signs, shape).flatten()
-        unsure = np.flatnonzero(~np.broadcast_to(sure, shape))
+        unsure = np.flatnonzero(~sure)
         # the corners of an axis-parallel rectangle (cell centres of a grid) lie on one
         # circle: exactly 0, without the integer arithmetic
-        on_circle = _rectangle_corners(*(a[unsure] for a in arrays))
+        on_circle = _rectangle_corners(*(a[unsure] for a in flat))
         signs[unsure[on_circle]] = 0
-        left = np.zeros(len(signs), dtype=bool)
-        left[unsure[~on_circle]] = True
-        if left.any():
-            signs = _one_by_one(signs, left, incircle_exact, tuple(arrays))
-        signs = signs.reshape(shape)
-    return signs
+        left = unsure[~on_circle]
+        if len(left):
+            picked = [a[left].tolist() for a in flat]
+            signs[left] = [incircle_exact(*point) for point in zip(*picked)]
+    return signs.reshape(shape) if shape else signs
+
+
+# entries per pass of :func:`_incircle_filter`: its temporaries stay in the cache
+_FILTER_CHUNK = 4096
+
+
+def _incircle_filter(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_incircle_float` on 1-D arrays of one length, in place and by chunks: the
+    signs of the float determinant (int8) and where they are sure (beyond the bound)."""
+    count = len(ax)
+    signs = np.empty(count, dtype=np.int8)
+    sure = np.empty(count, dtype=bool)
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        for first in range(0, count, _FILTER_CHUNK):
+            part = slice(first, first + _FILTER_CHUNK)
+            px, py = dx[part], dy[part]
+            adx, ady = ax[part] - px, ay[part] - py
+            bdx, bdy = bx[part] - px, by[part] - py
+            cdx, cdy = cx[part] - px, cy[part] - py
+            bc, cb = bdx * cdy, cdx * bdy
+            ca, ac = cdx * ady, adx * cdy
+            ab, ba = adx * bdy, bdx * ady
+            # the lifts, in the differences' place: the same operations in the same order
+            # as _incircle_float, so the same values
+            adx *= adx
+            ady *= ady
+            adx += ady
+            bdx *= bdx
+            bdy *= bdy
+            bdx += bdy
+            cdx *= cdx
+            cdy *= cdy
+            cdx += cdy
+            det = bc - cb
+            det *= adx
+            np.subtract(ca, ac, out=ady)
+            ady *= bdx
+            det += ady
+            np.subtract(ab, ba, out=ady)
+            ady *= cdx
+            det += ady
+            permanent = np.abs(bc, out=bc)
+            permanent += np.abs(cb, out=cb)
+            permanent *= adx
+            np.abs(ca, out=ca)
+            ca += np.abs(ac, out=ac)
+            ca *= bdx
+            permanent += ca
+            np.abs(ab, out=ab)
+            ab += np.abs(ba, out=ba)
+            ab *= cdx
+            permanent += ab
+            permanent *= ICC_ERRBOUND
+            permanent += UNDERFLOW_SLACK
+            # a nan or infinite value is never sure (nor is anything under an infinite bound)
+            np.greater(np.abs(det, out=cb), permanent, out=sure[part])
+            sure[part] &= np.isfinite(det)
+            np.greater(det, 0.0, out=signs[part].view(bool))
+            signs[part] -= det < 0.0
+    return signs, sure
 
 
 def _flat_arrays(coordinates: tuple[np.ndarray | float, ...]) -> list[np.ndarray]:
@@ -429,24 +492,6 @@ def _rectangle_corners(
         for j in range(i + 1, 4):
             two &= (points[i][0] != points[j][0]) | (points[i][1] != points[j][1])
     return two
-
-
-def _one_by_one(
-    signs: np.ndarray,
-    where: np.ndarray,
-    decide: Callable[..., int],
-    coordinates: tuple[np.ndarray | float, ...],
-) -> np.ndarray:
-    """``signs`` (broadcast to the coordinates' shape) with the entries ``where`` decided
-    one by one: ``decide`` (a scalar test) on each entry's coordinates."""
-    arrays = [
-        np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in np.broadcast_arrays(*coordinates)
-    ]
-    signs = np.broadcast_to(signs, arrays[0].shape).copy()
-    at = np.nonzero(np.broadcast_to(where, arrays[0].shape))
-    picked = [a[at].tolist() for a in arrays]
-    signs[at] = [decide(*point) for point in zip(*picked)]
-    return signs
 
 
 def incircle(
