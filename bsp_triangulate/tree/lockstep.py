@@ -76,7 +76,9 @@ class Sequences:
     proven valid; ``bent``: the positions of proven sequences that are not a strict left
     turn or are a bridge end (``bent_xy``: their coordinates; ``bent_xy32``: the same rounded
     to float32, one complex64 each), and ``bent_rank[p]`` how many of them come before
-    position p."""
+    position p; ``loops``: the outermost ranges [p, q] between the two positions of a bridge
+    end of a proven sequence (an island, its bridges and the islands joined to it), as rows
+    (p, q, x0, x1, y0, y1) with their boxes, in order."""
 
     sx: np.ndarray
     sy: np.ndarray
@@ -92,6 +94,7 @@ class Sequences:
     bent_xy: np.ndarray
     bent_xy32: np.ndarray
     bent_rank: np.ndarray
+    loops: np.ndarray
     runs: RunBoxes | None = None
 
     def rows_at(self, positions: np.ndarray) -> np.ndarray:
@@ -153,10 +156,30 @@ class Sequences:
         bent_xy = xy[bent]
         with np.errstate(over="ignore"):  # beyond float32's range: +-inf, still in order
             bent_xy32 = bent_xy.astype(np.float32).view(np.complex64).ravel()
+        loops = _loops(sx, sy, twin, proven_at)
         return cls(
             sx, sy, xy, twin, extent_x, extent_y, table, exact, starts, proven_at, bent,
-            bent_xy, bent_xy32, bent_rank,
+            bent_xy, bent_xy32, bent_rank, loops,
         )  # fmt: skip
+
+
+def _loops(sx: np.ndarray, sy: np.ndarray, twin: np.ndarray, proven: np.ndarray) -> np.ndarray:
+    """:attr:`Sequences.loops`: (k, 6) float rows (p, q, x0, x1, y0, y1)."""
+    p = np.flatnonzero(proven & (twin > np.arange(len(twin))))
+    q = twin[p]
+    # outermost: not within an earlier range (the ranges of one sequence nest or are apart)
+    outer = q > np.maximum.accumulate(np.r_[-1, q[:-1]])
+    p, q = p[outer], q[outer]
+    rows = np.empty((len(p), 6))
+    rows[:, 0], rows[:, 1] = p, q
+    if len(p):
+        # each range's extremes: reductions over [p, q], the gaps between ranges dropped
+        cuts = np.column_stack([p, q + 1]).ravel()
+        for column, values in ((2, sx), (4, sy)):
+            padded = np.append(values, 0.0)
+            rows[:, column] = np.minimum.reduceat(padded, cuts)[::2]
+            rows[:, column + 1] = np.maximum.reduceat(padded, cuts)[::2]
+    return rows
 
 
 @dataclass
@@ -372,30 +395,30 @@ def _pass_tables(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray)
 
 
 def _tables(
-    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, crossings: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
     """Conditions 2 and 3 for facing candidates ``c`` of sub-polygons [lo, hi] of at least 4
     vertices: per item whether it fails, and a position strictly inside its triangle or -1.
 
-    In proven-valid polygons only the bent positions are tested (:func:`_bent_in_triangle`).
+    In proven-valid polygons only the bent positions are tested (:func:`_bent_in_triangle`,
+    with ``crossings`` some edges too).
     """
     proven = seqs.proven[lo]
     if proven.all():
-        return _bent_in_triangle(seqs, lo, hi, c)
+        return _bent_in_triangle(seqs, lo, hi, c, crossings)
     if not proven.any():
         return _all_tables(seqs, lo, hi, c)
     bad = np.zeros(len(c), dtype=bool)
     inside = np.full(len(c), -1, dtype=np.int64)
-    for idx, test in (
-        (np.flatnonzero(proven), _bent_in_triangle),
-        (np.flatnonzero(~proven), _all_tables),
-    ):
-        bad[idx], inside[idx] = test(seqs, lo[idx], hi[idx], c[idx])
+    idx = np.flatnonzero(proven)
+    bad[idx], inside[idx] = _bent_in_triangle(seqs, lo[idx], hi[idx], c[idx], crossings)
+    idx = np.flatnonzero(~proven)
+    bad[idx], inside[idx] = _all_tables(seqs, lo[idx], hi[idx], c[idx])
     return bad, inside
 
 
 def _bent_in_triangle(
-    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, crossings: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_tables` for a proven-valid polygon, by its bent positions (not a strict left
     turn, or a bridge end) between lo and hi alone: a candidate fails where one of them lies
@@ -422,13 +445,16 @@ def _bent_in_triangle(
     These tests find most failures: any boundary inside an ear comes in across its only new
     side, and its vertex farthest from that side is bent (the part of the ear beyond it is
     interior). A triangle with two new sides can also be crossed by a notch of the exterior,
-    or a bridge, with no vertex inside; such trees are rare, so building them again costs
-    little.
+    an island or a bridge with no vertex inside. With ``crossings`` (rule first, whose fans
+    make many such triangles in large sub-polygons), :func:`_edges_across` looks for the
+    edges most likely to cross one, so that fewer trees are built twice.
     """
     n = len(lo)
     corners = np.take(seqs.xy, np.stack([hi, lo, c]), axis=0)
     (ax, bx, cx), (ay, by, cy) = corners[..., 0], corners[..., 1]
     bad = _bridge_at_corner(seqs, lo, hi, c)
+    if crossings:
+        bad |= _edges_across(seqs, lo, hi, c, corners)
     found = np.full(n, -1, dtype=np.int64)
     first = seqs.bent_rank[lo + 1]
     # an ear's range ends before its candidate hi - 1, a corner (bent in most tests)
@@ -559,6 +585,60 @@ def _bridge_at_corner(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.nda
     p = np.concatenate([t - 1, t])
     bad[rows[_cross(seqs, u, v, p, p + 1)]] = True
     return bad
+
+
+def _edges_across(
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, corners: np.ndarray
+) -> np.ndarray:
+    """Per candidate with two new sides (lo + 1 < c < hi - 1) in a sub-polygon of more than
+    ``_RUN_MIN`` positions: an edge crosses its side c -> a (a = s_hi). Edges looked at: those
+    of the islands (and bridges) in [lo, hi) whose box meets the triangle's, and the chain's
+    ``_WINDOW`` edges on either side of c. Not every edge: a crossing missed still leaves a
+    tree that does not complete (see :func:`_bent_in_triangle`); a crossing found is real.
+
+    One side is enough: with no bent position in the triangle, an edge that meets it crosses
+    it from side to side, and no edge crosses the base (an edge or a correct side).
+    """
+    bad = np.zeros(len(lo), dtype=bool)
+    other = np.flatnonzero((c > lo + 1) & (c < hi - 1) & (hi - lo > _RUN_MIN))
+    if not len(other):
+        return bad
+    low, high = corners.min(axis=0)[other], corners.max(axis=0)[other]
+    lo_o, hi_o, c_o = lo[other], hi[other], c[other]
+    parts_item, parts_edge = [], []
+    loops = seqs.loops
+    if len(loops):
+        start, end = loops[:, 0].astype(np.int64), loops[:, 1].astype(np.int64)
+        first = np.searchsorted(end, lo_o, side="right")
+        count = np.maximum(np.searchsorted(start, hi_o, side="left") - first, 0)
+        item = np.repeat(np.arange(len(other)), count)
+        row = ragged_index(first, count)
+        box = loops[row]
+        meet = (box[:, 3] >= low[item, 0]) & (box[:, 2] <= high[item, 0])
+        meet &= (box[:, 5] >= low[item, 1]) & (box[:, 4] <= high[item, 1])
+        item, row = item[meet], row[meet]
+        e_first = np.maximum(start[row], lo_o[item])
+        e_count = np.maximum(np.minimum(end[row], hi_o[item]) - e_first, 0)
+        parts_item.append(np.repeat(item, e_count))
+        parts_edge.append(ragged_index(e_first, e_count))
+    e_first = np.maximum(c_o - _WINDOW, lo_o)
+    e_count = np.minimum(c_o + _WINDOW, hi_o) - e_first
+    parts_item.append(np.repeat(np.arange(len(other)), e_count))
+    parts_edge.append(ragged_index(e_first, e_count))
+    item, e = np.concatenate(parts_item), np.concatenate(parts_edge)
+    # only edges whose box meets the triangle's (exact comparisons), not at c
+    ends = np.take(seqs.xy, np.stack([e, e + 1]), axis=0)
+    near = (ends.max(axis=0) >= low[item]).all(axis=1)
+    near &= (ends.min(axis=0) <= high[item]).all(axis=1)
+    near &= (e != c_o[item]) & (e + 1 != c_o[item])
+    item, e = item[near], e[near]
+    if len(item):
+        bad[other[item[_cross(seqs, c_o[item], hi_o[item], e, e + 1)]]] = True
+    return bad
+
+
+# chain edges looked at on either side of a candidate by _edges_across
+_WINDOW = 8
 
 
 def _cross(
@@ -740,7 +820,7 @@ def _tables_of(
     correct[nodes[small]] = True
     table = nodes[~small]
     if len(table):
-        bad, inside = _tables(seqs, lo[table], hi[table], apex[table])
+        bad, inside = _tables(seqs, lo[table], hi[table], apex[table], True)
         correct[table[~bad]] = True
         found = inside >= 0
         blocker[table[found]] = inside[found]

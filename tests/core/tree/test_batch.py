@@ -418,8 +418,8 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
     log = RestartLog(monkeypatch)
     bent_in_triangle = batch_bsp._bent_in_triangle
 
-    def checked(seqs, lo, hi, c):
-        bad, found = bent_in_triangle(seqs, lo, hi, c)
+    def checked(seqs, lo, hi, c, crossings=False):
+        bad, found = bent_in_triangle(seqs, lo, hi, c, crossings)
         table_bad, _ = batch_bsp._all_tables(seqs, lo, hi, c)
         counts["passed"] += int((~bad).sum())
         counts["rejected"] += int(bad.sum())
@@ -686,3 +686,54 @@ def test_rule_delaunay_trees_started_again(monkeypatch: pytest.MonkeyPatch) -> N
     assert problems == []
     assert handled >= 0.9 * len(polygons)
     assert log.restarted
+
+
+def radial_polygons(rnd: random.Random, count: int) -> list:
+    """Polygons of 120-250 vertices whose every radius is drawn anew (+-45 %), with a small
+    star island at the centre: fan triangles across them are often crossed by a spike of
+    the shell or by the island with no vertex inside."""
+    polygons = []
+    for _ in range(count):
+        n = rnd.randint(120, 250)
+        angles = [2.0 * math.pi * k / n for k in range(n)]
+        radii = [100.0 * rnd.uniform(0.55, 1.45) for _ in range(n)]
+        outer = [(r * math.cos(a), r * math.sin(a)) for r, a in zip(radii, angles)]
+        # clockwise, alternately 30 m and 20 m from the centre
+        island = [(30.0 - 10.0 * (k % 2), -k * math.pi / 4) for k in range(8)]
+        island = [(r * math.cos(a), r * math.sin(a)) for r, a in island]
+        polygons.append([np.array(outer), np.array(island)])
+    return polygons
+
+
+def test_crossing_edges_across_fans(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Rule first's candidates with two new sides in large proven sub-polygons are also
+    checked against the edges most likely to cross them (``_edges_across``): each rejection
+    agrees with the whole table, far fewer trees are built again, and all results equal the
+    engine's."""
+    from bsp_triangulate.tree import lockstep as batch_bsp
+
+    polygons = radial_polygons(random.Random(30), 12)
+    edges_across = batch_bsp._edges_across
+    rejected = []
+
+    def checked(seqs, lo, hi, c, corners):
+        bad = edges_across(seqs, lo, hi, c, corners)
+        table_bad, _ = batch_bsp._all_tables(seqs, lo[bad], hi[bad], c[bad])
+        assert table_bad.all()
+        rejected.append(int(bad.sum()))
+        return bad
+
+    log = RestartLog(monkeypatch)
+    monkeypatch.setattr(batch_bsp, "_edges_across", checked)
+    problems, handled = mismatches(polygons)
+    assert problems == []
+    assert handled == len(polygons)
+    assert sum(rejected) > 0
+    with_checks = len(log.restarted)
+
+    monkeypatch.setattr(
+        batch_bsp, "_edges_across", lambda seqs, lo, hi, c, corners: np.zeros(len(lo), bool)
+    )
+    log = RestartLog(monkeypatch)
+    assert mismatches(polygons)[0] == []
+    assert len(log.restarted) > 2 * with_checks
