@@ -605,7 +605,8 @@ def _edges_across(
         return bad
     low, high = corners.min(axis=0)[other], corners.max(axis=0)[other]
     lo_o, hi_o, c_o = lo[other], hi[other], c[other]
-    parts_item, parts_edge = [], []
+    # ranges [first, first + count) of edges per item: islands, then the chain around c
+    firsts, counts, owners = [], [], []
     loops = seqs.loops
     if len(loops):
         start, end = loops[:, 0].astype(np.int64), loops[:, 1].astype(np.int64)
@@ -618,20 +619,41 @@ def _edges_across(
         meet &= (box[:, 5] >= low[item, 1]) & (box[:, 4] <= high[item, 1])
         item, row = item[meet], row[meet]
         e_first = np.maximum(start[row], lo_o[item])
-        e_count = np.maximum(np.minimum(end[row], hi_o[item]) - e_first, 0)
-        parts_item.append(np.repeat(item, e_count))
-        parts_edge.append(ragged_index(e_first, e_count))
+        firsts.append(e_first)
+        counts.append(np.maximum(np.minimum(end[row], hi_o[item]) - e_first, 0))
+        owners.append(item)
     e_first = np.maximum(c_o - _WINDOW, lo_o)
-    e_count = np.minimum(c_o + _WINDOW, hi_o) - e_first
-    parts_item.append(np.repeat(np.arange(len(other)), e_count))
-    parts_edge.append(ragged_index(e_first, e_count))
-    item, e = np.concatenate(parts_item), np.concatenate(parts_edge)
-    # only edges whose box meets the triangle's (exact comparisons), not at c
-    ends = np.take(seqs.xy, np.stack([e, e + 1]), axis=0)
-    near = (ends.max(axis=0) >= low[item]).all(axis=1)
-    near &= (ends.min(axis=0) <= high[item]).all(axis=1)
-    near &= (e != c_o[item]) & (e + 1 != c_o[item])
-    item, e = item[near], e[near]
+    firsts.append(e_first)
+    counts.append(np.minimum(c_o + _WINDOW, hi_o) - e_first)
+    owners.append(np.arange(len(other)))
+    first, count, owner = (np.concatenate(v) for v in (firsts, counts, owners))
+    count = np.maximum(count, 0)
+    # each range's points once: an edge can cross the segment c -> a only where its two
+    # ends are not surely on one side of the line (float signs beyond their error bound;
+    # within it, 0) and its box meets the segment's; only those get the exact test
+    sx, sy = seqs.sx, seqs.sy
+    points = ragged_index(first, count + 1)
+    item = np.repeat(owner, count + 1)
+    ux, uy = sx[c_o], sy[c_o]
+    dx, dy = sx[hi_o] - ux, sy[hi_o] - uy
+    left = dx[item] * (sy[points] - uy[item])
+    right = dy[item] * (sx[points] - ux[item])
+    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
+    left -= right
+    side = (left > bound).astype(np.int8) - (left < -bound)
+    # edge k runs from entry k to entry k + 1 of the same range (not from a range's last)
+    last = np.cumsum(count + 1) - 1
+    apart = np.ones(len(points), dtype=bool)
+    apart[last] = False
+    k = np.flatnonzero(apart[:-1] & (side[:-1] * side[1:] <= 0))
+    item, e = item[k], points[k]
+    ex0, ex1 = np.minimum(sx[e], sx[e + 1]), np.maximum(sx[e], sx[e + 1])
+    ey0, ey1 = np.minimum(sy[e], sy[e + 1]), np.maximum(sy[e], sy[e + 1])
+    ax, ay, cx, cy = sx[hi_o[item]], sy[hi_o[item]], ux[item], uy[item]
+    keep = (ex1 >= np.minimum(ax, cx)) & (ex0 <= np.maximum(ax, cx))
+    keep &= (ey1 >= np.minimum(ay, cy)) & (ey0 <= np.maximum(ay, cy))
+    keep &= (e != c_o[item]) & (e + 1 != c_o[item])
+    item, e = item[keep], e[keep]
     if len(item):
         bad[other[item[_cross(seqs, c_o[item], hi_o[item], e, e + 1)]]] = True
     return bad
