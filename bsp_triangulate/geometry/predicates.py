@@ -375,9 +375,8 @@ def incircle_many(
     static bound; entries within it are re-decided exactly.
     """
     coordinates = (ax, ay, bx, by, cx, cy, dx, dy)
-    arrays = np.broadcast_arrays(*(np.asarray(c, dtype=np.float64) for c in coordinates))
-    shape = arrays[0].shape
-    flat = [a.reshape(-1) for a in arrays]  # views, copies only for broadcast tables
+    shape = np.broadcast_shapes(*(np.shape(c) for c in coordinates))
+    flat = _flat_arrays(coordinates)
     signs, sure = _incircle_filter(*flat)
     if not sure.all():
         unsure = np.flatnonzero(~sure)
@@ -462,9 +461,10 @@ def _incircle_filter(
 
 
 def _flat_arrays(coordinates: tuple[np.ndarray | float, ...]) -> list[np.ndarray]:
-    """The coordinates broadcast together, as flat float64 arrays."""
+    """The coordinates broadcast together, as flat float64 arrays (views where they can be:
+    a scalar spread along 1-D arrays is not copied)."""
     return [
-        np.asarray(a, dtype=np.float64).ravel()
+        np.asarray(a, dtype=np.float64).reshape(-1)
         for a in np.broadcast_arrays(*(np.atleast_1d(c) for c in coordinates))
     ]
 

@@ -110,6 +110,18 @@ def crossing(
     return cross
 
 
+def sure_signs(
+    ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray, px: np.ndarray, py: np.ndarray
+) -> np.ndarray:
+    """int8 signs of orient(a, b, p) for 1D arrays where the float value is beyond its error
+    bound, and 0 where it is not (then the exact sign may be any)."""
+    left = (bx - ax) * (py - ay)
+    right = (by - ay) * (px - ax)
+    det = left - right
+    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
+    return (det > bound).view(np.int8) - (det < -bound).view(np.int8)
+
+
 def orient_items(
     ax: np.ndarray,
     ay: np.ndarray,
@@ -123,15 +135,9 @@ def orient_items(
 
     Cheaper than ``predicates.orient_many`` where many points coincide with a or b.
     """
-    ux = bx - ax
-    uy = by - ay
-    left = ux * (py - ay)
-    right = uy * (px - ax)
-    det = left - right
     if exact:
-        return np.sign(det).astype(np.int8)
-    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
-    signs = (det > bound).view(np.int8) - (det < -bound).view(np.int8)
+        return np.sign((bx - ax) * (py - ay) - (by - ay) * (px - ax)).astype(np.int8)
+    signs = sure_signs(ax, ay, bx, by, px, py)
     where = np.flatnonzero(signs == 0)
     if len(where) == 0:
         return signs

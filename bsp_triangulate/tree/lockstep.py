@@ -35,7 +35,13 @@ from ..geometry.predicates import (
     strictly_between,
     sum_error,
 )
-from ..geometry.predicates_batch import crossing, orient_items, orient_rows, row_bound
+from ..geometry.predicates_batch import (
+    crossing,
+    orient_items,
+    orient_rows,
+    row_bound,
+    sure_signs,
+)
 from ..geometry.rings_batch import ragged_index
 
 # test items x sub-polygon vertices per numpy pass: tables of about 1 MB stay in the cache
@@ -634,13 +640,8 @@ def _edges_across(
     sx, sy = seqs.sx, seqs.sy
     points = ragged_index(first, count + 1)
     item = np.repeat(owner, count + 1)
-    ux, uy = sx[c_o], sy[c_o]
-    dx, dy = sx[hi_o] - ux, sy[hi_o] - uy
-    left = dx[item] * (sy[points] - uy[item])
-    right = dy[item] * (sx[points] - ux[item])
-    bound = CCW_ERRBOUND * (np.abs(left) + np.abs(right)) + UNDERFLOW_SLACK
-    left -= right
-    side = (left > bound).astype(np.int8) - (left < -bound)
+    ux, uy, vx, vy = sx[c_o], sy[c_o], sx[hi_o], sy[hi_o]
+    side = sure_signs(ux[item], uy[item], vx[item], vy[item], sx[points], sy[points])
     # edge k runs from entry k to entry k + 1 of the same range (not from a range's last)
     last = np.cumsum(count + 1) - 1
     apart = np.ones(len(points), dtype=bool)
@@ -649,7 +650,7 @@ def _edges_across(
     item, e = item[k], points[k]
     ex0, ex1 = np.minimum(sx[e], sx[e + 1]), np.maximum(sx[e], sx[e + 1])
     ey0, ey1 = np.minimum(sy[e], sy[e + 1]), np.maximum(sy[e], sy[e + 1])
-    ax, ay, cx, cy = sx[hi_o[item]], sy[hi_o[item]], ux[item], uy[item]
+    ax, ay, cx, cy = vx[item], vy[item], ux[item], uy[item]
     keep = (ex1 >= np.minimum(ax, cx)) & (ex0 <= np.maximum(ax, cx))
     keep &= (ey1 >= np.minimum(ay, cy)) & (ey0 <= np.maximum(ay, cy))
     keep &= (e != c_o[item]) & (e + 1 != c_o[item])
