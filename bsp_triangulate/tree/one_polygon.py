@@ -28,6 +28,7 @@ from ..geometry.predicates import (
     strictly_between_one,
     sum_error,
 )
+from ..geometry.predicates_batch import sure_signs
 from ..geometry.rings import PreparedRings, normalise_rings, prepare, ring_label
 from ..geometry.spatial_index import ChainBoxes, SegmentGrid
 from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
@@ -56,6 +57,8 @@ _SCALAR_CANDIDATES = 16
 _WINDOWED = 512
 # Bands of at most this many candidates are tested lazily, candidate by candidate.
 _LAZY_BAND = 256
+# Positions next to either end of a base whose shadows rule "elevation" casts at once.
+_NEAR_SHADOWS = 64
 # The rule "elevation" error bound's factor (rules.ElevationRule).
 _EPS8 = 8.0 * 2.0**-53
 # Largest chunk of candidates filtered at once by rule "first" on long runs.
@@ -556,10 +559,9 @@ class _Tree:
         best = math.inf
         ties = _Ties(z1, z2, self._ties_in_order)
         shadows: Shadows | None = None
-        tested = 0
+        looked = 0  # candidates given the facing test one by one
+        ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
         for band, floor in windows.bands(lo, hi, z1 + z2):
-            if shadows is None and tested > _SCALAR_CANDIDATES:
-                shadows = self._shadows(lo, hi, blockers)
             lazy = len(band) <= _LAZY_BAND
             if not lazy:
                 # wide bands (elevations close or equal): the cheap tests, then the edges
@@ -569,6 +571,13 @@ class _Tree:
                     band = band[~shadows.shadowed_many(self.sx, self.sy, band)]
                 if len(band) > _SCALAR_CANDIDATES and blockers:
                     band = self._not_blocked_by(lo, hi, band, blockers)
+            elif looked >= _SCALAR_CANDIDATES:
+                # most nodes find their apex among their first candidates; one that goes on
+                # drops the candidates surely right of the chord and those in the shadows
+                # from its later bands at once (each left is tested when its turn comes)
+                band = band[sure_signs(ax, ay, bx, by, self.sx[band], self.sy[band]) >= 0]
+                if shadows is not None and len(band):
+                    band = band[~shadows.shadowed_many(self.sx, self.sy, band)]
             if len(band):
                 zc = z[band]
                 approx = np.abs(2.0 * zc - z1 - z2)
@@ -582,16 +591,21 @@ class _Tree:
                     if ties.settled(z_list[index], c):
                         continue
                     # narrow bands: each test only when the candidate's turn comes
-                    if lazy and not facing_one(xs, ys, lo, hi, c):
-                        continue
+                    if lazy:
+                        looked += 1
+                        if not facing_one(xs, ys, lo, hi, c):
+                            continue
                     if shadows is not None and shadows.shadowed(*shadows.angles(xs[c], ys[c])):
                         continue
-                    tested += 1
                     if not self._blocked(lo, hi, c, blockers):
                         found.append(c)
                         best = min(best, approx_list[index] + error_list[index])
                         ties.add(z_list[index], c)
-                    elif shadows is not None:
+                    elif shadows is None:
+                        # a candidate that fails usually holds a vertex next to the base:
+                        # those vertices' shadows rule out the others that hold one
+                        shadows = self._near_shadows(lo, hi, blockers)
+                    else:
                         shadows.add_edge(blockers[0])
             if found and floor - widest > best:
                 break  # every later band is surely farther than a correct one
@@ -806,6 +820,14 @@ class _Tree:
         """The last long base's blockers that are edges of sub-polygon [lo, hi]: tried
         first (any blocking edge proves a candidate fails, so the choice is the same)."""
         return [e for e in self._recent if lo <= e < hi]
+
+    def _near_shadows(self, lo: int, hi: int, blockers: list[int]) -> Shadows:
+        """:meth:`_shadows`, with those of the ``_NEAR_SHADOWS`` positions next to either end
+        of the base."""
+        shadows = self._shadows(lo, hi, blockers)
+        near = np.r_[lo + 1 : min(lo + 1 + _NEAR_SHADOWS, hi), max(hi - _NEAR_SHADOWS, lo + 1) : hi]
+        shadows.add_many(self.sx, self.sy, near)
+        return shadows
 
     def _shadows(self, lo: int, hi: int, blockers: list[int]) -> Shadows:
         """The shadows on the base of [lo, hi] of the ends of the edges ``blockers`` (the

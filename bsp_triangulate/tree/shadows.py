@@ -101,6 +101,30 @@ class Shadows:
             ) ** 2 > near:
                 self._add(*self.angles(x, y))
 
+    def add_many(self, sx: np.ndarray, sy: np.ndarray, positions: np.ndarray) -> None:
+        """:meth:`add` of the vertices at ``positions`` (coordinates ``sx``, ``sy``), at once."""
+        if self.side is None:
+            return
+        positions = positions[(positions > self.lo) & (positions < self.hi)]
+        if not len(positions):
+            return
+        x, y = sx[positions], sy[positions]
+        alpha = (np.arctan2(y - self.ay, x - self.ax) - self.to_b) % _TWO_PI
+        beta = (self.to_a - np.arctan2(y - self.by, x - self.bx)) % _TWO_PI
+        keep = (alpha > _MARGIN) & (alpha < math.pi - _MARGIN)
+        keep &= (beta > _MARGIN) & (beta < math.pi - _MARGIN)
+        alpha = np.concatenate([np.array(self.alphas), alpha[keep]])
+        beta = np.concatenate([np.array(self.betas), beta[keep]])
+        if not len(alpha):
+            return
+        order = np.lexsort((beta, alpha))
+        alpha, beta = alpha[order], beta[order]
+        # the staircase: each point whose beta is below every beta before it
+        before = np.minimum.accumulate(np.concatenate([[math.inf], beta[:-1]]))
+        low = beta < before
+        self.alphas = alpha[low].tolist()
+        self.betas = beta[low].tolist()
+
     def _add(self, alpha: float, beta: float) -> None:
         if not (_MARGIN < alpha < math.pi - _MARGIN and _MARGIN < beta < math.pi - _MARGIN):
             return

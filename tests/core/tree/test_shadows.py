@@ -186,3 +186,51 @@ def test_rule_elevation_skips_shadowed_candidates_with_the_same_trees(
             )
             _same(fast, triangulate(rings, rule="elevation", invalid=invalid))
     assert used
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_shadows_cast_together_are_those_cast_one_by_one(seed: int) -> None:
+    """``Shadows.add_many`` (rule elevation's shadows of the positions next to the base)
+    shadows exactly the candidates that adding each vertex with ``add`` shadows, including
+    positions outside the sub-polygon and on the chord (lattice points), which cast none."""
+    rng, xs, ys, together = _lattice_chain(seed, 12, 300)
+    _, _, _, one_by_one = _lattice_chain(seed, 12, 300)
+    edge = int(rng.integers(1, 250))
+    for shadows in (together, one_by_one):
+        shadows.add_edge(edge)
+    positions = np.r_[-3:70, 230:305]
+    together.add_many(np.array(xs), np.array(ys), positions)
+    for position in positions.tolist():
+        if 0 <= position < len(xs):
+            one_by_one.add(position)
+    assert together.alphas
+    for c in range(1, len(xs) - 1):
+        angles = together.angles(xs[c], ys[c])
+        assert together.shadowed(*angles) == one_by_one.shadowed(*angles), c
+    positions = np.arange(1, len(xs) - 1)
+    assert np.array_equal(
+        together.shadowed_many(np.array(xs), np.array(ys), positions),
+        one_by_one.shadowed_many(np.array(xs), np.array(ys), positions),
+    )
+
+
+def test_rule_elevation_casts_the_shadows_next_to_the_base_with_the_same_trees(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Rule elevation's shadows of the positions next to the base (and its bands filtered
+    whole once a base has tested 16 candidates) leave the trees of testing every candidate
+    exactly, on a river whose bases reject most of their closest candidates."""
+    used: list[int] = []
+    near = one_polygon._Tree._near_shadows
+    monkeypatch.setattr(
+        one_polygon._Tree, "_near_shadows", lambda self, *args: used.append(1) or near(self, *args)
+    )
+    rings = _river(900, 60, 5)
+    rings = [np.column_stack([r, np.cos(r[:, 0] / 61) * 25 + r[:, 1] / 9]) for r in rings]
+    fast = triangulate(rings, rule="elevation")
+    with monkeypatch.context() as patch:
+        patch.setattr(Shadows, "shadowed", lambda self, alpha, beta: False)
+        patch.setattr(Shadows, "shadowed_many", lambda self, sx, sy, p: np.zeros(len(p), bool))
+        patch.setattr(one_polygon, "_SCALAR_CANDIDATES", math.inf)
+        _same(fast, triangulate(rings, rule="elevation"))
+    assert len(used) > 20
