@@ -778,6 +778,9 @@ _SPAN_LARGE = 12
 # rounds of closest-first tests (1, 2, 4, ... candidates at once) of rule "elevation" before
 # a node tests all its candidates
 _ELEVATION_ROUNDS = 7
+# rule "elevation": a node of more than twice this many candidates takes about this many of
+# its closest first
+_NEAR_CANDIDATES = 16
 # largest-angle-first tries of rule "delaunay" before a node tests all its candidates left
 _DELAUNAY_TRIES = 8
 # rounds of at least this many nodes test first candidates with _facing_ear
@@ -1038,7 +1041,7 @@ def _bad_rows(
 
 
 def _elevation_apex(
-    seqs: Sequences, sz: np.ndarray, state: np.ndarray
+    seqs: Sequences, sz: np.ndarray, state: np.ndarray, near_first: bool = True
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rule "elevation" for the open nodes ``state``: per node whether it has a correct
     apex, and the one ``_choose_elevation`` picks among all of them (or -1).
@@ -1049,17 +1052,71 @@ def _elevation_apex(
     rule's choice; where it is not correct it drops out and the next closest is tried, up to
     in rounds of 1, 2, 4, ... closest candidates at once (``_ELEVATION_ROUNDS`` rounds).
     Nodes where the choice is not sure test all their candidates.
+
+    ``near_first``: a node of many candidates first takes only those whose elevation lies
+    within a share of its candidates' spread of the closest (about ``_NEAR_CANDIDATES`` of
+    them, from the spread alone); where its choice among them is not sure to hold against all
+    the others (each surely farther), it is decided again with all of them.
     """
     lo, hi = state[_LO], state[_HI]
     n = len(lo)
-    found = np.zeros(n, dtype=bool)
-    apex = np.full(n, -1, dtype=np.int64)
-    owner, c = _facing_candidates(seqs, lo, hi)
-    if not len(c):
-        return found, apex
     at_hi = state[_AT_HI] == 1
     v1 = np.where(at_hi, hi, lo)
     v2 = np.where(at_hi, lo, hi)
+    z1, z2 = sz[v1], sz[v2]  # per node
+    span = hi - lo - 1
+    owner = np.repeat(np.arange(n, dtype=np.int64), span)
+    c = np.repeat(hi - 1, span) - ragged_index(np.zeros(n, dtype=np.int64), span)
+    # per node a lower bound of |2 z - z1 - z2| (its float value less its error) of every
+    # candidate left out (none: infinite)
+    floor = np.full(n, np.inf)
+    wide = np.flatnonzero(span > 2 * _NEAR_CANDIDATES) if near_first else np.zeros(0, np.int64)
+    if len(wide):
+        approx, _ = _elevation_distance(sz[c], z1[owner], z2[owner])
+        first = (np.cumsum(span) - span)[wide]
+        # each wide node's extremes: reductions over its own range, the gaps dropped
+        cuts = np.column_stack([first, first + span[wide]]).ravel()
+        padded = np.append(approx, 0.0)
+        low = np.minimum.reduceat(padded, cuts)[::2]
+        high = np.maximum.reduceat(padded, cuts)[::2]
+        threshold = np.full(n, np.inf)
+        threshold[wide] = low + (high - low) * (_NEAR_CANDIDATES / span[wide])
+        near = approx <= threshold[owner]
+        owner, c = owner[near], c[near]
+        zmax = 2.0 * float(np.abs(sz).max(initial=0.0))
+        bound = 8.0 * 2.0**-53 * (zmax + np.abs(z1[wide]) + np.abs(z2[wide])) + 1e-300
+        floor[wide] = threshold[wide] - bound
+    facing = _facing(seqs, lo[owner], hi[owner], c)
+    owner, c = owner[facing], c[facing]
+    found, apex, undecided = _closest_correct(seqs, sz, lo, hi, owner, c, floor, v1, v2)
+    redo = np.flatnonzero(undecided)
+    if len(redo):
+        found[redo], apex[redo] = _elevation_apex(seqs, sz, state[:, redo], near_first=False)
+    return found, apex
+
+
+def _closest_correct(
+    seqs: Sequences,
+    sz: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    owner: np.ndarray,
+    c: np.ndarray,
+    floor: np.ndarray,
+    v1: np.ndarray,
+    v2: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_elevation_apex` among the candidates ``c`` of nodes ``owner`` (in candidate
+    order per node, each passing conditions 1 and 4); ``floor``: per node a bound below the
+    distances of the candidates left out (infinite: none). Returns found, apex and, per node,
+    whether its choice among these is not sure against those left out (undecided)."""
+    n = len(lo)
+    found = np.zeros(n, dtype=bool)
+    apex = np.full(n, -1, dtype=np.int64)
+    undecided = np.zeros(n, dtype=bool)
+    if not len(c):
+        undecided[:] = floor < np.inf
+        return found, apex, undecided
     zc = sz[c]
     z1, z2 = sz[v1], sz[v2]  # per node
     approx, error = _elevation_distance(zc, z1[owner], z2[owner])
@@ -1092,15 +1149,16 @@ def _elevation_apex(
         # sure where every other candidate left after it is surely farther, or at the same
         # elevation (then after it in candidate order: the rule's tie-break picks it too),
         # or exactly as far on the other side of the mean and after it in candidate order
-        # (terraced elevations: base corners on two levels, candidates on both)
-        limit = (a + e)[pick][group]
+        # (terraced elevations: base corners on two levels, candidates on both), and those
+        # left out are surely farther
+        nodes = o[starts]
+        limit = (a + e)[pick]
         z_pick = z[pick][group]
-        farther = (rank <= first[group]) | (a - e > limit) | (z == z_pick)
+        farther = (rank <= first[group]) | (a - e > limit[group]) | (z == z_pick)
         position = c[left]
         later = position < position[pick][group]
         farther |= later & _mirrored(z, z_pick, z1[o], z2[o])
-        sure = has & np.logical_and.reduceat(farther, starts)
-        nodes = o[starts]
+        sure = has & np.logical_and.reduceat(farther, starts) & (limit <= floor[nodes])
         found[nodes[sure]] = True
         apex[nodes[sure]] = c[left[pick[sure]]]
         alive[left[sure[group]]] = False
@@ -1109,8 +1167,10 @@ def _elevation_apex(
         alive[t[~has[group[taken]]]] = False
         take *= 2
     # the other nodes: every candidate left (each passed conditions 1 and 4 above), back in
-    # candidate order, then the rule's choice among the correct ones
-    rest = np.flatnonzero(alive & ~found[owner])
+    # candidate order, then the rule's choice among the correct ones; a node with candidates
+    # left out is decided again with all of them
+    undecided = ~found & (floor < np.inf)
+    rest = np.flatnonzero(alive & ~found[owner] & ~undecided[owner])
     rest = rest[np.argsort(order[rest])]
     owner, c = owner[rest], c[rest]
     good = _pass_tables(seqs, lo[owner], hi[owner], c)
@@ -1118,7 +1178,7 @@ def _elevation_apex(
         chosen = np.bincount(owner[good], minlength=n) > 0
         found[chosen] = True
         apex[chosen] = _choose_elevation(sz, owner[good], c[good], v1, v2)
-    return found, apex
+    return found, apex, undecided
 
 
 def _mirrored(zd: np.ndarray, zc: np.ndarray, z1: np.ndarray, z2: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ import pytest
 from bsp_triangulate import TriangulationError, triangulate
 from bsp_triangulate.geometry.bridges import split_touching
 from bsp_triangulate.geometry.rings import normalise_rings, prepare
+from bsp_triangulate.tree import lockstep
 from bsp_triangulate.tree.batch import MAX_VERTICES, MID_MIN_COUNT, MID_VERTICES, triangulate_batch
 
 from ...conftest import SHARED_DATA
@@ -357,6 +358,36 @@ def test_rule_elevation_on_larger_stars_equals_engine(elevations: str) -> None:
     problems, handled = mismatches(polygons, rule="elevation")
     assert problems == []
     assert handled == len(polygons)
+
+
+@pytest.mark.parametrize("elevations", ["smooth", "whole metres"])
+def test_rule_elevation_near_candidates_first_equals_engine(
+    elevations: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A node of many candidates takes its closest ones first, and where its choice among
+    them may not hold against the others it is decided again with all of them: the trees are
+    the engine's, on mid-size polygons (both paths taken)."""
+    calls = {True: 0, False: 0}
+    elevation_apex = lockstep._elevation_apex
+
+    def counted(seqs, sz, state, near_first=True):
+        calls[near_first] += 1
+        return elevation_apex(seqs, sz, state, near_first)
+
+    monkeypatch.setattr(lockstep, "_elevation_apex", counted)
+    rnd = random.Random(41)
+    polygons = []
+    for rings in mid_size_polygons(rnd, MID_MIN_COUNT + 4, integer=False):
+        lifted = []
+        for ring in rings:
+            xy = np.asarray(ring, dtype=np.float64)
+            z = 80.0 + 0.05 * xy[:, 0] - 0.03 * xy[:, 1] + 6.0 * np.sin(xy[:, 0] / 23.0)
+            lifted.append(np.column_stack([xy, np.round(z) if elevations != "smooth" else z]))
+        polygons.append(lifted)
+    problems, handled = mismatches(polygons, rule="elevation")
+    assert problems == []
+    assert handled == len(polygons)
+    assert calls[True] and calls[False]
 
 
 def concave_stars(rnd: random.Random, count: int) -> list:
