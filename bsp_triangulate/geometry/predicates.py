@@ -375,20 +375,45 @@ def incircle_many(
     static bound; entries within it are re-decided exactly.
     """
     coordinates = (ax, ay, bx, by, cx, cy, dx, dy)
-    shape = np.broadcast_shapes(*(np.shape(c) for c in coordinates))
-    flat = _flat_arrays(coordinates)
+    flat: list[np.ndarray | float]
+    if _points_around_one_circle(coordinates):
+        circle = [float(v) for v in coordinates[:6]]
+        if len(dx) <= _FEW_POINTS:
+            # numpy's fixed cost per call outweighs a few tests on Python floats (exact too)
+            points = zip(np.ravel(dx).tolist(), np.ravel(dy).tolist())
+            return np.array([incircle_one(*circle, x, y) for x, y in points], dtype=np.int8)
+        shape = np.shape(dx)
+        flat = [*circle, np.asarray(dx, dtype=np.float64), np.asarray(dy, dtype=np.float64)]
+    else:
+        shape = np.broadcast_shapes(*(np.shape(c) for c in coordinates))
+        flat = _flat_arrays(coordinates)
     signs, sure = _incircle_filter(*flat)
     if not sure.all():
         unsure = np.flatnonzero(~sure)
+        picked = [a[unsure] if np.ndim(a) else np.full(len(unsure), a) for a in flat]
         # the corners of an axis-parallel rectangle (cell centres of a grid) lie on one
         # circle: exactly 0, without the integer arithmetic
-        on_circle = _rectangle_corners(*(a[unsure] for a in flat))
+        on_circle = _rectangle_corners(*picked)
         signs[unsure[on_circle]] = 0
-        left = unsure[~on_circle]
-        if len(left):
-            picked = [a[left].tolist() for a in flat]
-            signs[left] = [incircle_exact(*point) for point in zip(*picked)]
+        left = ~on_circle
+        if left.any():
+            points = zip(*(a[left].tolist() for a in picked))
+            signs[unsure[left]] = [incircle_exact(*point) for point in points]
     return signs.reshape(shape) if shape else signs
+
+
+# at most this many points against one circle are tested on Python floats
+_FEW_POINTS = 24
+
+
+def _points_around_one_circle(coordinates: tuple[np.ndarray | float, ...]) -> bool:
+    """The circle's corners are scalars and the points two 1-D arrays of one length."""
+    dx, dy = coordinates[6], coordinates[7]
+    return (
+        np.ndim(dx) == 1
+        and np.shape(dx) == np.shape(dy)
+        and all(np.ndim(c) == 0 for c in coordinates[:6])
+    )
 
 
 # entries per pass of :func:`_incircle_filter`: its temporaries stay in the cache
@@ -405,18 +430,24 @@ def _incircle_filter(
     dx: np.ndarray,
     dy: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_incircle_float` on 1-D arrays of one length, in place and by chunks: the
-    signs of the float determinant (int8) and where they are sure (beyond the bound)."""
-    count = len(ax)
+    """:func:`_incircle_float` on 1-D arrays of one length (a, b and c may be floats), in
+    place and by chunks: the signs of the float determinant (int8) and where they are sure
+    (beyond the bound)."""
+    count = len(dx)
     signs = np.empty(count, dtype=np.int8)
     sure = np.empty(count, dtype=bool)
+    corners = (ax, ay, bx, by, cx, cy)
+    arrays = [np.ndim(v) > 0 for v in corners]
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         for first in range(0, count, _FILTER_CHUNK):
             part = slice(first, first + _FILTER_CHUNK)
             px, py = dx[part], dy[part]
-            adx, ady = ax[part] - px, ay[part] - py
-            bdx, bdy = bx[part] - px, by[part] - py
-            cdx, cdy = cx[part] - px, cy[part] - py
+            pax, pay, pbx, pby, pcx, pcy = (
+                v[part] if is_array else v for v, is_array in zip(corners, arrays)
+            )
+            adx, ady = pax - px, pay - py
+            bdx, bdy = pbx - px, pby - py
+            cdx, cdy = pcx - px, pcy - py
             bc, cb = bdx * cdy, cdx * bdy
             ca, ac = cdx * ady, adx * cdy
             ab, ba = adx * bdy, bdx * ady

@@ -121,6 +121,40 @@ def test_incircle_matches_exact_arithmetic_near_cocircular_points() -> None:
     assert incircle(0, 0, 4, 4, 4, 0, 1, 1) == -1  # clockwise a, b, c: the sign flips
 
 
+@pytest.mark.parametrize("count", [0, 1, 7, 24, 25, 300, 9000])
+def test_incircle_of_points_around_one_circle_matches_exact_arithmetic(count: int) -> None:
+    """One circle (scalar corners) against many points: few on Python floats, more through
+    the float filter with the corners unbroadcast; the signs are the exact ones, as with every
+    input broadcast to arrays. Points near the circle, on it (corners of a rectangle of the
+    grid), at its corners, and far."""
+    rnd = random.Random(count)
+    step, x0, y0 = 0.1, 969491.275403656647541, -6250296.99
+    a, b, c = (x0, y0), (x0 + 4 * step, y0), (x0 + 4 * step, y0 + 2 * step)
+    points = []
+    for k in range(count):
+        kind = k % 4
+        if kind == 0:
+            points.append((x0 + step * rnd.randint(-3, 7), y0 + step * rnd.randint(-3, 5)))
+        elif kind == 1:
+            t = rnd.uniform(0, 6.283)
+            centre = (x0 + 2 * step, y0 + step)
+            radius = float(np.hypot(2 * step, step)) * (1 + rnd.choice([-1, 1]) * 1e-15)
+            points.append((centre[0] + radius * np.cos(t), centre[1] + radius * np.sin(t)))
+        elif kind == 2:
+            points.append(rnd.choice([a, b, c]))
+        else:
+            points.append((rnd.uniform(-1e7, 1e7), rnd.uniform(-1e7, 1e7)))
+    px = np.array([p[0] for p in points], dtype=np.float64)
+    py = np.array([p[1] for p in points], dtype=np.float64)
+    got = incircle_many(*a, *b, *c, px, py)
+    assert got.dtype == np.int8 and got.shape == (count,)
+    spread = [np.full(count, v) for v in (*a, *b, *c)]
+    np.testing.assert_array_equal(got, incircle_many(*spread, px, py))
+    sample = range(0, count, max(count // 300, 1))
+    expected = [_incircle_fraction(a, b, c, points[k]) for k in sample]
+    np.testing.assert_array_equal(got[list(sample)], expected)
+
+
 @pytest.mark.parametrize("step", [0.1, 81.993426195884126, 1 / 3])
 def test_cell_centres_on_rectangles_and_their_ties_match_exact_arithmetic(step: float) -> None:
     # points of a grid far from the origin (a DEM's cell centres): the corners of any
