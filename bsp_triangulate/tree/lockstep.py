@@ -1085,7 +1085,8 @@ def _elevation_apex(
         owner, c = owner[near], c[near]
         zmax = 2.0 * float(np.abs(sz).max(initial=0.0))
         bound = 8.0 * 2.0**-53 * (zmax + np.abs(z1[wide]) + np.abs(z2[wide])) + 1e-300
-        floor[wide] = threshold[wide] - bound
+        # one step down: the float difference may round up
+        floor[wide] = np.nextafter(threshold[wide] - bound, -np.inf)
     facing = _facing(seqs, lo[owner], hi[owner], c)
     owner, c = owner[facing], c[facing]
     found, apex, undecided = _closest_correct(seqs, sz, lo, hi, owner, c, floor, v1, v2)
