@@ -222,14 +222,24 @@ class RunBoxes:
         )
 
 
-def _facing_candidates(
-    seqs: Sequences, lo: np.ndarray, hi: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Every candidate of every node (lo, hi), in candidate order (hi - 1 down to lo + 1),
-    that faces its base: (node, candidate position) pairs."""
+def _candidates(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every candidate of every node (lo, hi), in candidate order (hi - 1 down to lo + 1):
+    (node, candidate position) pairs."""
     span = hi - lo - 1
     owner = np.repeat(np.arange(len(lo), dtype=np.int64), span)
     c = np.repeat(hi - 1, span) - ragged_index(np.zeros(len(lo), np.int64), span)
+    return owner, c
+
+
+def _facing_candidates(
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    pairs: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The (node, candidate position) ``pairs`` (default: every candidate of every node
+    (lo, hi), :func:`_candidates`) that face their base, in their order."""
+    owner, c = _candidates(lo, hi) if pairs is None else pairs
     facing = _facing(seqs, lo[owner], hi[owner], c)
     return owner[facing], c[facing]
 
@@ -1041,7 +1051,7 @@ def _bad_rows(
 
 
 def _elevation_apex(
-    seqs: Sequences, sz: np.ndarray, state: np.ndarray, near_first: bool = True
+    seqs: Sequences, sz: np.ndarray, state: np.ndarray, top_z: float, near_first: bool = True
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rule "elevation" for the open nodes ``state``: per node whether it has a correct
     apex, and the one ``_choose_elevation`` picks among all of them (or -1).
@@ -1056,7 +1066,8 @@ def _elevation_apex(
     ``near_first``: a node of many candidates first takes only those whose elevation lies
     within a share of its candidates' spread of the closest (about ``_NEAR_CANDIDATES`` of
     them, from the spread alone); where its choice among them is not sure to hold against all
-    the others (each surely farther), it is decided again with all of them.
+    the others (each surely farther), it is decided again with all of them. ``top_z``: the
+    largest |z| of ``sz``, which bounds the error of every candidate's distance.
     """
     lo, hi = state[_LO], state[_HI]
     n = len(lo)
@@ -1065,8 +1076,7 @@ def _elevation_apex(
     v2 = np.where(at_hi, lo, hi)
     z1, z2 = sz[v1], sz[v2]  # per node
     span = hi - lo - 1
-    owner = np.repeat(np.arange(n, dtype=np.int64), span)
-    c = np.repeat(hi - 1, span) - ragged_index(np.zeros(n, dtype=np.int64), span)
+    owner, c = _candidates(lo, hi)
     # per node a lower bound of |2 z - z1 - z2| (its float value less its error) of every
     # candidate left out (none: infinite)
     floor = np.full(n, np.inf)
@@ -1083,16 +1093,16 @@ def _elevation_apex(
         threshold[wide] = low + (high - low) * (_NEAR_CANDIDATES / span[wide])
         near = approx <= threshold[owner]
         owner, c = owner[near], c[near]
-        zmax = 2.0 * float(np.abs(sz).max(initial=0.0))
-        bound = 8.0 * 2.0**-53 * (zmax + np.abs(z1[wide]) + np.abs(z2[wide])) + 1e-300
+        # the error bound of a candidate at the largest |z|: at least any candidate's
+        _, bound = _elevation_distance(top_z, z1[wide], z2[wide])
         # one step down: the float difference may round up
         floor[wide] = np.nextafter(threshold[wide] - bound, -np.inf)
-    facing = _facing(seqs, lo[owner], hi[owner], c)
-    owner, c = owner[facing], c[facing]
+    owner, c = _facing_candidates(seqs, lo, hi, (owner, c))
     found, apex, undecided = _closest_correct(seqs, sz, lo, hi, owner, c, floor, v1, v2)
     redo = np.flatnonzero(undecided)
     if len(redo):
-        found[redo], apex[redo] = _elevation_apex(seqs, sz, state[:, redo], near_first=False)
+        redone = _elevation_apex(seqs, sz, state[:, redo], top_z, near_first=False)
+        found[redo], apex[redo] = redone
     return found, apex
 
 
@@ -1556,6 +1566,7 @@ def build_trees(
     records = record.view(record_item).reshape(total)
     ok = np.ones(count, dtype=bool)
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
+    top_z = float(np.abs(sz).max(initial=0.0)) if rule == "elevation" else 0.0
     # rows are written as they are emitted; a sequence that fails is not read
     while state.shape[1]:
         lo = state[_LO]
@@ -1563,7 +1574,7 @@ def build_trees(
             if rule == "delaunay":
                 found, apex = _delaunay_apex(seqs, state)
             else:
-                found, apex = _elevation_apex(seqs, sz, state)
+                found, apex = _elevation_apex(seqs, sz, state, top_z)
             failed = ~found
             # no node tries again: the rule tested all its candidates
             retry, blocker = np.zeros(0, dtype=np.int64), apex

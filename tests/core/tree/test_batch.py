@@ -370,9 +370,9 @@ def test_rule_elevation_near_candidates_first_equals_engine(
     calls = {True: 0, False: 0}
     elevation_apex = lockstep._elevation_apex
 
-    def counted(seqs, sz, state, near_first=True):
+    def counted(seqs, sz, state, top_z, near_first=True):
         calls[near_first] += 1
-        return elevation_apex(seqs, sz, state, near_first)
+        return elevation_apex(seqs, sz, state, top_z, near_first)
 
     monkeypatch.setattr(lockstep, "_elevation_apex", counted)
     rnd = random.Random(41)

@@ -165,6 +165,12 @@ def test_candidates_skipped_behind_an_edge_fail_exactly(seed: int) -> None:
     assert shadowed > 10
 
 
+def _ignore_shadows(patch: pytest.MonkeyPatch) -> None:
+    """No candidate is found in a shadow: each gets the exact tests."""
+    patch.setattr(Shadows, "shadowed", lambda self, alpha, beta: False)
+    patch.setattr(Shadows, "shadowed_many", lambda self, sx, sy, p: np.zeros(len(p), dtype=bool))
+
+
 def test_rule_elevation_skips_shadowed_candidates_with_the_same_trees(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -180,10 +186,7 @@ def test_rule_elevation_skips_shadowed_candidates_with_the_same_trees(
     for invalid in ("fail", "as_given"):
         fast = triangulate(rings, rule="elevation", invalid=invalid)
         with monkeypatch.context() as patch:
-            patch.setattr(Shadows, "shadowed", lambda self, alpha, beta: False)
-            patch.setattr(
-                Shadows, "shadowed_many", lambda self, sx, sy, p: np.zeros(len(p), dtype=bool)
-            )
+            _ignore_shadows(patch)
             _same(fast, triangulate(rings, rule="elevation", invalid=invalid))
     assert used
 
@@ -229,8 +232,7 @@ def test_rule_elevation_casts_the_shadows_next_to_the_base_with_the_same_trees(
     rings = [np.column_stack([r, np.cos(r[:, 0] / 61) * 25 + r[:, 1] / 9]) for r in rings]
     fast = triangulate(rings, rule="elevation")
     with monkeypatch.context() as patch:
-        patch.setattr(Shadows, "shadowed", lambda self, alpha, beta: False)
-        patch.setattr(Shadows, "shadowed_many", lambda self, sx, sy, p: np.zeros(len(p), bool))
+        _ignore_shadows(patch)
         patch.setattr(one_polygon, "_SCALAR_CANDIDATES", math.inf)
         _same(fast, triangulate(rings, rule="elevation"))
     assert len(used) > 20
