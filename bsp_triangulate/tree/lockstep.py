@@ -399,14 +399,24 @@ _ONE_TABLE = 1 << 16
 _WIDTHS = np.array([4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024])
 
 
-def _pass_tables(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
+def _pass_tables(
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, every_above: int | None = None
+) -> np.ndarray:
     """Per candidate ``c`` that passes conditions 1 and 4 on the base of the sub-polygon
-    [lo, hi]: it passes conditions 2 and 3 too, so that its triangle is correct."""
+    [lo, hi]: it passes conditions 2 and 3 too, so that its triangle is correct. Sub-polygons
+    of more than ``every_above`` positions are tested against every position, also in proven
+    polygons."""
     ok = np.ones(len(c), dtype=bool)
     # a 3-vertex sub-polygon has only its corners and its own sides: conditions 2 and 3 hold
     idx = np.flatnonzero(hi - lo > 2)
-    if len(idx):
-        ok[idx[_tables(seqs, lo[idx], hi[idx], c[idx])[0]]] = False
+    if not len(idx):
+        return ok
+    every = np.zeros(len(idx), dtype=bool)
+    if every_above is not None:
+        every = hi[idx] - lo[idx] > every_above
+    for part, tables in ((idx[every], _all_tables), (idx[~every], _tables)):
+        if len(part):
+            ok[part[tables(seqs, lo[part], hi[part], c[part])[0]]] = False
     return ok
 
 
@@ -1247,12 +1257,16 @@ def _delaunay_apex(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     passed = _facing(seqs, lo[nodes], hi[nodes], guess[nodes])
     tested = nodes[passed]
     # a sure guess in a proven polygon needs no table: its circle holds no vertex of the
-    # sub-polygon, so the only way it can be wrong is an edge across both new sides, and
-    # then its tree cannot complete and is built again with every table (Trees.again)
+    # sub-polygon, so the only way it can be wrong is an edge across both new sides. The
+    # edges most likely to cross are looked for (those at a bridge end at a base corner,
+    # of the islands near the triangle and of the chain around the apex: on concave
+    # polygons, long edges of spikes). A crossing missed leaves a tree that cannot complete,
+    # which is built again with every table (Trees.again)
     proven = seqs.proven[lo[tested]]
-    checked = tested[~proven]
+    sure, checked = tested[proven], tested[~proven]
+    sure = sure[~_edge_across_sure(seqs, lo[sure], hi[sure], guess[sure])]
     good = np.concatenate(
-        [tested[proven], checked[_pass_tables(seqs, lo[checked], hi[checked], guess[checked])]]
+        [sure, checked[_pass_tables(seqs, lo[checked], hi[checked], guess[checked])]]
     )
     found[good] = True
     apex = np.full(n, -1, dtype=np.int64)
@@ -1263,6 +1277,21 @@ def _delaunay_apex(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     return found, apex
 
 
+def _edge_across_sure(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Per sure guess ``c`` of rule "delaunay" (no vertex in its triangle but corners) in a
+    sub-polygon of more than ``_RUN_MIN`` positions: an edge found across it
+    (:func:`_bridge_at_corner`, :func:`_edges_across`)."""
+    bad = np.zeros(len(c), dtype=bool)
+    large = np.flatnonzero(hi - lo > _RUN_MIN)
+    if len(large):
+        lo, hi, c = lo[large], hi[large], c[large]
+        corners = np.take(seqs.xy, np.stack([hi, lo, c]), axis=0)
+        bad[large] = _bridge_at_corner(seqs, lo, hi, c) | _edges_across(seqs, lo, hi, c, corners)
+    return bad
+
+
+# rule "delaunay" tries candidates against every position in sub-polygons of more than this
+_DELAUNAY_EVERY = _RUN_MIN
 # table entries per call of :func:`_delaunay_guess`
 _GUESS_CHUNK = 1 << 14
 # padded row widths of the tables of :func:`_delaunay_guess`
@@ -1350,10 +1379,14 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
     ``predicates.cocircular_sign``: outside its circle, or its point later in candidate
     order) drops out. The best left when none remains is the best of all correct candidates
     in that order, whatever the order of the tries: the rule's choice. After
-    ``_DELAUNAY_TRIES`` tries a node tests all its candidates left at once. In proven
-    polygons the tables are those of :func:`_bent_in_triangle`: a candidate passed wrongly
-    is chosen only if it is the best of those passed, and then its tree cannot complete (it
-    is built again with every table).
+    ``_DELAUNAY_TRIES`` tries a node tests all its candidates left at once. In sub-polygons
+    of more than ``_DELAUNAY_EVERY`` positions every position is tested, even if proven:
+    there these candidates are mostly wide triangles behind a spike, which edges cross with
+    no vertex inside (missed by :func:`_bent_in_triangle`, their trees would be built
+    twice), and whose many bent positions cost that more than the run tables. In smaller
+    proven ones the tables are those of :func:`_bent_in_triangle`: a candidate passed
+    wrongly is chosen only if it is the best of those passed, and then its tree cannot
+    complete (it is built again with every table).
     """
     lo, hi = state[_LO], state[_HI]
     n = len(lo)
@@ -1379,7 +1412,7 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
             untested = live[~known[live]]
             if len(untested):
                 t = owner[untested]
-                good = _pass_tables(seqs, lo[t], hi[t], c[untested])
+                good = _pass_tables(seqs, lo[t], hi[t], c[untested], _DELAUNAY_EVERY)
                 known[untested] = True
                 alive[untested[~good]] = False
                 live = live[alive[live]]
@@ -1391,7 +1424,7 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
         test = head[~known[head]]
         if len(test):
             t = owner[test]
-            good = _pass_tables(seqs, lo[t], hi[t], c[test])
+            good = _pass_tables(seqs, lo[t], hi[t], c[test], _DELAUNAY_EVERY)
             known[test] = True
             alive[test[~good]] = False
         better = head[alive[head]]
