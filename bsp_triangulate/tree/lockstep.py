@@ -1581,8 +1581,10 @@ def build_trees(
     position of the same vertex or -1; ``rule``: "first", "elevation" or "delaunay" (the
     apex rule); ``proven``: per sequence, its polygon is proven valid
     (``validity.proven_valid``), which lets its candidates skip most tables
-    (:func:`_bent_in_triangle`; a proven polygon whose tree does not complete is marked
-    ``again``, for the caller to build with every table, with the trees of other groups)."""
+    (:func:`_bent_in_triangle`; where a node of such a tree finds no candidate, the subtree
+    of the wrong ancestor is built again in place with every table (:func:`_reopened`), and
+    where that fails the polygon is marked ``again``, for the caller to build with every
+    table, with the trees of other groups)."""
     count = len(seq_start)
     # a sample that is not grid-exact rules out the whole (cheap for float data)
     exact = grid_exact(sx[:1024], sy[:1024]) and grid_exact(sx, sy)
@@ -1615,10 +1617,19 @@ def build_trees(
             found, apex, blocker = _first_correct(seqs, state)
             failed = ~found & (apex <= lo)
             retry = np.flatnonzero(~found & ~failed)
+        reopened = None
         if failed.any():
+            hopeless = failed
+            shortcut = failed & seqs.proven[lo]
+            if shortcut.any():
+                # a node of a proven polygon finds no candidate where an ancestor was passed
+                # wrongly: that ancestor's subtree is built again, with every table
+                reopened, repaired = _reopened(seqs, record, state[:, shortcut])
+                hopeless = failed.copy()
+                hopeless[np.flatnonzero(shortcut)[repaired]] = False
             # a failed tree's other nodes leave: none is emitted or tried again
             seq = state[_SEQ]
-            ok[seq[failed]] = False
+            ok[seq[hopeless]] = False
             alive = ok[seq]
             found &= alive
             retry = retry[alive[retry]]
@@ -1629,6 +1640,8 @@ def build_trees(
         emitted[...] = done[:_RECORD].T
         records[done[_ROW]] = emitted.view(record_item).reshape(len(emit))
         state = _next_state(state, emit, done, apex, retry, blocker)
+        if reopened is not None:
+            state = _with_reopened(state, reopened, seqs)
     again = ~ok & seqs.proven[seq_start]
     # triangles (s_hi, s_lo, apex), (s_lo, s_hi, apex) where mirrored: counter-clockwise in
     # the output coordinates
@@ -1643,6 +1656,88 @@ def build_trees(
     parent, depth = record[:, _PARENT].astype(np.int64), record[:, _DEPTH].astype(np.int64)
     side = record[:, _SIDE].astype(np.int8)
     return Trees(triangles, parent, depth, side, tri_start, tri_count, ok, again)
+
+
+def _reopened(
+    seqs: Sequences, record: np.ndarray, failing: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """For open nodes ``failing`` (columns of the state) of proven polygons that find no
+    candidate: their topmost ancestors within ``_REOPEN_LEVELS`` whose triangle every table
+    rejects, as fresh open nodes (state columns, each once, none inside another's subtree),
+    and per failing node whether it has one. (A wrong ancestor higher up makes the subtree
+    built again fail too; its tree is then built again as a whole.)
+
+    Why that ancestor's subtree is all there is to build again: in a proven polygon every
+    rejection of a node whose ancestors are correct is real (section 4 of
+    docs/algorithm.md), so a node whose ancestors are correct and whose triangle is
+    correct took the rule's choice; a node finds no candidate only below a wrong one. The
+    tree, once complete, is checked as a whole by the argument of section 4."""
+    first = failing[_FIRST]
+    count = failing.shape[1]
+    owners, rows = [], []
+    who = np.arange(count)
+    local = failing[_PARENT]
+    for _ in range(_REOPEN_LEVELS):
+        up = local >= 0
+        who, row = who[up], local[up] + first[who[up]]
+        owners.append(who)
+        rows.append(row)
+        local = record[row, _PARENT].astype(np.int64)
+        if not len(who):
+            break
+    repaired = np.zeros(count, dtype=bool)
+    if not owners:
+        return np.zeros((11, 0), dtype=np.int64), repaired
+    owner, row = np.concatenate(owners), np.concatenate(rows)
+    lo, hi, c = (record[row, k].astype(np.int64) for k in (_LO, _HI, _CAND))
+    bad = np.zeros(len(row), dtype=bool)
+    big = np.flatnonzero(hi - lo > 2)
+    bad[big] = _all_tables(seqs, lo[big], hi[big], c[big])[0]
+    owner, row, lo, hi = owner[bad], row[bad], lo[bad], hi[bad]
+    if not len(row):
+        return np.zeros((11, 0), dtype=np.int64), repaired
+    # per failing node its topmost wrong ancestor (the lowest depth)
+    order = np.lexsort((record[row, _DEPTH], owner))
+    owner, row, lo, hi = owner[order], row[order], lo[order], hi[order]
+    top = np.r_[True, owner[1:] != owner[:-1]]
+    owner, row, lo, hi = owner[top], row[top], lo[top], hi[top]
+    repaired[owner] = True
+    row, pick = np.unique(row, return_index=True)
+    owner, lo, hi = owner[pick], lo[pick], hi[pick]
+    # none inside another's subtree (its rows follow that node's in pre-order)
+    seq = failing[_SEQ][owner]
+    inner = (seq[:, None] == seq) & (row[:, None] > row) & (row[:, None] < row + hi - lo - 1)
+    keep = ~inner.any(axis=1)
+    row, owner, lo, hi = row[keep], owner[keep], lo[keep], hi[keep]
+    nodes = np.zeros((11, len(row)), dtype=np.int64)
+    nodes[_LO], nodes[_HI], nodes[_CAND] = lo, hi, hi - 1
+    nodes[_PARENT] = record[row, _PARENT]
+    nodes[_DEPTH] = record[row, _DEPTH]
+    nodes[_SIDE] = record[row, _SIDE]
+    nodes[_ROW] = row
+    # V1 is at hi exactly where the node is its parent's upper part (or the root)
+    parent = nodes[_PARENT] + first[owner]
+    nodes[_AT_HI] = (nodes[_PARENT] < 0) | (record[np.maximum(parent, 0), _HI] == hi)
+    nodes[_FIRST] = first[owner]
+    nodes[_SEQ] = failing[_SEQ][owner]
+    nodes[_BLOCK] = -1
+    return nodes, repaired
+
+
+# ancestors of a failing node looked at for the wrong one (on the benchmark's concave
+# polygons of 260-600 vertices, it is 4-23 levels up)
+_REOPEN_LEVELS = 32
+
+
+def _with_reopened(state: np.ndarray, nodes: np.ndarray, seqs: Sequences) -> np.ndarray:
+    """The open nodes ``state`` without those in the subtrees of ``nodes`` (fresh open nodes
+    from :func:`_reopened`), then ``nodes``, whose sub-polygons are from now on tested with
+    every table."""
+    drop = np.zeros(state.shape[1], dtype=bool)
+    for seq, row, lo, hi in zip(*(nodes[k].tolist() for k in (_SEQ, _ROW, _LO, _HI))):
+        drop |= (state[_SEQ] == seq) & (state[_ROW] >= row) & (state[_ROW] < row + hi - lo - 1)
+        seqs.proven[lo:hi] = False
+    return np.concatenate([state[:, ~drop], nodes], axis=1)
 
 
 def _roots(

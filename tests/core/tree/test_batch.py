@@ -416,11 +416,14 @@ def family_polygons(family: str) -> list:
 
 class RestartLog:
     """The trees that ``build_trees`` left to be built again with every table, as (its call,
-    sequence) pairs."""
+    sequence) pairs. Unless ``mend``, trees are not mended in place (``_reopened``): every
+    tree that does not complete is built again."""
 
-    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+    def __init__(self, monkeypatch: pytest.MonkeyPatch, mend: bool = False) -> None:
         from bsp_triangulate.tree import batch
 
+        if not mend:
+            monkeypatch.setattr(lockstep, "_REOPEN_LEVELS", 0)
         self.call = 0
         self.restarted: set[tuple[int, int]] = set()
         build_trees = batch.build_trees
@@ -734,6 +737,40 @@ def radial_polygons(rnd: random.Random, count: int) -> list:
         island = [(r * math.cos(a), r * math.sin(a)) for r, a in island]
         polygons.append([np.array(outer), np.array(island)])
     return polygons
+
+
+@pytest.mark.parametrize("rule", ["first", "delaunay"])
+def test_trees_mended_in_place(rule: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Radial polygons, whose proven shortcut passes fan triangles crossed by a spike (rule
+    delaunay: with its checks for such edges off): the wrong node's subtree is built again
+    in place (``_reopened``), no tree is built again as a whole, and every result equals
+    the engine's; with no ancestor looked at, trees are built again as a whole, with the
+    same results."""
+    polygons = radial_polygons(random.Random(33), 12)
+    if rule == "delaunay":
+        monkeypatch.setattr(
+            lockstep, "_edge_across_sure", lambda seqs, lo, hi, c: np.zeros(len(lo), bool)
+        )
+        monkeypatch.setattr(lockstep, "_DELAUNAY_EVERY", 1 << 62)
+    reopened = lockstep._reopened
+    mended = []
+
+    def counted(seqs, record, failing):
+        nodes, repaired = reopened(seqs, record, failing)
+        mended.append(int(repaired.sum()))
+        return nodes, repaired
+
+    monkeypatch.setattr(lockstep, "_reopened", counted)
+    log = RestartLog(monkeypatch, mend=True)
+    problems, handled = mismatches(polygons, rule=rule)
+    assert problems == []
+    assert handled == len(polygons)
+    assert sum(mended) > 0
+    assert not log.restarted
+
+    log = RestartLog(monkeypatch)
+    assert mismatches(polygons, rule=rule)[0] == []
+    assert log.restarted
 
 
 def test_rule_delaunay_edges_across_sure_guesses(monkeypatch: pytest.MonkeyPatch) -> None:
