@@ -11,8 +11,9 @@ tables of float64 signs with an exact fallback), which grows with the square of 
 sub-polygon size as the trees are fan-shaped. A vertex found strictly inside a candidate's
 triangle is tested first against the node's next candidates (``_strictly_inside``), which
 rules out most failing candidates without a table. Candidates in proven-valid polygons test
-only the sub-polygon's bent vertices (``_bent_in_triangle``); a tree that then does not
-complete is marked to be built again with every table (``Trees.again``).
+only the sub-polygon's bent vertices (``_bent_in_triangle``); where a node of such a tree
+then finds no candidate, the wrong ancestor's subtree is built again in place with every
+table (``_reopened``), or failing that the whole tree (``Trees.again``).
 
 Rule "delaunay" (``_delaunay_apex``) compares every candidate of a node with its largest-angle
 guess in padded float tables, decided beyond static error bounds; nodes it cannot decide so
@@ -465,8 +466,8 @@ def _bent_in_triangle(
     the open triangle, and so does an edge across a side; a vertex on a new side fails
     condition 3; and none lies on the base, a side of the correct parent (or a ring edge at
     the root). A candidate passed wrongly thus leaves a tree that cannot complete: some node
-    finds no candidate, and :func:`build_trees` marks that tree to be built again with every
-    table.
+    finds no candidate, and :func:`build_trees` builds the wrong ancestor's subtree again
+    with every table (or, failing that, marks the tree to be built again).
 
     These tests find most failures: any boundary inside an ear comes in across its only new
     side, and its vertex farthest from that side is bent (the part of the ear beyond it is
@@ -1263,7 +1264,7 @@ def _delaunay_apex(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     # edges most likely to cross are looked for (those at a bridge end at a base corner,
     # of the islands near the triangle and of the chain around the apex: on concave
     # polygons, long edges of spikes). A crossing missed leaves a tree that cannot complete,
-    # which is built again with every table (Trees.again)
+    # which is mended or built again with every table (see build_trees)
     proven = seqs.proven[lo[tested]]
     sure, checked = tested[proven], tested[~proven]
     sure = sure[~_edge_across_sure(seqs, lo[sure], hi[sure], guess[sure])]
@@ -1390,11 +1391,11 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
     ``_DELAUNAY_TRIES`` tries a node tests all its candidates left at once. In sub-polygons
     of more than ``_DELAUNAY_EVERY`` positions every position is tested, even if proven:
     there these candidates are mostly wide triangles behind a spike, which edges cross with
-    no vertex inside (missed by :func:`_bent_in_triangle`, their trees would be built
-    twice), and whose many bent positions cost that more than the run tables. In smaller
+    no vertex inside (missed by :func:`_bent_in_triangle`, their trees would often need
+    mending), and whose many bent positions cost that more than the run tables. In smaller
     proven ones the tables are those of :func:`_bent_in_triangle`: a candidate passed
     wrongly is chosen only if it is the best of those passed, and then its tree cannot
-    complete (it is built again with every table).
+    complete (it is mended or built again with every table, see :func:`build_trees`).
     """
     lo, hi = state[_LO], state[_HI]
     n = len(lo)
@@ -1716,7 +1717,7 @@ def _reopened(
     seq = failing[_SEQ][owner]
     inner = (seq[:, None] == seq) & (row[:, None] > row) & (row[:, None] < row + hi - lo - 1)
     keep = ~inner.any(axis=1)
-    row, owner, lo, hi = row[keep], owner[keep], lo[keep], hi[keep]
+    row, owner, lo, hi, seq = row[keep], owner[keep], lo[keep], hi[keep], seq[keep]
     nodes = np.zeros((11, len(row)), dtype=np.int64)
     nodes[_LO], nodes[_HI], nodes[_CAND] = lo, hi, hi - 1
     nodes[_PARENT] = record[row, _PARENT]
@@ -1727,7 +1728,7 @@ def _reopened(
     parent = nodes[_PARENT] + first[owner]
     nodes[_AT_HI] = (nodes[_PARENT] < 0) | (record[np.maximum(parent, 0), _HI] == hi)
     nodes[_FIRST] = first[owner]
-    nodes[_SEQ] = failing[_SEQ][owner]
+    nodes[_SEQ] = seq
     nodes[_BLOCK] = -1
     return nodes, repaired
 

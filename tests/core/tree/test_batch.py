@@ -414,6 +414,32 @@ def family_polygons(family: str) -> list:
     return concave_stars(rnd, 300)
 
 
+def with_terrain_z(polygons: list) -> list:
+    """The polygons with z from a smooth terrain (a slope and a sine), so that rule
+    elevation has something to choose by."""
+    return [
+        [[(x, y, 20.0 + 0.2 * x - 0.1 * y + 3.0 * math.sin(y / 9.0)) for x, y in ring]
+         for ring in rings]
+        for rings in polygons
+    ]  # fmt: skip
+
+
+class MendLog:
+    """Per call of ``lockstep._reopened``, how many failing nodes it found a wrong ancestor
+    for (their subtrees mended in place), in ``mended``."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.mended: list[int] = []
+        reopened = lockstep._reopened
+
+        def counted(seqs, record, failing):
+            nodes, repaired = reopened(seqs, record, failing)
+            self.mended.append(int(repaired.sum()))
+            return nodes, repaired
+
+        monkeypatch.setattr(lockstep, "_reopened", counted)
+
+
 class RestartLog:
     """The trees that ``build_trees`` left to be built again with every table, as (its call,
     sequence) pairs. Unless ``mend``, trees are not mended in place (``_reopened``): every
@@ -563,12 +589,7 @@ def test_trees_built_again_that_fail_are_left_to_the_engine(
 def test_trees_started_again_under_rule_elevation(monkeypatch: pytest.MonkeyPatch) -> None:
     """Rule "elevation" takes the closest of the candidates it believes correct: a wrong one
     taken without a table stops its tree, which starts again and equals the engine's."""
-    rnd = random.Random(41)
-    polygons = [
-        [[(x, y, 20.0 + 0.2 * x - 0.1 * y + 3.0 * math.sin(y / 9.0)) for x, y in ring]
-         for ring in rings]
-        for rings in concave_stars(rnd, 300)
-    ]  # fmt: skip
+    polygons = with_terrain_z(concave_stars(random.Random(41), 300))
     log = RestartLog(monkeypatch)
     problems, handled = mismatches(polygons, rule="elevation")
     assert problems == []
@@ -753,26 +774,14 @@ def test_trees_mended_in_place(rule: str, monkeypatch: pytest.MonkeyPatch) -> No
         )
         monkeypatch.setattr(lockstep, "_DELAUNAY_EVERY", 1 << 62)
     if rule == "elevation":
-        polygons = [
-            [[(x, y, 20.0 + 0.2 * x - 0.1 * y + 3.0 * math.sin(y / 9.0)) for x, y in ring]
-             for ring in rings]
-            for rings in polygons
-        ]  # fmt: skip
+        polygons = with_terrain_z(polygons)
         monkeypatch.setattr(lockstep, "_ELEVATION_EVERY", 1 << 62)
-    reopened = lockstep._reopened
-    mended = []
-
-    def counted(seqs, record, failing):
-        nodes, repaired = reopened(seqs, record, failing)
-        mended.append(int(repaired.sum()))
-        return nodes, repaired
-
-    monkeypatch.setattr(lockstep, "_reopened", counted)
+    mends = MendLog(monkeypatch)
     log = RestartLog(monkeypatch, mend=True)
     problems, handled = mismatches(polygons, rule=rule)
     assert problems == []
     assert handled == len(polygons)
-    assert sum(mended) > 0
+    assert sum(mends.mended) > 0
     assert not log.restarted
 
     log = RestartLog(monkeypatch)
@@ -788,28 +797,16 @@ def test_rule_elevation_every_table_in_large_sub_polygons(
     are mended than with the bent positions' tables (8 against 15 here; 125 against 1,025 on
     the benchmark's 1,000 concave polygons of 260-600 vertices), and all results equal the
     engine's."""
-    polygons = [
-        [[(x, y, 20.0 + 0.2 * x - 0.1 * y + 3.0 * math.sin(y / 9.0)) for x, y in ring]
-         for ring in rings]
-        for rings in radial_polygons(random.Random(34), 12)
-    ]  # fmt: skip
-    reopened = lockstep._reopened
-    mended = []
-
-    def counted(seqs, record, failing):
-        nodes, repaired = reopened(seqs, record, failing)
-        mended.append(int(repaired.sum()))
-        return nodes, repaired
-
-    monkeypatch.setattr(lockstep, "_reopened", counted)
+    polygons = with_terrain_z(radial_polygons(random.Random(34), 12))
+    mends = MendLog(monkeypatch)
     problems, handled = mismatches(polygons, rule="elevation")
     assert problems == []
     assert handled == len(polygons)
-    with_every = sum(mended)
-    mended.clear()
+    with_every = sum(mends.mended)
+    mends.mended.clear()
     monkeypatch.setattr(lockstep, "_ELEVATION_EVERY", 1 << 62)
     assert mismatches(polygons, rule="elevation")[0] == []
-    assert sum(mended) > with_every
+    assert sum(mends.mended) > with_every
 
 
 def test_rule_delaunay_edges_across_sure_guesses(monkeypatch: pytest.MonkeyPatch) -> None:
