@@ -7,7 +7,8 @@ build the BSP tree over the bridged vertex sequence with an explicit work list.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from bisect import bisect_left, bisect_right
+from collections.abc import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -65,6 +66,19 @@ _EPS8 = 8.0 * 2.0**-53
 _MAX_FIRST_CHUNK = 1024
 # Candidates left after the scalar ones beyond which rule "first" skips shadowed chain boxes.
 _SHADOWED = 64
+# Nodes of a fan (rule "first", long sub-polygons) decided in the first batch, and at most in
+# one batch (the batches double in size while every node passes).
+_FAN_BATCH = 16
+_MAX_FAN_BATCH = 256
+# The size of the triangle holding a batch, relative to its outer rays, beyond which the
+# batch's nodes are left to one step at a time.
+_FAN_REACH = 1e3
+# Angles (radians) closer than this are not trusted to compare (fan sectors), nor the angle
+# of a point within this many chain-box paddings (1e-9 of the coordinates' scale) of the fan's
+# centre in either axis (its rounding moves the angle by at most about 4e-9).
+_FAN_MARGIN = 1e-7
+_FAN_NEAR = 64.0
+_TWO_PI = 2.0 * math.pi
 
 
 def _rows(length: int, *rows: np.ndarray | float) -> np.ndarray:
@@ -190,7 +204,7 @@ def pairs_failing(
     sx: np.ndarray,
     sy: np.ndarray,
     lo: int,
-    hi: int,
+    hi: int | np.ndarray,
     candidates: np.ndarray,
     rows: np.ndarray,
     edges: np.ndarray,
@@ -199,13 +213,16 @@ def pairs_failing(
     """Indices into ``candidates`` that fail conditions 2 or 3 on one of the given pairs, and
     the edges that made them fail.
 
-    Pair k is candidate ``candidates[rows[k]]`` with the edge (edges[k], edges[k] + 1).
+    Pair k is candidate ``candidates[rows[k]]`` with the edge (edges[k], edges[k] + 1); the
+    base is (hi, lo), or (hi[i], lo) for candidate i where ``hi`` is an array.
     """
     if len(rows) == 0:
         return rows, rows
     ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
     cx, cy = sx[candidates], sy[candidates]
     count = len(rows)
+    if np.ndim(hi):
+        ax, ay = np.concatenate([ax[rows], ax[rows]]), np.concatenate([ay[rows], ay[rows]])
     ex0, ey0, ex1, ey1 = sx[edges], sy[edges], sx[edges + 1], sy[edges + 1]
     # edge end points of every (candidate, edge) pair: p's then q's
     px = np.concatenate([ex0, ex1])
@@ -230,6 +247,8 @@ def pairs_failing(
     for side, (ux, uy) in ((1, (bx, by)), (2, (ax, ay))):
         zero = np.flatnonzero(f[side] == 0)
         if len(zero):
+            if np.ndim(ux):
+                ux, uy = ux[zero], uy[zero]
             inside = strictly_between(px[zero], py[zero], ux, uy, pcx[zero], pcy[zero])
             bad[pair_rows[zero[inside]]] = True
             blockers.append(pair_edges[zero[inside]])
@@ -238,6 +257,8 @@ def pairs_failing(
     if inward.any():
         hit = np.flatnonzero(inward)
         qx0, qy0, qx1, qy1 = px[hit], py[hit], px[hit + count], py[hit + count]
+        if np.ndim(ax):
+            ax, ay = ax[hit], ay[hit]
         g = orient_many(
             qx0, qy0, qx1, qy1,
             _rows(len(hit), ax, bx, pcx[hit]),
@@ -816,6 +837,127 @@ class _Tree:
                     return c
         return -1
 
+    def _fan_steps(self, lo: int, top: int, most: int) -> int:
+        """How many nodes of a fan at ``lo`` are decided at once: node j (j < ``most``) has the
+        base (lo, top - j) and, where its first candidate top - j - 1 forms a correct
+        triangle, that apex (rule "first"), which leaves node j + 1 as its only child with a
+        triangle. Returns the number of leading nodes whose first candidate is correct.
+
+        Checked a batch of nodes at a time. Conditions 1 and 4 per node, and the apexes must
+        turn strictly clockwise around ``lo`` within a half-turn from the batch's first base:
+        the triangles then lie in disjoint sectors around ``lo``, so no edge of the batch's own
+        chain can break another's triangle. Conditions 2 and 3 are tested against the edges
+        before that chain in the chain boxes that meet a triangle holding the whole batch,
+        each edge only against the nodes whose sectors its angles (with a margin) overlap.
+        """
+        xs, ys, sign = self.xs, self.ys, self.sign
+        ox, oy = xs[lo], ys[lo]
+        done = 0
+        size = _FAN_BATCH
+        while done < most:
+            high = top - done
+            hx, hy = xs[high], ys[high]
+            count = 0
+            for j in range(min(size, most - done)):
+                c = high - j - 1
+                if sign(ox, oy, xs[c], ys[c], hx, hy) <= 0 or not facing_one(xs, ys, lo, c + 1, c):
+                    break
+                count = j + 1
+            size = min(2 * size, _MAX_FAN_BATCH)
+            fan = self._fan_sectors(lo, high, count) if count else None
+            if fan is None:
+                return done
+            hull, ray, angles = fan
+            last = high - count
+            hx0, hx1 = min(hull[0::2]), max(hull[0::2])
+            hy0, hy1 = min(hull[1::2]), max(hull[1::2])
+            near = self.boxes.pad * _FAN_NEAR
+            buckets: list[list[int]] = [[] for _ in range(count)]
+            for begin, end in self._leaves_meeting(lo, last, last, hull):
+                for e in range(begin, end):
+                    px, py, qx, qy = xs[e], ys[e], xs[e + 1], ys[e + 1]
+                    if (px < hx0 and qx < hx0) or (px > hx1 and qx > hx1):
+                        continue
+                    if (py < hy0 and qy < hy0) or (py > hy1 and qy > hy1):
+                        continue
+                    first, final = self._sectors_of(e, ox, oy, ray, angles, near)
+                    for k in range(first, final + 1):
+                        buckets[k].append(e)
+            for j, edges in enumerate(buckets):
+                if edges:
+                    a, c = high - j, high - j - 1
+                    corners = (xs[a], ys[a], ox, oy, xs[c], ys[c])
+                    xmin, xmax = min(corners[0::2]), max(corners[0::2])
+                    ymin, ymax = min(corners[1::2]), max(corners[1::2])
+                    for e in edges:
+                        if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
+                            return done + j
+            done += count
+        return done
+
+    def _fan_sectors(
+        self, lo: int, high: int, count: int
+    ) -> tuple[tuple[float, float, float, float, float, float], float, list[float]] | None:
+        """For the fan at ``lo`` over positions high, high - 1, ..., high - count: a triangle
+        holding it (corners counter-clockwise, at ``lo`` along the rays to ``high`` and
+        ``high - count``, with a margin), the first ray's angle and the clockwise angles from
+        it of the rays to each position (kept non-decreasing); None where the two outer rays are too
+        close to parallel or to opposite for a small such triangle."""
+        xs, ys = self.xs, self.ys
+        ox, oy = xs[lo], ys[lo]
+        ux, uy = xs[high] - ox, ys[high] - oy
+        wx, wy = xs[high - count] - ox, ys[high - count] - oy
+        det = ux * wy - uy * wx
+        if not det < 0:
+            return None
+        start = math.atan2(uy, ux)
+        reach = 0.0
+        angles = []
+        turned = 0.0
+        near = self.boxes.pad * _FAN_NEAR
+        for p in range(high, high - count - 1, -1):
+            vx, vy = xs[p] - ox, ys[p] - oy
+            if abs(vx) <= near and abs(vy) <= near:
+                return None  # its angle is not trusted
+            reach = max(reach, ((vx * wy - vy * wx) + (ux * vy - uy * vx)) / det)
+            turned = max(turned, (start - math.atan2(vy, vx)) % _TWO_PI)
+            angles.append(turned)
+        if not reach < _FAN_REACH or turned > math.pi - _FAN_MARGIN:
+            return None
+        angles[0] = 0.0
+        reach *= 1.0 + 1e-6
+        hull = (ox + reach * ux, oy + reach * uy, ox, oy, ox + reach * wx, oy + reach * wy)
+        return hull, start, angles
+
+    def _sectors_of(
+        self, e: int, ox: float, oy: float, start: float, angles: list[float], near: float
+    ) -> tuple[int, int]:
+        """(first, last) fan nodes whose sectors (between the rays at ``angles``, clockwise
+        from the first ray, at angle ``start``, around (ox, oy)) the edge (e, e + 1) may meet,
+        by its ends' angles with a margin: every node where an end is within ``near`` of the
+        centre (its angle not trusted) or the edge spans nearly a half-turn; an end at the
+        centre itself puts the edge on the ray to its other end."""
+        xs, ys = self.xs, self.ys
+        count = len(angles) - 1
+        ends = []
+        for p in (e, e + 1):
+            vx, vy = xs[p] - ox, ys[p] - oy
+            if vx == 0 and vy == 0:
+                continue
+            if abs(vx) <= near and abs(vy) <= near:
+                return 0, count - 1
+            ends.append((start - math.atan2(vy, vx)) % _TWO_PI)
+        if not ends:
+            return 0, -1
+        low, high = min(ends), max(ends)
+        if high - low > math.pi:
+            low, high = high - _TWO_PI, low
+        if high - low > math.pi - _FAN_MARGIN:
+            return 0, count - 1
+        first = max(bisect_left(angles, low - _FAN_MARGIN) - 1, 0)
+        last = min(bisect_right(angles, high + _FAN_MARGIN) - 1, count - 1)
+        return first, last
+
     def _carried(self, lo: int, hi: int) -> list[int]:
         """The last long base's blockers that are edges of sub-polygon [lo, hi]: tried
         first (any blocking edge proves a candidate fails, so the choice is the same)."""
@@ -883,11 +1025,7 @@ class _Tree:
                 return True
         if self.boxes is not None and hi - lo > SMALL_SEQUENCE:
             return self._blocked_boxes(lo, hi, c, corners, blockers)
-        for e in range(lo, hi):
-            if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
-                _remember(blockers, e)
-                return True
-        return False
+        return self._blocked_in(((lo, hi),), corners, blockers)
 
     def _blocked_boxes(
         self,
@@ -897,12 +1035,41 @@ class _Tree:
         corners: tuple[float, float, float, float, float, float],
         blockers: list[int],
     ) -> bool:
-        """:meth:`_blocked` for long sub-polygons: the edges are found by descending the chain
-        boxes of positions [lo, hi) that the triangle's closed region may meet (separating-axis
-        tests on each box's rectangle: its two axes and the triangle's three side normals). A
-        box holding a corner's position (``lo``, ``hi``, apex ``c``) meets the triangle: it is
-        entered untested."""
+        """:meth:`_blocked` for long sub-polygons: the edges are those of the chain boxes
+        that the triangle may meet (:meth:`_leaves_meeting`)."""
+        return self._blocked_in(self._leaves_meeting(lo, hi, c, corners), corners, blockers)
+
+    def _blocked_in(
+        self,
+        runs: Iterable[tuple[int, int]],
+        corners: tuple[float, float, float, float, float, float],
+        blockers: list[int],
+    ) -> bool:
+        """Some edge (e, e + 1) with e in one of the ``runs`` [start, end) breaks condition 2
+        or 3 for the triangle ``corners``; the first found is put first in ``blockers``."""
         xs, ys, sign = self.xs, self.ys, self.sign
+        ax, ay, bx, by, cx, cy = corners
+        xmin, xmax = min(ax, bx, cx), max(ax, bx, cx)
+        ymin, ymax = min(ay, by, cy), max(ay, by, cy)
+        for start, end in runs:
+            for e in range(start, end):
+                if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
+                    _remember(blockers, e)
+                    return True
+        return False
+
+    def _leaves_meeting(
+        self,
+        lo: int,
+        hi: int,
+        c: int,
+        corners: tuple[float, float, float, float, float, float],
+    ) -> Iterator[tuple[int, int]]:
+        """The runs [start, end) of edge positions in [lo, hi) of the leaf chain boxes that
+        the closed triangle ``corners`` (counter-clockwise) may meet, found by descending the
+        boxes (separating-axis tests on each box's rectangle: its two axes and the
+        triangle's three side normals). A box holding the position ``lo``, ``hi`` or ``c``
+        (a corner, or a point inside) meets the triangle: it is entered untested."""
         boxes = self.boxes
         levels, sizes, pad = boxes.levels, boxes.sizes, boxes.pad
         ax, ay, bx, by, cx, cy = corners
@@ -957,11 +1124,7 @@ class _Tree:
                     stack.append((level - 1, child + 1))
                 stack.append((level - 1, child))
                 continue
-            for e in range(max(start, lo), min(end, hi)):
-                if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
-                    _remember(blockers, e)
-                    return True
-        return False
+            yield max(start, lo), min(end, hi)
 
     def _grid_correct(
         self, lo: int, hi: int, chunk: np.ndarray, exhaustive: bool, blockers: list[np.ndarray]
@@ -1090,6 +1253,9 @@ class _Tree:
         tick = self.tick
         touching = self._touching_before() if deferred is not None else None
         limit = self._lockstep_positions()
+        # rule first: fans in long sub-polygons decided in batches (their nodes never deferred)
+        fans = type(self.rule) is FirstRule and not self.as_given and self.m > SMALL_SEQUENCE
+        fan_above = max(limit if deferred is not None else 0, SMALL_SEQUENCE)
         while work or loops:
             if not work:
                 work.append(loops.pop(0))
@@ -1135,6 +1301,24 @@ class _Tree:
             depth[node] = dep
             side[node] = sd
             count += 1
+            if fans and apex == hi - 1 and apex - lo > fan_above:
+                # the node's one child (lo, apex) may start a run of ears at hi's side: a fan
+                steps = self._fan_steps(lo, apex, apex - lo - fan_above)
+                if steps:
+                    sd = 2 if v1_at_hi else 1
+                    for _ in range(steps):
+                        hi, apex = apex, apex - 1
+                        first, second = (lo, hi) if mirrored else (hi, lo)
+                        triangles[count] = (ids[first], ids[second], ids[apex])
+                        parent[count] = node
+                        dep += 1
+                        depth[count] = dep
+                        side[count] = sd
+                        node, sd = count, 1
+                        count += 1
+                    v1_at_hi = False
+                    if tick is not None:
+                        tick(count / len(triangles))
             upper = (apex, hi, True)  # sub-range on the hi side, V1 there at hi
             lower = (lo, apex, False)
             left, right = (upper, lower) if v1_at_hi else (lower, upper)

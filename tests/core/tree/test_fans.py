@@ -1,0 +1,126 @@
+"""Rule first decides runs of fan nodes in long sub-polygons a batch at a time
+(``_Tree._fan_steps``): every node it decides is the one-step search's choice, and the trees are
+those built one node at a time."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bsp_triangulate import triangulate
+from bsp_triangulate.tree import one_polygon
+
+from .test_shadows import _river
+
+FIELDS = ("vertices", "triangles", "parent", "depth", "side")
+
+
+def _wavy(vertices: int, islands: int, seed: int, grid: float = 0.0) -> list[np.ndarray]:
+    """A circle whose radius waves, far from the origin, with small rotated squares inside;
+    ``grid`` > 0 rounds every coordinate to that step (collinear runs, repeated points)."""
+    rng = np.random.default_rng(seed)
+    angles = 2.0 * np.pi * np.arange(vertices) / vertices
+    radius = 300.0 * (1.0 + 0.08 * np.sin(25.0 * angles) + 0.02 * np.sin(331.0 * angles))
+    centre = np.array([5.0e5, 6.0e6])
+    rings = [np.column_stack([radius * np.cos(angles), radius * np.sin(angles)]) + centre]
+    square = np.array([(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)])  # clockwise
+    for _ in range(islands):
+        at = rng.uniform(0, 2 * np.pi)
+        distance = rng.uniform(0.0, 200.0)
+        turn = rng.uniform(0, np.pi / 2)
+        rotation = np.array([[np.cos(turn), np.sin(turn)], [-np.sin(turn), np.cos(turn)]])
+        middle = centre + distance * np.array([np.cos(at), np.sin(at)])
+        rings.append(square * rng.uniform(2.0, 6.0) @ rotation + middle)
+    if grid:
+        rings = [np.round(ring / grid) * grid for ring in rings]
+    return rings
+
+
+def _comb(count: int) -> list[np.ndarray]:
+    """One vertex seeing a comb of ``count`` vertices around it over nearly a whole turn (its
+    fans must be cut into batches that turn by less than a half-turn each)."""
+    angles = np.linspace(0.05, 1.95 * math.pi, count)
+    radius = 100.0 + 5.0 * (np.arange(count) % 2)
+    comb = np.column_stack([radius * np.cos(angles), radius * np.sin(angles)])
+    return [np.concatenate([comb[-1:], [[0.0, 0.0]], comb[:-1]])]
+
+
+CASES = {
+    "comb around one vertex": _comb(1500),
+    "wavy": _wavy(3000, 12, 1),
+    "wavy on a 0.25 m grid": _wavy(3000, 12, 2, grid=0.25),
+    "wavy, dense": _wavy(6000, 4, 3),
+    "river": _river(900, 30, 4),
+    "river on a 5 m grid": _river(900, 30, 5, grid=5.0),
+}
+
+
+def _same(first: object, second: object) -> None:
+    for field in FIELDS:
+        assert np.array_equal(getattr(first, field), getattr(second, field)), field
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_fan_batches_give_the_trees_of_one_node_at_a_time(
+    monkeypatch: pytest.MonkeyPatch, name: str
+) -> None:
+    rings = CASES[name]
+    steps: list[int] = []
+    fan_steps = one_polygon._Tree._fan_steps
+    monkeypatch.setattr(
+        one_polygon._Tree,
+        "_fan_steps",
+        lambda self, *args: steps.append(fan_steps(self, *args)) or steps[-1],
+    )
+    batched = triangulate(rings)
+    assert sum(steps) > 100
+    with monkeypatch.context() as patch:
+        patch.setattr(one_polygon, "_FAN_BATCH", 0)
+        _same(batched, triangulate(rings))
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_each_fan_decision_is_the_one_step_search(
+    monkeypatch: pytest.MonkeyPatch, name: str
+) -> None:
+    """Node j of a batch (base (lo, top - j)) is decided with apex top - j - 1 only where the
+    one-step search of that base picks that apex (a node refused is searched one step at a
+    time, whatever its apex)."""
+    checked: list[int] = []
+    fan_steps = one_polygon._Tree._fan_steps
+
+    def checking(self: one_polygon._Tree, lo: int, top: int, most: int) -> int:
+        steps = fan_steps(self, lo, top, most)
+        for j in range(min(steps + 1, most)):
+            chosen = self._first_apex(lo, top - j) == top - j - 1
+            assert chosen or j == steps, (lo, top, j, steps)
+            checked.append(j)
+        return steps
+
+    monkeypatch.setattr(one_polygon._Tree, "_fan_steps", checking)
+    triangulate(CASES[name])
+    assert len(checked) > 100
+
+
+def test_batches_stop_short_of_a_half_turn(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With batches as long as the whole comb, its fan would turn around the centre by more
+    than a half-turn: each batch stops before it, and the tree is the same."""
+    rings = CASES["comb around one vertex"]
+    batched = triangulate(rings)
+    monkeypatch.setattr(one_polygon, "_FAN_BATCH", 4096)
+    monkeypatch.setattr(one_polygon, "_MAX_FAN_BATCH", 4096)
+    turned: list[float] = []
+    sectors = one_polygon._Tree._fan_sectors
+
+    def recording(self: one_polygon._Tree, lo: int, high: int, count: int) -> object:
+        found = sectors(self, lo, high, count)
+        if found is not None:
+            turned.append(found[2][-1])
+        return found
+
+    monkeypatch.setattr(one_polygon._Tree, "_fan_sectors", recording)
+    _same(batched, triangulate(rings))
+    assert max(turned) > 0.9 * math.pi
+    assert max(turned) < math.pi
