@@ -982,13 +982,15 @@ class _Tree:
     def _first_apex_shadowed(self, lo: int, hi: int, start: int, blockers: list[int]) -> int:
         """:meth:`_first_apex` for the candidates from ``start`` back in a long sub-polygon:
         chain boxes right of the chord or in the shadow of a vertex (``Shadows``) are
-        skipped whole; the vertices near the base, those of the candidates tested and the
-        ends of the edges that blocked them cast the shadows."""
+        skipped whole; the candidates tested, as many positions after ``lo`` and the ends of
+        the edges that blocked them cast the shadows (the vertices next to either end of
+        the base: the shadows most failing candidates fall in)."""
         xs, ys = self.xs, self.ys
         shadows = self._shadows(lo, hi, blockers)
         for c in range(hi - 1, start, -1):
             shadows.add(c)
-        shadows.seed()
+        for c in range(lo + 1, min(lo + 1 + _SCALAR_CANDIDATES, start + 1)):
+            shadows.add(c)
         for c in shadows.candidates(start):
             if not facing_one(xs, ys, lo, hi, c):
                 continue

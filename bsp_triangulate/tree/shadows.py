@@ -8,17 +8,17 @@ lies in the *shadow* of ``p``, and fails condition 2 of the correct triangle
 (docs/algorithm.md, section 4). Candidates not strictly left of the chord fail condition 1.
 
 :class:`Shadows` keeps the staircase of the vertices met so far that no other one shadows,
-first from the chain boxes nearest the base, then while it walks the boxes from the last
-candidate back. It yields, in that order, only the candidates that no box or point test rules
-out; the caller tests those exactly, so the first correct candidate is the one the full scan
-finds (rule "first"). Rule "elevation" asks only whether a candidate lies in a shadow
-(:meth:`Shadows.shadowed`, :meth:`Shadows.shadowed_many`). Angles are compared with a margin
-far above their rounding: a doubtful case is tested, never skipped.
+first those the caller adds (the vertices next to the base's ends), then while it walks the
+boxes from the last candidate back. It yields, in that order, only the candidates that no
+box or point test rules out; the caller tests those exactly, so the first correct candidate
+is the one the full scan finds (rule "first"). Rule "elevation" asks only whether a
+candidate lies in a shadow (:meth:`Shadows.shadowed`, :meth:`Shadows.shadowed_many`).
+Angles are compared with a margin far above their rounding: a doubtful case is tested, never
+skipped.
 """
 
 from __future__ import annotations
 
-import heapq
 import math
 from bisect import bisect_left
 from collections.abc import Iterator
@@ -27,8 +27,6 @@ import numpy as np
 
 from ..geometry.spatial_index import ChainBoxes
 
-# Leaf boxes read nearest the base first, to start the staircase.
-_SEED_LEAVES = 24
 # Angles (radians) closer than this are not trusted to compare.
 _MARGIN = 1e-9
 # Points along an edge that casts its shadow (its ends' shadows do not cover each other).
@@ -172,35 +170,6 @@ class Shadows:
             least_alpha = min(least_alpha, alpha)
             least_beta = min(least_beta, beta)
         return 1, least_alpha, least_beta
-
-    def seed(self) -> None:
-        """Start the staircase from the leaf boxes nearest the base (least alpha + beta)."""
-        if self.side is None:
-            return
-        levels, sizes, m = self.boxes.levels, self.boxes.sizes, self.boxes.m
-        low_end, high_end = self.lo + 1, self.hi - 1
-        top = len(levels) - 1
-        heap = [(-1.0, top, k) for k in range(len(levels[top]))]
-        leaves = 0
-        while heap and leaves < _SEED_LEAVES:
-            _, level, k = heapq.heappop(heap)
-            first = k * sizes[level]
-            last = min(first + sizes[level], m)
-            if first > high_end or last < low_end:
-                continue
-            if level == 0:
-                leaves += 1
-                for position in range(max(first, low_end), min(last, high_end) + 1):
-                    self.add(position)
-                continue
-            below = levels[level - 1]
-            for child in (2 * k, 2 * k + 1):
-                if child < len(below):
-                    kind, alpha, beta = self._box(below[child])
-                    if kind == 0:
-                        heapq.heappush(heap, (-1.0, level - 1, child))
-                    elif kind > 0 and not self.shadowed(alpha, beta):
-                        heapq.heappush(heap, (alpha + beta, level - 1, child))
 
     def candidates(self, top: int) -> Iterator[int]:
         """Candidate positions in ``[lo + 1, top]``, from the last back, that no box or point
