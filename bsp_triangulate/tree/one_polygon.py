@@ -1790,12 +1790,8 @@ def check_area(prepared: PreparedRings, result: Triangulation, axes: tuple[int, 
     span = max(float(np.abs(x).max()), float(np.abs(y).max()))
     scale = np.ldexp(1.0, -int(np.frexp(span)[1])) if 0 < span < np.inf else 1.0
     x, y = x * scale, y * scale
-    rings = [abs(_ring_area2(x[r], y[r])) for r in prepared.rings]
-    polygon = rings[0] - sum(rings[1:])
-    ring_terms = 0.0
-    for r in prepared.rings:
-        rx, ry = x[r] - x[r[0]], y[r] - y[r[0]]
-        ring_terms += float(np.abs(rx * np.roll(ry, -1)).sum() + np.abs(np.roll(rx, -1) * ry).sum())
+    rings, ring_terms = _ring_areas2(x, y, prepared.rings)
+    polygon = float(rings[0] - rings[1:].sum())
     v = (result.vertices[:, axes] - result.vertices[prepared.rings[0][0], axes]) * scale
     a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
     left = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
@@ -1846,9 +1842,8 @@ _REPAIR_AT = 1e-6
 
 def _polygon_area2(prepared: PreparedRings) -> float:
     """Twice (outer ring area - island areas), in the working plane."""
-    x, y = prepared.x, prepared.y
-    rings = [abs(_ring_area2(x[r], y[r])) for r in prepared.rings]
-    return rings[0] - sum(rings[1:])
+    rings, _ = _ring_areas2(prepared.x, prepared.y, prepared.rings)
+    return float(rings[0] - rings[1:].sum())
 
 
 def _area_loss(prepared: PreparedRings, result: Triangulation, axes: tuple[int, int]) -> float:
@@ -1863,10 +1858,21 @@ def _area_loss(prepared: PreparedRings, result: Triangulation, axes: tuple[int, 
     return float(abs(np.abs(cross).sum() - polygon) / polygon)
 
 
-def _ring_area2(x: np.ndarray, y: np.ndarray) -> float:
-    """Twice the signed shoelace area of a ring, taken from its first vertex."""
-    x, y = x - x[0], y - y[0]
-    return float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+def _ring_areas2(
+    x: np.ndarray, y: np.ndarray, rings: Sequence[np.ndarray]
+) -> tuple[np.ndarray, float]:
+    """Twice the absolute shoelace area of each ring (vertex ids into ``x``, ``y``), taken
+    from its first vertex, and the sum of the absolute values of every product in them."""
+    ids = np.concatenate(rings)
+    sizes = np.array([len(ring) for ring in rings])
+    starts = np.cumsum(sizes) - sizes
+    first = np.repeat(ids[starts], sizes)
+    rx, ry = x[ids] - x[first], y[ids] - y[first]
+    following = np.arange(1, len(ids) + 1)
+    following[starts + sizes - 1] = starts
+    left, right = rx * ry[following], rx[following] * ry
+    areas = np.abs(np.add.reduceat(left - right, starts))
+    return areas, float(np.abs(left).sum() + np.abs(right).sum())
 
 
 def _repaired(
