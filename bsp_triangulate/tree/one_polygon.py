@@ -204,7 +204,7 @@ def pairs_failing(
     sx: np.ndarray,
     sy: np.ndarray,
     lo: int,
-    hi: int | np.ndarray,
+    hi: int,
     candidates: np.ndarray,
     rows: np.ndarray,
     edges: np.ndarray,
@@ -213,16 +213,13 @@ def pairs_failing(
     """Indices into ``candidates`` that fail conditions 2 or 3 on one of the given pairs, and
     the edges that made them fail.
 
-    Pair k is candidate ``candidates[rows[k]]`` with the edge (edges[k], edges[k] + 1); the
-    base is (hi, lo), or (hi[i], lo) for candidate i where ``hi`` is an array.
+    Pair k is candidate ``candidates[rows[k]]`` with the edge (edges[k], edges[k] + 1).
     """
     if len(rows) == 0:
         return rows, rows
     ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
     cx, cy = sx[candidates], sy[candidates]
     count = len(rows)
-    if np.ndim(hi):
-        ax, ay = np.concatenate([ax[rows], ax[rows]]), np.concatenate([ay[rows], ay[rows]])
     ex0, ey0, ex1, ey1 = sx[edges], sy[edges], sx[edges + 1], sy[edges + 1]
     # edge end points of every (candidate, edge) pair: p's then q's
     px = np.concatenate([ex0, ex1])
@@ -247,8 +244,6 @@ def pairs_failing(
     for side, (ux, uy) in ((1, (bx, by)), (2, (ax, ay))):
         zero = np.flatnonzero(f[side] == 0)
         if len(zero):
-            if np.ndim(ux):
-                ux, uy = ux[zero], uy[zero]
             inside = strictly_between(px[zero], py[zero], ux, uy, pcx[zero], pcy[zero])
             bad[pair_rows[zero[inside]]] = True
             blockers.append(pair_edges[zero[inside]])
@@ -257,8 +252,6 @@ def pairs_failing(
     if inward.any():
         hit = np.flatnonzero(inward)
         qx0, qy0, qx1, qy1 = px[hit], py[hit], px[hit + count], py[hit + count]
-        if np.ndim(ax):
-            ax, ay = ax[hit], ay[hit]
         g = orient_many(
             qx0, qy0, qx1, qy1,
             _rows(len(hit), ax, bx, pcx[hit]),
@@ -901,8 +894,9 @@ class _Tree:
         """For the fan at ``lo`` over positions high, high - 1, ..., high - count: a triangle
         holding it (corners counter-clockwise, at ``lo`` along the rays to ``high`` and
         ``high - count``, with a margin), the first ray's angle and the clockwise angles from
-        it of the rays to each position (kept non-decreasing); None where the two outer rays are too
-        close to parallel or to opposite for a small such triangle."""
+        it of the rays to each position (kept non-decreasing); None where the two outer rays
+        are too close to parallel or to opposite for a small such triangle, or a position
+        lies too near ``lo`` for its angle to be trusted."""
         xs, ys = self.xs, self.ys
         ox, oy = xs[lo], ys[lo]
         ux, uy = xs[high] - ox, ys[high] - oy
