@@ -5,6 +5,7 @@ those built one node at a time."""
 from __future__ import annotations
 
 import math
+import random
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ import pytest
 from bsp_triangulate import triangulate
 from bsp_triangulate.tree import one_polygon
 
+from ..random_polygons import add_islands, is_valid, rotate_start, star_ring, touching_island
 from .test_shadows import _river
 
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")
@@ -124,3 +126,52 @@ def test_batches_stop_short_of_a_half_turn(monkeypatch: pytest.MonkeyPatch) -> N
     _same(batched, triangulate(rings))
     assert max(turned) > 0.9 * math.pi
     assert max(turned) < math.pi
+
+
+def _random_polygon(seed: int) -> list | None:
+    """A valid polygon of 150-400 outer vertices on an integer grid: a random star ring or
+    a wavy circle with noise (collinear runs, vertices on chords), a few small islands, some
+    touching the shell; None where the draw gives no valid one."""
+    rnd = random.Random(seed)
+    count = rnd.randint(150, 400)
+    if seed % 2:
+        outer = star_ring(rnd, count, radius=rnd.choice((300.0, 3000.0)))
+    else:
+        radius = rnd.choice((200.0, 2000.0))
+        outer = []
+        for k in range(count):
+            angle = 2.0 * math.pi * k / count
+            r = radius * (1.0 + 0.1 * math.sin(7 * angle)) + rnd.uniform(-2.0, 2.0)
+            outer.append((float(round(r * math.cos(angle))), float(round(r * math.sin(angle)))))
+    if not is_valid([outer]):
+        return None
+    rings = add_islands(rnd, outer, rnd.randint(0, 5), 10.0) or [outer]
+    if rnd.random() < 0.5:
+        island = touching_island(rnd, rings, 0)
+        if island is not None:
+            rings.append(island)
+    return [rotate_start(rnd, ring) for ring in rings]
+
+
+def test_random_polygons_give_the_trees_of_one_node_at_a_time(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    steps: list[int] = []
+    fan_steps = one_polygon._Tree._fan_steps
+    monkeypatch.setattr(
+        one_polygon._Tree,
+        "_fan_steps",
+        lambda self, *args: steps.append(fan_steps(self, *args)) or steps[-1],
+    )
+    compared = 0
+    for seed in range(60):
+        rings = _random_polygon(seed)
+        if rings is None:
+            continue
+        batched = triangulate(rings)
+        with monkeypatch.context() as patch:
+            patch.setattr(one_polygon, "_FAN_BATCH", 0)
+            _same(batched, triangulate(rings))
+        compared += 1
+    assert compared > 40
+    assert sum(steps) > 1000
