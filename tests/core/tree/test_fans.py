@@ -131,7 +131,8 @@ def test_batches_stop_short_of_a_half_turn(monkeypatch: pytest.MonkeyPatch) -> N
 def _random_polygon(seed: int) -> list | None:
     """A valid polygon of 150-400 outer vertices on an integer grid: a random star ring or
     a wavy circle with noise (collinear runs, vertices on chords), a few small islands, some
-    touching the shell; None where the draw gives no valid one."""
+    touching the shell, a third moved by 1e15 and a third scaled by 2**-30; None where the
+    draw gives no valid one."""
     rnd = random.Random(seed)
     count = rnd.randint(150, 400)
     if seed % 2:
@@ -150,7 +151,12 @@ def _random_polygon(seed: int) -> list | None:
         island = touching_island(rnd, rings, 0)
         if island is not None:
             rings.append(island)
-    return [rotate_start(rnd, ring) for ring in rings]
+    rings = [rotate_start(rnd, ring) for ring in rings]
+    if seed % 3 == 1:  # exact: integers below 2**53
+        rings = [[(x + 1e15, y + 1e15) for x, y in ring] for ring in rings]
+    elif seed % 3 == 2:  # exact: a power of two
+        rings = [[(x * 2.0**-30, y * 2.0**-30) for x, y in ring] for ring in rings]
+    return rings
 
 
 def test_random_polygons_give_the_trees_of_one_node_at_a_time(
