@@ -1250,7 +1250,7 @@ class _Tree:
         touching = self._touching_before() if deferred is not None else None
         limit = self._lockstep_positions()
         # rule first: fans in long sub-polygons decided in batches (their nodes never deferred)
-        fans = type(self.rule) is FirstRule and not self.as_given and self.m > SMALL_SEQUENCE
+        fans = type(self.rule) is FirstRule and self.m > SMALL_SEQUENCE
         fan_above = max(limit if deferred is not None else 0, SMALL_SEQUENCE)
         while work or loops:
             if not work:

@@ -76,11 +76,12 @@ def test_fan_batches_give_the_trees_of_one_node_at_a_time(
         "_fan_steps",
         lambda self, *args: steps.append(fan_steps(self, *args)) or steps[-1],
     )
-    batched = triangulate(rings)
-    assert sum(steps) > 100
-    with monkeypatch.context() as patch:
-        patch.setattr(one_polygon, "_FAN_BATCH", 0)
-        _same(batched, triangulate(rings))
+    for invalid in ("fail", "as_given"):
+        batched = triangulate(rings, invalid=invalid)
+        with monkeypatch.context() as patch:
+            patch.setattr(one_polygon, "_FAN_BATCH", 0)
+            _same(batched, triangulate(rings, invalid=invalid))
+    assert sum(steps) > 200
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
@@ -174,10 +175,11 @@ def test_random_polygons_give_the_trees_of_one_node_at_a_time(
         rings = _random_polygon(seed)
         if rings is None:
             continue
-        batched = triangulate(rings)
-        with monkeypatch.context() as patch:
-            patch.setattr(one_polygon, "_FAN_BATCH", 0)
-            _same(batched, triangulate(rings))
+        for invalid in ("fail", "as_given"):
+            batched = triangulate(rings, invalid=invalid)
+            with monkeypatch.context() as patch:
+                patch.setattr(one_polygon, "_FAN_BATCH", 0)
+                _same(batched, triangulate(rings, invalid=invalid))
         compared += 1
     assert compared > 40
     assert sum(steps) > 1000
