@@ -845,6 +845,7 @@ class _Tree:
         """
         xs, ys, sign = self.xs, self.ys, self.sign
         ox, oy = xs[lo], ys[lo]
+        near = self.boxes.pad * _FAN_NEAR  # closer to lo, a point's angle is not trusted
         done = 0
         size = _FAN_BATCH
         while done < most:
@@ -857,14 +858,13 @@ class _Tree:
                     break
                 count = j + 1
             size = min(2 * size, _MAX_FAN_BATCH)
-            fan = self._fan_sectors(lo, high, count) if count else None
+            fan = self._fan_sectors(lo, high, count, near) if count else None
             if fan is None:
                 return done
             hull, ray, angles = fan
             last = high - count
             hx0, hx1 = min(hull[0::2]), max(hull[0::2])
             hy0, hy1 = min(hull[1::2]), max(hull[1::2])
-            near = self.boxes.pad * _FAN_NEAR
             buckets: list[list[int]] = [[] for _ in range(count)]
             for begin, end in self._leaves_meeting(lo, last, last, hull):
                 for e in range(begin, end):
@@ -889,14 +889,14 @@ class _Tree:
         return done
 
     def _fan_sectors(
-        self, lo: int, high: int, count: int
+        self, lo: int, high: int, count: int, near: float
     ) -> tuple[tuple[float, float, float, float, float, float], float, list[float]] | None:
         """For the fan at ``lo`` over positions high, high - 1, ..., high - count: a triangle
         holding it (corners counter-clockwise, at ``lo`` along the rays to ``high`` and
         ``high - count``, with a margin), the first ray's angle and the clockwise angles from
         it of the rays to each position (kept non-decreasing); None where the two outer rays
         are too close to parallel or to opposite for a small such triangle, or a position
-        lies too near ``lo`` for its angle to be trusted."""
+        lies within ``near`` of ``lo`` in both axes (its angle not trusted)."""
         xs, ys = self.xs, self.ys
         ox, oy = xs[lo], ys[lo]
         ux, uy = xs[high] - ox, ys[high] - oy
@@ -908,7 +908,6 @@ class _Tree:
         reach = 0.0
         angles = []
         turned = 0.0
-        near = self.boxes.pad * _FAN_NEAR
         for p in range(high, high - count - 1, -1):
             vx, vy = xs[p] - ox, ys[p] - oy
             if abs(vx) <= near and abs(vy) <= near:

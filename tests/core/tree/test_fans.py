@@ -14,9 +14,7 @@ from bsp_triangulate import triangulate
 from bsp_triangulate.tree import one_polygon
 
 from ..random_polygons import add_islands, is_valid, rotate_start, star_ring, touching_island
-from .test_shadows import _river
-
-FIELDS = ("vertices", "triangles", "parent", "depth", "side")
+from .test_shadows import _river, _same
 
 
 def _wavy(vertices: int, islands: int, seed: int, grid: float = 0.0) -> list[np.ndarray]:
@@ -59,16 +57,8 @@ CASES = {
 }
 
 
-def _same(first: object, second: object) -> None:
-    for field in FIELDS:
-        assert np.array_equal(getattr(first, field), getattr(second, field)), field
-
-
-@pytest.mark.parametrize("name", sorted(CASES))
-def test_fan_batches_give_the_trees_of_one_node_at_a_time(
-    monkeypatch: pytest.MonkeyPatch, name: str
-) -> None:
-    rings = CASES[name]
+def _counted_fan_steps(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The nodes each fan batch call decides, recorded as the calls come."""
     steps: list[int] = []
     fan_steps = one_polygon._Tree._fan_steps
     monkeypatch.setattr(
@@ -76,11 +66,24 @@ def test_fan_batches_give_the_trees_of_one_node_at_a_time(
         "_fan_steps",
         lambda self, *args: steps.append(fan_steps(self, *args)) or steps[-1],
     )
+    return steps
+
+
+def _same_as_one_node_at_a_time(monkeypatch: pytest.MonkeyPatch, rings: list) -> None:
+    """The trees with fan batches equal those without, in both invalid-polygon modes."""
     for invalid in ("fail", "as_given"):
         batched = triangulate(rings, invalid=invalid)
         with monkeypatch.context() as patch:
             patch.setattr(one_polygon, "_FAN_BATCH", 0)
             _same(batched, triangulate(rings, invalid=invalid))
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_fan_batches_give_the_trees_of_one_node_at_a_time(
+    monkeypatch: pytest.MonkeyPatch, name: str
+) -> None:
+    steps = _counted_fan_steps(monkeypatch)
+    _same_as_one_node_at_a_time(monkeypatch, CASES[name])
     assert sum(steps) > 200
 
 
@@ -117,8 +120,8 @@ def test_batches_stop_short_of_a_half_turn(monkeypatch: pytest.MonkeyPatch) -> N
     turned: list[float] = []
     sectors = one_polygon._Tree._fan_sectors
 
-    def recording(self: one_polygon._Tree, lo: int, high: int, count: int) -> object:
-        found = sectors(self, lo, high, count)
+    def recording(self: one_polygon._Tree, lo: int, high: int, count: int, near: float) -> object:
+        found = sectors(self, lo, high, count, near)
         if found is not None:
             turned.append(found[2][-1])
         return found
@@ -163,23 +166,13 @@ def _random_polygon(seed: int) -> list | None:
 def test_random_polygons_give_the_trees_of_one_node_at_a_time(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    steps: list[int] = []
-    fan_steps = one_polygon._Tree._fan_steps
-    monkeypatch.setattr(
-        one_polygon._Tree,
-        "_fan_steps",
-        lambda self, *args: steps.append(fan_steps(self, *args)) or steps[-1],
-    )
+    steps = _counted_fan_steps(monkeypatch)
     compared = 0
     for seed in range(60):
         rings = _random_polygon(seed)
         if rings is None:
             continue
-        for invalid in ("fail", "as_given"):
-            batched = triangulate(rings, invalid=invalid)
-            with monkeypatch.context() as patch:
-                patch.setattr(one_polygon, "_FAN_BATCH", 0)
-                _same(batched, triangulate(rings, invalid=invalid))
+        _same_as_one_node_at_a_time(monkeypatch, rings)
         compared += 1
     assert compared > 40
     assert sum(steps) > 1000
