@@ -180,11 +180,10 @@ def plan_targets(
     special[order[1:][same]] = True
     special[order[:-1][same]] = True
     del order, same
-    if special.any():
+    shared = special[ids]
+    if shared.any():
         # a touching vertex's rank is its earliest ring's: it is a candidate from then on
-        for number, ring in enumerate(rings):
-            shared = ring[special[ring]]
-            vertex_rank[shared] = np.minimum(vertex_rank[shared], rank[number])
+        np.minimum.at(vertex_rank, ids[shared], np.repeat(rank, lengths)[shared])
     planned = np.array([plan for _, _, plan in joins], dtype=bool)
     h = np.array([int(rings[slot][index]) for slot, index, _ in joins], dtype=np.int64)
     hx, hy = x[h], y[h]

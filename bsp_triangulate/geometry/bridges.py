@@ -13,11 +13,13 @@ from fractions import Fraction
 import numpy as np
 
 from ..triangulation import TriangulationError
+from .bridge_cells import BridgeCells
 from .bridge_plan import blocking_pairs, inside_open_angle, plan_targets
 from .delaunay_links import LINKED_ISLANDS, delaunay_links
 from .points import delaunay_point_bridge, nearest_point_bridge, point_order
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
+from .shared_points import point_numbers, touching_islands
 from .spatial_index import PointColumns, SegmentGrid, chunks
 
 # relative margin within which float squared distances are re-compared exactly
@@ -128,8 +130,10 @@ def _order_along(x: np.ndarray, y: np.ndarray, a: int, b: int, inside: list[int]
     return kept
 
 
-# spacing of the order labels of the sequence's occurrences (room for later insertions)
+# spacing of the order labels of the sequence's occurrences (room for later insertions): at
+# least this, and as much as int64 labels leave for the sequence's longest length
 _LABEL_GAP = 1 << 32
+_LABEL_ROOM = 1 << 62
 
 
 class _Bridger:
@@ -159,11 +163,17 @@ class _Bridger:
         # bridges made so far, (start, end) vertex ids: one at most per island
         self.bridges = np.empty((len(rings), 2), dtype=np.int64)
         self.bridge_count = 0
+        self.bridge_cells = BridgeCells(
+            self.points.x0, self.points.y0, self.points.size_x, self.points.size_y
+        )
         # the edges (vertex id pairs) that blocked segments to vertex _known_to
         self._known_to = -1
         self._known = np.zeros((0, 2), dtype=np.int64)
-        self.seq_points: set[tuple[float, float]] = set()
+        # per vertex the number of its point, and per point whether it is in the sequence
+        self.point_of = point_numbers(x, y)
+        self.point_in_seq = np.zeros(len(x), dtype=bool)
         capacity = len(starts) + 2 * len(rings)
+        self.gap = max(_LABEL_GAP, _LABEL_ROOM // max(capacity, 1))
         self.vid = np.empty(capacity, dtype=np.int64)
         self.nxt = np.empty(capacity, dtype=np.int64)
         self.prv = np.empty(capacity, dtype=np.int64)
@@ -176,7 +186,7 @@ class _Bridger:
         nodes = self._new_nodes(outer)
         self.nxt[nodes] = np.roll(nodes, -1)
         self.prv[nodes] = np.roll(nodes, 1)
-        self.label[nodes] = np.arange(len(nodes), dtype=np.int64) * _LABEL_GAP
+        self.label[nodes] = np.arange(len(nodes), dtype=np.int64) * self.gap
         self._add_points(outer)
 
     def _new_nodes(self, vids: np.ndarray) -> np.ndarray:
@@ -199,7 +209,7 @@ class _Bridger:
         after = int(self.nxt[node])
         low = int(self.label[node])
         if after == 0:  # at the end of the sequence
-            steps = np.arange(1, len(nodes) + 1, dtype=np.int64) * _LABEL_GAP
+            steps = np.arange(1, len(nodes) + 1, dtype=np.int64) * self.gap
         else:
             gap = (int(self.label[after]) - low) // (len(nodes) + 1)
             if gap < 1:
@@ -220,7 +230,7 @@ class _Bridger:
         after = int(nxt[node])
         low = int(label[node])
         if after == 0:  # at the end of the sequence
-            gap = _LABEL_GAP
+            gap = self.gap
         else:
             gap = (int(label[after]) - low) // (len(vids) + 1)
             if gap < 1:
@@ -246,7 +256,7 @@ class _Bridger:
     def _relabel(self) -> None:
         """Evenly spaced labels again (when some gap has run out)."""
         order = self._order()
-        self.label[order] = np.arange(len(order), dtype=np.int64) * _LABEL_GAP
+        self.label[order] = np.arange(len(order), dtype=np.int64) * self.gap
 
     def _order(self) -> np.ndarray:
         """The sequence's nodes in order."""
@@ -258,7 +268,11 @@ class _Bridger:
         return self.vid[self._order()]
 
     def _add_points(self, ring: np.ndarray) -> None:
-        self.seq_points.update(zip(self.x[ring].tolist(), self.y[ring].tolist()))
+        self.point_in_seq[self.point_of[ring]] = True
+
+    def has_point(self, vid: int) -> bool:
+        """The sequence has a vertex at the point of vertex ``vid``."""
+        return bool(self.point_in_seq[self.point_of[vid]])
 
     def occurrences(self, vid: int) -> list[int]:
         """The nodes of ``vid`` in the sequence."""
@@ -350,26 +364,7 @@ class _Bridger:
     def _crosses_bridge(self, u: int, w: int) -> bool:
         """A bridge made so far crosses the segment u-w in both open interiors (exact)."""
         x, y = self.x, self.y
-        ux, uy, wx, wy = float(x[u]), float(y[u]), float(x[w]), float(y[w])
-        extra = self.bridges[: self.bridge_count]
-        bxa, bya, bxb, byb = x[extra[:, 0]], y[extra[:, 0]], x[extra[:, 1]], y[extra[:, 1]]
-        near = np.flatnonzero(
-            (np.maximum(bxa, bxb) >= min(ux, wx))
-            & (np.minimum(bxa, bxb) <= max(ux, wx))
-            & (np.maximum(bya, byb) >= min(uy, wy))
-            & (np.minimum(bya, byb) <= max(uy, wy))
-        )
-        if len(near) == 0:
-            return False
-        bxa, bya, bxb, byb = bxa[near], bya[near], bxb[near], byb[near]
-        o1 = orient_many(ux, uy, wx, wy, bxa, bya)
-        o2 = orient_many(ux, uy, wx, wy, bxb, byb)
-        straddle = (o1.astype(np.int16) * o2) < 0
-        if not straddle.any():
-            return False
-        o3 = orient_many(bxa[straddle], bya[straddle], bxb[straddle], byb[straddle], ux, uy)
-        o4 = orient_many(bxa[straddle], bya[straddle], bxb[straddle], byb[straddle], wx, wy)
-        return bool(((o3.astype(np.int16) * o4) < 0).any())
+        return self.bridge_cells.crosses(float(x[u]), float(y[u]), float(x[w]), float(y[w]))
 
     def _valid_occurrences(self, vid: int, island: np.ndarray, h_index: int) -> list[int]:
         """Occurrences (nodes) k of ``vid`` from which a bridge to the island may leave."""
@@ -650,28 +645,37 @@ class _Bridger:
                 self._add_bridge(sk, h)
                 parts = [sk, h] if k == 0 else [h, sk]
             self._insert_few_after(int(self.prv[0]) if k == 0 else k, parts)
-            self.seq_points.add((float(x[h]), float(y[h])))
+            self.point_in_seq[self.point_of[h]] = True
             return
-        loop = np.roll(island, -h_index)
-        h = int(loop[0])
+        h = int(island[h_index])
         sk = int(self.vid[k])
-        if x[sk] == x[h] and y[sk] == y[h]:
-            arrays = [loop] if k == 0 else [loop[1:], loop[:1]]
-        else:
+        touching = x[sk] == x[h] and y[sk] == y[h]
+        if not touching:
             self._add_bridge(sk, h)
-            shared = np.array([sk], dtype=np.int64)
-            arrays = [shared, loop, loop[:1]] if k == 0 else [loop, loop[:1], shared]
         # k == 0: the island goes to the end, so that S keeps its first two vertices
         node = int(self.prv[0]) if k == 0 else k
         if len(island) <= _FEW:
-            self._insert_few_after(node, np.concatenate(arrays).tolist())
+            ring = island.tolist()
+            loop = ring[h_index:] + ring[:h_index]
+            if touching:
+                self._insert_few_after(node, loop if k == 0 else loop[1:] + loop[:1])
+            else:
+                self._insert_few_after(node, [sk, *loop, h] if k == 0 else [*loop, h, sk])
         else:
+            loop = np.roll(island, -h_index)
+            if touching:
+                arrays = [loop] if k == 0 else [loop[1:], loop[:1]]
+            else:
+                shared = np.array([sk], dtype=np.int64)
+                arrays = [shared, loop, loop[:1]] if k == 0 else [loop, loop[:1], shared]
             self._insert_after(node, np.concatenate(arrays))
         self._add_points(island)
 
     def _add_bridge(self, sk: int, h: int) -> None:
         self.bridges[self.bridge_count] = (sk, h)
         self.bridge_count += 1
+        x, y = self.x, self.y
+        self.bridge_cells.add(float(x[sk]), float(y[sk]), float(x[h]), float(y[h]))
 
     def nearest_occurrence(self, h: int) -> tuple[int, int]:
         """(node, vertex id) of the occurrence nearest to vertex ``h`` (first on ties)."""
@@ -707,25 +711,23 @@ def bridge_islands(
         return rings[0]
     bridger = _Bridger(x, y, rings)
     leftmost: list[tuple[float, float, int, int]] = []
-    islands_at: dict[tuple[float, float], list[int]] = {}
     for slot in range(1, len(rings)):
         ring = rings[slot]
         # leftmost vertex: smallest x, then y, then the first in input order
         h_index = int(np.lexsort((ring, y[ring], x[ring]))[0])
         h = int(ring[h_index])
         leftmost.append((float(x[h]), float(y[h]), slot, h_index))
-        for key in set(zip(x[ring].tolist(), y[ring].tolist())):
-            islands_at.setdefault(key, []).append(slot)
     leftmost.sort()
     rank = {item[2]: number for number, item in enumerate(leftmost)}
+    partners = touching_islands(bridger.point_of, rings)
     plan: dict[int, int] = {}
     if not delaunay and _plannable(rings):
-        joins = _join_order(x, y, rings, leftmost, islands_at, rank)
+        joins = _join_order(len(rings), leftmost, partners, rank)
         grids = (bridger.points, bridger.point_ids, bridger.edges, bridger.edge_a, bridger.edge_b)
         plan = plan_targets(x, y, rings, joins, grids)
     joined = [False] * len(rings)
-    touching = _TouchingQueue(x, y, islands_at, rank, joined)
-    touching.mark(rings[0])
+    touching = _TouchingQueue(partners, rank, joined)
+    touching.mark(0)
     # delaunay: a point is tried as soon as a vertex linked to it is in (points.PointOrder)
     order = point_order(x, y, rings, bridger.point_ids) if delaunay else None
     ready = deque(order.ready(rings[0].tolist()) if order else ())
@@ -801,7 +803,7 @@ def bridge_islands(
             )
         bridger.splice(target[0], rings[slot], h_index)
         joined[slot] = True
-        touching.mark(rings[slot])
+        touching.mark(slot)
         if order:
             ready.extend(order.ready(rings[slot].tolist()))
         if links:
@@ -811,27 +813,20 @@ def bridge_islands(
 
 class _TouchingQueue:
     """The islands not joined yet that share a point with the sequence, by leftmost rank: they
-    are joined before any other (docs/algorithm.md, section 2). ``joined`` is the caller's
-    per-slot flags, read when islands are queued and taken."""
+    are joined before any other (docs/algorithm.md, section 2). ``partners``: per ring slot,
+    the islands sharing a point with it (``shared_points.touching_islands``); ``joined`` is
+    the caller's per-slot flags, read when islands are queued and taken."""
 
-    def __init__(
-        self,
-        x: np.ndarray,
-        y: np.ndarray,
-        islands_at: dict[tuple[float, float], list[int]],
-        rank: dict[int, int],
-        joined: list[bool],
-    ) -> None:
-        self.x, self.y, self.islands_at, self.rank, self.joined = x, y, islands_at, rank, joined
+    def __init__(self, partners: list[list[int]], rank: dict[int, int], joined: list[bool]) -> None:
+        self.partners, self.rank, self.joined = partners, rank, joined
         self._heap: list[tuple[int, int]] = []
 
-    def mark(self, ring: np.ndarray) -> None:
-        """Queue the islands sharing a point with ``ring`` (now in the sequence)."""
-        heap, rank, joined, islands_at = self._heap, self.rank, self.joined, self.islands_at
-        for key in zip(self.x[ring].tolist(), self.y[ring].tolist()):
-            for slot in islands_at.get(key, ()):
-                if not joined[slot]:
-                    heapq.heappush(heap, (rank[slot], slot))
+    def mark(self, slot: int) -> None:
+        """Queue the islands sharing a point with ring ``slot`` (now in the sequence)."""
+        heap, rank, joined = self._heap, self.rank, self.joined
+        for other in self.partners[slot]:
+            if not joined[other]:
+                heapq.heappush(heap, (rank[other], other))
 
     def pop(self) -> int | None:
         """The next queued island not joined yet, or None."""
@@ -852,21 +847,19 @@ def _plannable(rings: list[np.ndarray]) -> bool:
 
 
 def _join_order(
-    x: np.ndarray,
-    y: np.ndarray,
-    rings: list[np.ndarray],
+    ring_count: int,
     leftmost: list[tuple[float, float, int, int]],
-    islands_at: dict[tuple[float, float], list[int]],
+    partners: list[list[int]],
     rank: dict[int, int],
 ) -> list[tuple[int, int, bool]]:
     """(slot, bridge vertex index, not touching) of every island in the order
     :func:`bridge_islands` joins them (rule first or elevation): islands touching the
     sequence first, by leftmost rank, then the next in leftmost order. Touching joins have
     no planned target (their bridge vertex index is not used)."""
-    joined = [False] * len(rings)
-    touching = _TouchingQueue(x, y, islands_at, rank, joined)
+    joined = [False] * ring_count
+    touching = _TouchingQueue(partners, rank, joined)
     order: list[tuple[int, int, bool]] = []
-    touching.mark(rings[0])
+    touching.mark(0)
     pending = iter(leftmost)
     while True:
         slot = touching.pop()
@@ -879,17 +872,17 @@ def _join_order(
             slot = item[2]
             order.append((slot, item[3], True))
         joined[slot] = True
-        touching.mark(rings[slot])
+        touching.mark(slot)
     return order
 
 
 def _touch_index(x: np.ndarray, y: np.ndarray, ring: np.ndarray, bridger: _Bridger) -> int:
     """Index in ``ring`` of its leftmost vertex that coincides with a vertex of the sequence."""
-    seq_points = bridger.seq_points
     best = None
+    in_seq = bridger.point_in_seq[bridger.point_of[ring]].tolist()
     for index, vid in enumerate(ring.tolist()):
         key = (float(x[vid]), float(y[vid]))
-        if key in seq_points and (best is None or key < best[0]):
+        if in_seq[index] and (best is None or key < best[0]):
             best = (key, index)
     return best[1] if best is not None else 0
 
