@@ -15,6 +15,13 @@ is the one the full scan finds (rule "first"). Rule "elevation" asks only whethe
 candidate lies in a shadow (:meth:`Shadows.shadowed`, :meth:`Shadows.shadowed_many`).
 Angles are compared with a margin far above their rounding: a doubtful case is tested, never
 skipped.
+
+The base's own corners cast wider shadows. The edge from B to the next vertex leaves B at the
+angle ``beta`` of that vertex: every candidate with a larger ``beta`` has that direction strictly
+inside its triangle's angle at B, so the edge meets the triangle's open interior (condition 2),
+whatever the candidate's ``alpha``. Likewise the edge into A for ``alpha``. These half-planes of
+the (alpha, beta) plane also rule out boxes that straddle the chord's line beyond B or beyond A,
+whose points near the line have an angle near 0 that no vertex's shadow covers.
 """
 
 from __future__ import annotations
@@ -49,6 +56,10 @@ class Shadows:
         self.alphas: list[float] = []
         self.betas: list[float] = []
         self.side: tuple[float, float, float, float] | None = None
+        # the corner edges' half-plane shadows (beta beyond the edge at B, alpha beyond the
+        # edge at A; inf: none), and the chord's direction, length and trusted distance
+        self.corner_beta = self.corner_alpha = math.inf
+        self.chord: tuple[float, float, float, float] | None = None
         # squared distance from a base end within which a computed point's angles are not
         # trusted (the coordinates' rounding, 2**-52 of their scale, over it stays far below
         # the margin)
@@ -58,6 +69,28 @@ class Shadows:
         if 0 < norm < math.inf:
             nx, ny = nx / norm, ny / norm
             self.side = (nx, ny, nx * ax + ny * ay + boxes.pad, nx * ax + ny * ay - boxes.pad)
+            self.chord = (ny, -nx, norm, math.sqrt(self.near2))
+            self._corner_shadows()
+
+    def _corner_shadows(self) -> None:
+        """The half-planes ruled out by the edges at the base's corners (module docstring),
+        also as the staircase's first and last points (alpha 0, beta 0)."""
+        lo, hi, xs, ys = self.lo, self.hi, self.xs, self.ys
+        if hi - lo < 3:
+            return
+        after, before = lo + 1, hi - 1
+        if (xs[after], ys[after]) != (self.bx, self.by):
+            beta = self.angles(xs[after], ys[after])[1]
+            if _MARGIN < beta < math.pi - _MARGIN:
+                self.corner_beta = beta
+                self.alphas.append(0.0)
+                self.betas.append(beta)
+        if (xs[before], ys[before]) != (self.ax, self.ay):
+            alpha = self.angles(xs[before], ys[before])[0]
+            if _MARGIN < alpha < math.pi - _MARGIN:
+                self.corner_alpha = alpha
+                self.alphas.append(alpha)
+                self.betas.append(0.0)
 
     def angles(self, x: float, y: float) -> tuple[float, float]:
         """(alpha, beta) of the point (x, y), each in [0, 2 pi)."""
@@ -155,7 +188,9 @@ class Shadows:
 
     def _box(self, box: tuple[float, ...]) -> tuple[int, float, float]:
         """(kind, least alpha, least beta) of a chain box: kind 1 if the box lies strictly
-        left of the chord, -1 if strictly right, 0 otherwise (angles then 0)."""
+        left of the chord, -1 if strictly right; where it straddles the chord's line, kind 2
+        if it lies beyond B along the chord, 3 if beyond A (least angles of its points left
+        of the line; the other angle then 0), else 0 (angles 0)."""
         nx, ny, above, below = self.side
         ox, oy, ux, uy, hu, hv = box[4:]
         centre = nx * ox + ny * oy
@@ -163,13 +198,36 @@ class Shadows:
         if centre + reach < below:
             return -1, 0.0, 0.0
         if centre - reach <= above:
-            return 0, 0.0, 0.0
+            return self._straddling(ox, oy, ux, uy, hu, hv)
         least_alpha = least_beta = math.inf
         for su, sv in ((hu, hv), (hu, -hv), (-hu, hv), (-hu, -hv)):
             alpha, beta = self.angles(ox + su * ux - sv * uy, oy + su * uy + sv * ux)
             least_alpha = min(least_alpha, alpha)
             least_beta = min(least_beta, beta)
         return 1, least_alpha, least_beta
+
+    def _straddling(
+        self, ox: float, oy: float, ux: float, uy: float, hu: float, hv: float
+    ) -> tuple[int, float, float]:
+        """:meth:`_box` of a box that straddles the chord's line. Beyond B (every point's
+        projection on the chord past B, by more than the trusted distance) each point has
+        ``beta`` in (pi/2, 3 pi/2), below pi left of the line: the least ``beta`` of its left
+        part is at a corner or on the line (pi); beyond A the same holds for ``alpha``."""
+        if self.chord is None or (self.corner_beta == math.inf and self.corner_alpha == math.inf):
+            return 0, 0.0, 0.0
+        dx, dy, length, trusted = self.chord
+        along = dx * (ox - self.ax) + dy * (oy - self.ay)
+        reach = hu * abs(dx * ux + dy * uy) + hv * abs(dy * ux - dx * uy)
+        if along - reach > length + trusted:
+            kind, which = 2, 1
+        elif along + reach < -trusted:
+            kind, which = 3, 0
+        else:
+            return 0, 0.0, 0.0
+        least = math.pi
+        for su, sv in ((hu, hv), (hu, -hv), (-hu, hv), (-hu, -hv)):
+            least = min(least, self.angles(ox + su * ux - sv * uy, oy + su * uy + sv * ux)[which])
+        return (kind, 0.0, least) if kind == 2 else (kind, least, 0.0)
 
     def candidates(self, top: int) -> Iterator[int]:
         """Candidate positions in ``[lo + 1, top]``, from the last back, that no box or point
@@ -189,7 +247,11 @@ class Shadows:
             if first > top or last < low_end:
                 continue
             kind, alpha, beta = self._box(levels[level][k])
-            if kind < 0 or (kind > 0 and self.shadowed(alpha, beta)):
+            if kind < 0 or (kind == 1 and self.shadowed(alpha, beta)):
+                continue
+            if kind == 2 and beta > self.corner_beta + _MARGIN:
+                continue
+            if kind == 3 and alpha > self.corner_alpha + _MARGIN:
                 continue
             if level:
                 stack.append((level - 1, 2 * k))

@@ -98,11 +98,21 @@ def _lattice_chain(
     return rng, xs, ys, Shadows(xs, ys, ChainBoxes(x, y, leaf=4), 0, count - 1)
 
 
+def _corner_edge_inside(exact: list, lo: int, hi: int, c: int) -> bool:
+    """The edge at a corner of the base (lo -> lo + 1, hi - 1 -> hi) meets the open interior
+    of the triangle on the base with apex ``c`` (their shadows, ``Shadows._corner_shadows``)."""
+    a, b = exact[hi], exact[lo]
+    return _meets_inside(a, b, exact[c], exact[lo], exact[lo + 1]) or _meets_inside(
+        a, b, exact[c], exact[hi - 1], exact[hi]
+    )
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_skipped_candidates_fail_exactly(seed: int) -> None:
     """On random chains (lattice points: vertices on the chord and on the shadows' edges),
     each candidate not yielded lies on or right of the chord, or some vertex of the
-    sub-polygon lies strictly inside its triangle (exact rational test)."""
+    sub-polygon lies strictly inside its triangle, or an edge at a corner of the base meets
+    its open interior (exact rational tests)."""
     rng, xs, ys, shadows = _lattice_chain(seed, 12, 700)
     lo, hi = shadows.lo, shadows.hi
     for position in [*rng.integers(1, hi, 5).tolist(), *range(lo + 1, lo + 17)]:
@@ -118,7 +128,9 @@ def test_skipped_candidates_fail_exactly(seed: int) -> None:
     for c in skipped:
         facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
         if facing > 0:
-            assert any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)), c
+            assert any(
+                _strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)
+            ) or _corner_edge_inside(exact, lo, hi, c), c
             shadowed += 1
     assert shadowed > 10
 
@@ -142,7 +154,8 @@ def _meets_inside(a: tuple, b: tuple, c: tuple, p: tuple, q: tuple) -> bool:
 def test_candidates_skipped_behind_an_edge_fail_exactly(seed: int) -> None:
     """Edges cast shadows along their length (``Shadows.add_edge``): each candidate not
     yielded lies on or right of the chord, or has a vertex, or a point of an edge that cast
-    a shadow, strictly inside its triangle (exact rational tests)."""
+    a shadow or of an edge at a corner of the base, strictly inside its triangle (exact
+    rational tests)."""
     rng, xs, ys, shadows = _lattice_chain(seed, 40, 400)
     lo, hi = shadows.lo, shadows.hi
     edges = rng.integers(0, hi, 12).tolist()
@@ -156,9 +169,11 @@ def test_candidates_skipped_behind_an_edge_fail_exactly(seed: int) -> None:
     for c in set(range(lo + 1, top + 1)) - yielded:
         facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
         if facing > 0:
-            assert any(
-                _strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)
-            ) or any(_meets_inside(a, b, exact[c], exact[e], exact[e + 1]) for e in edges), c
+            assert (
+                any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi))
+                or any(_meets_inside(a, b, exact[c], exact[e], exact[e + 1]) for e in edges)
+                or _corner_edge_inside(exact, lo, hi, c)
+            ), c
             shadowed += 1
     assert shadowed > 10
 
@@ -234,3 +249,32 @@ def test_rule_elevation_casts_the_shadows_next_to_the_base_with_the_same_trees(
         patch.setattr(one_polygon, "_SCALAR_CANDIDATES", math.inf)
         _same(fast, triangulate(rings, rule="elevation"))
     assert len(used) > 20
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e4])
+def test_corner_edges_rule_out_the_line_beyond_the_base(scale: float) -> None:
+    """Chains zigzagging across the chord's line beyond both ends of the base (boxes that
+    straddle the line there, whose points near it no vertex shadows): the edges at the base's
+    corners rule them out, and each candidate skipped truly fails (exact rational tests)."""
+    rng = np.random.default_rng(int(scale * 7) % 13)
+    beyond_b = [(x, -1.0 if k % 2 else 1.0) for k, x in enumerate(range(-60, -4))]
+    beyond_a = [(x, -1.0 if k % 2 else 1.0) for k, x in enumerate(range(5, 61))]
+    middle = [tuple(p) for p in rng.integers(-20, 21, (60, 2)).astype(float)]
+    chain = [(-3.0, 0.0), (-4.0, -2.0), *beyond_b, *middle, *beyond_a, (4.0, -2.0), (3.0, 0.0)]
+    points = np.array(chain) * scale + 1e5
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    xs, ys = x.tolist(), y.tolist()
+    lo, hi = 0, len(chain) - 1
+    shadows = Shadows(xs, ys, ChainBoxes(x, y, leaf=4), lo, hi)
+    assert shadows.corner_alpha < math.inf and shadows.corner_beta < math.inf
+    yielded = set(shadows.candidates(hi - 1))
+    exact = [(Fraction(u), Fraction(v)) for u, v in zip(xs, ys)]
+    a, b = exact[hi], exact[lo]
+    beyond = {chain.index(p) for p in beyond_a + beyond_b if p[1] < 0}
+    assert beyond.isdisjoint(yielded)
+    for c in set(range(lo + 1, hi)) - yielded:
+        facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
+        if facing > 0:
+            assert any(
+                _strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)
+            ) or _corner_edge_inside(exact, lo, hi, c), c
