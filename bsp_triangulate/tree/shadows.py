@@ -22,6 +22,14 @@ inside its triangle's angle at B, so the edge meets the triangle's open interior
 whatever the candidate's ``alpha``. Likewise the edge into A for ``alpha``. These half-planes of
 the (alpha, beta) plane also rule out boxes that straddle the chord's line beyond B or beyond A,
 whose points near the line have an angle near 0 that no vertex's shadow covers.
+
+An edge that crosses the chord's line beyond A (its left end at ``alpha`` = a, its other end
+right of the chord, the two seen from A less than a half-turn apart) crosses every ray from A
+at an angle in (a, pi), within the distance r of its farther end: every candidate in that
+angle farther from A than r has the edge across its side from A (condition 2). Likewise
+beyond B with ``beta``. Such *rays* come from the edges that blocked candidates; they rule out
+the slivers along the chord's line, which a vertex's shadow covers only near the line's
+crossing.
 """
 
 from __future__ import annotations
@@ -39,6 +47,20 @@ _MARGIN = 1e-9
 # Points along an edge that casts its shadow (its ends' shadows do not cover each other).
 _EDGE_SAMPLES = 7
 _TWO_PI = 2.0 * math.pi
+# Rays kept per corner, and the relative slack on their squared distances (far above the
+# rounding of a distance beyond the trusted one).
+_RAYS = 8
+_REACH_SLACK = 1.0 + 1e-6
+
+
+def _distance2(box: tuple[float, ...], x: float, y: float) -> float:
+    """Squared distance from (x, y) to a chain box's rectangle (at most the distance to
+    any point in it)."""
+    ox, oy, ux, uy, hu, hv = box[4:]
+    dx, dy = x - ox, y - oy
+    du = max(abs(ux * dx + uy * dy) - hu, 0.0)
+    dv = max(abs(uy * dx - ux * dy) - hv, 0.0)
+    return du * du + dv * dv
 
 
 class Shadows:
@@ -60,6 +82,9 @@ class Shadows:
         # edge at A; inf: none), and the chord's direction, length and trusted distance
         self.corner_beta = self.corner_alpha = math.inf
         self.chord: tuple[float, float, float, float] | None = None
+        # rays (module docstring): (least angle, squared distance) beyond A and beyond B
+        self.rays_a: list[tuple[float, float]] = []
+        self.rays_b: list[tuple[float, float]] = []
         # squared distance from a base end within which a computed point's angles are not
         # trusted (the coordinates' rounding, 2**-52 of their scale, over it stays far below
         # the margin)
@@ -117,6 +142,7 @@ class Shadows:
             self._add(alpha_p, beta_p)
         if edge + 1 < self.hi:
             self._add(alpha_q, beta_q)
+        self._ray(px, py, qx, qy, (alpha_p, beta_p), (alpha_q, beta_q))
         if (alpha_q - alpha_p) * (beta_q - beta_p) >= 0 and max(
             alpha_p, beta_p, alpha_q, beta_q
         ) < math.pi:
@@ -131,6 +157,58 @@ class Shadows:
                 y - self.by
             ) ** 2 > near:
                 self._add(*self.angles(x, y))
+
+    def _ray(
+        self,
+        px: float,
+        py: float,
+        qx: float,
+        qy: float,
+        angles_p: tuple[float, float],
+        angles_q: tuple[float, float],
+    ) -> None:
+        """Keep the edge p-q as a ray (module docstring) where it crosses the chord's line
+        beyond A or beyond B, its ends farther than the trusted distance from that corner."""
+        for which, (cx, cy), rays in (
+            (0, (self.ax, self.ay), self.rays_a),
+            (1, (self.bx, self.by), self.rays_b),
+        ):
+            if len(rays) >= _RAYS:
+                continue
+            low, high = sorted((angles_p[which], angles_q[which]))
+            if not (_MARGIN < low < math.pi - _MARGIN and math.pi + _MARGIN < high):
+                continue
+            if high - low > math.pi - _MARGIN:
+                continue  # it crosses the line between the corners or beyond the other one
+            reach2 = max((px - cx) ** 2 + (py - cy) ** 2, (qx - cx) ** 2 + (qy - cy) ** 2)
+            near2 = min((px - cx) ** 2 + (py - cy) ** 2, (qx - cx) ** 2 + (qy - cy) ** 2)
+            if near2 > self.near2:
+                rays.append((low, reach2 * _REACH_SLACK))
+
+    def _in_ray(self, alpha: float, beta: float, x: float, y: float) -> bool:
+        """The point (x, y) strictly left of the chord, at these angles, lies in a ray."""
+        to_a = (x - self.ax) ** 2 + (y - self.ay) ** 2
+        to_b = (x - self.bx) ** 2 + (y - self.by) ** 2
+        top = math.pi - _MARGIN
+        return any(
+            least + _MARGIN < alpha < top and to_a > reach2 for least, reach2 in self.rays_a
+        ) or any(least + _MARGIN < beta < top and to_b > reach2 for least, reach2 in self.rays_b)
+
+    def _box_in_ray(self, box: tuple[float, ...], alpha: float, beta: float) -> bool:
+        """Every point of the box strictly left of the chord lies in a ray (``alpha``,
+        ``beta``: the least angles of those points)."""
+        for rays, angle, cx, cy in (
+            (self.rays_a, alpha, self.ax, self.ay),
+            (self.rays_b, beta, self.bx, self.by),
+        ):
+            distance2 = -1.0
+            for least, reach2 in rays:
+                if angle > least + _MARGIN:
+                    if distance2 < 0:
+                        distance2 = _distance2(box, cx, cy)
+                    if distance2 > reach2:
+                        return True
+        return False
 
     def add_many(self, sx: np.ndarray, sy: np.ndarray, positions: np.ndarray) -> None:
         """:meth:`add` of the vertices at ``positions`` (coordinates ``sx``, ``sy``), at once."""
@@ -246,12 +324,15 @@ class Shadows:
             last = min(first + sizes[level], m)
             if first > top or last < low_end:
                 continue
-            kind, alpha, beta = self._box(levels[level][k])
+            box = levels[level][k]
+            kind, alpha, beta = self._box(box)
             if kind < 0 or (kind == 1 and self.shadowed(alpha, beta)):
                 continue
             if kind == 2 and beta > self.corner_beta + _MARGIN:
                 continue
             if kind == 3 and alpha > self.corner_alpha + _MARGIN:
+                continue
+            if kind > 0 and (self.rays_a or self.rays_b) and self._box_in_ray(box, alpha, beta):
                 continue
             if level:
                 stack.append((level - 1, 2 * k))
@@ -261,7 +342,9 @@ class Shadows:
             # the box's last point opens the next box, which covers it
             high = min(last if last == m else last - 1, top)
             for position in range(high, max(first, low_end) - 1, -1):
-                alpha, beta = self.angles(xs[position], ys[position])
+                x, y = xs[position], ys[position]
+                alpha, beta = self.angles(x, y)
                 if not self.shadowed(alpha, beta):
                     self._add(alpha, beta)
-                    yield position
+                    if not (self.rays_a or self.rays_b) or not self._in_ray(alpha, beta, x, y):
+                        yield position

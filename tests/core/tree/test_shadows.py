@@ -278,3 +278,38 @@ def test_corner_edges_rule_out_the_line_beyond_the_base(scale: float) -> None:
             assert any(
                 _strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)
             ) or _corner_edge_inside(exact, lo, hi, c), c
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e4])
+def test_an_edge_across_the_line_beyond_the_base_rules_out_the_slivers_past_it(
+    scale: float,
+) -> None:
+    """Candidates along the chord's line far beyond A (slivers: no vertex's shadow covers
+    them, and the corner edges turn away) past an edge that crosses the line there: that
+    edge crosses their side from A, and they are skipped; every candidate skipped truly fails
+    (exact rational tests)."""
+    slivers = [(float(x), -1.0) for x in range(20, 61)]
+    chain = [(-3.0, 0.0), (-4.0, 3.0), (-2.0, -9.0), (10.0, 2.0), (10.0, -2.0), *slivers]
+    chain += [(4.0, 2.0), (3.0, 0.0)]
+    points = np.array(chain) * scale - 100.0
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    xs, ys = x.tolist(), y.tolist()
+    lo, hi = 0, len(chain) - 1
+    shadows = Shadows(xs, ys, ChainBoxes(x, y, leaf=4), lo, hi)
+    assert shadows.corner_alpha == math.inf and shadows.corner_beta == math.inf
+    crossing = chain.index((10.0, 2.0))
+    shadows.add_edge(crossing)
+    assert shadows.rays_a
+    yielded = set(shadows.candidates(hi - 1))
+    exact = [(Fraction(u), Fraction(v)) for u, v in zip(xs, ys)]
+    a, b = exact[hi], exact[lo]
+    assert yielded.isdisjoint(chain.index(p) for p in slivers)
+    by_the_edge_alone = 0
+    for c in set(range(lo + 1, hi)) - yielded:
+        facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
+        if facing > 0:
+            inside = any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi))
+            edge = _meets_inside(a, b, exact[c], exact[crossing], exact[crossing + 1])
+            assert inside or edge, c
+            by_the_edge_alone += not inside
+    assert by_the_edge_alone > 20
