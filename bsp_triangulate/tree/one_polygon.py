@@ -31,6 +31,7 @@ from ..geometry.predicates import (
 )
 from ..geometry.predicates_batch import sure_signs
 from ..geometry.rings import PreparedRings, normalise_rings, prepare, ring_label
+from ..geometry.shared_points import point_numbers
 from ..geometry.spatial_index import ChainBoxes, SegmentGrid
 from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
@@ -421,6 +422,14 @@ class _Tree:
         self.m = len(sequence)
         self.exact = grid_exact(self.sx, self.sy)
         self.sign = orient_float if self.exact else orient
+        # the working plane is the output's XY (x mirrored or not): a correct triangle, strictly
+        # counter-clockwise there, needs no orientation test in the output
+        sign_x = -1.0 if prepared.mirrored else 1.0
+        vertices = prepared.vertices
+        self.plane_xy = bool(
+            np.array_equal(prepared.y, vertices[:, 1])
+            and np.array_equal(prepared.x, sign_x * vertices[:, 0])
+        )
         self._grid: SegmentGrid | None = None
         self._windows: ElevationWindows | None = None  # rule "elevation", long sub-polygons
         self._points: SegmentGrid | None = None  # positions, for rule "delaunay"
@@ -1220,14 +1229,9 @@ class _Tree:
         with another vertex (touching rings: left to the one-step builder)."""
         ids = self.ids
         distinct, first = np.unique(ids[:-1], return_index=True)
-        _, group, size = np.unique(
-            np.column_stack([self.sx[first], self.sy[first]]),
-            axis=0,
-            return_inverse=True,
-            return_counts=True,
-        )
+        group = point_numbers(self.sx[first], self.sy[first])
         shared = np.zeros(int(ids.max()) + 1, dtype=bool)
-        shared[distinct] = size[group.reshape(-1)] > 1
+        shared[distinct] = np.bincount(group)[group] > 1
         return np.concatenate([[0], np.cumsum(shared[ids])])
 
     def _grow(
@@ -1264,7 +1268,8 @@ class _Tree:
                 raise TriangulationError(self._label(lo) + ": the BSP tree does not close")
             v1, v2 = (hi, lo) if v1_at_hi else (lo, hi)
             apex = self._apex(lo, hi, v1, v2)
-            if apex < 0 and self.as_given:
+            fallback = apex < 0 and self.as_given
+            if fallback:
                 apex = self._fallback_apex(lo, hi)
                 self.used_fallback = True
                 if ids[apex] == ids[lo] or ids[apex] == ids[hi]:
@@ -1287,7 +1292,11 @@ class _Tree:
             node = count
             # counter-clockwise in the working plane before mirroring
             first, second = (lo, hi) if mirrored else (hi, lo)
-            if self.as_given and self._clockwise(first, second, apex):
+            if (
+                self.as_given
+                and (fallback or not self.plane_xy)
+                and self._clockwise(first, second, apex)
+            ):
                 first, second = second, first  # a fallback triangle of invalid input
                 if self.loss_watch is not None:
                     self.loss_watch.reversed(self.sx, self.sy, lo, hi, apex)
