@@ -290,9 +290,11 @@ class Shadows:
         """:meth:`_box` of a box that straddles the chord's line. Beyond B (every point's
         projection on the chord past B, by more than the trusted distance) each point has
         ``beta`` in (pi/2, 3 pi/2), below pi left of the line: the least ``beta`` of its left
-        part is at a corner or on the line (pi); beyond A the same holds for ``alpha``."""
-        if self.chord is None or (self.corner_beta == math.inf and self.corner_alpha == math.inf):
-            return 0, 0.0, 0.0
+        part is at a corner or on the line (pi); beyond A the same holds for ``alpha``. Only
+        a corner's shadow or a ray can rule such a box out."""
+        none = self.corner_beta == math.inf and self.corner_alpha == math.inf
+        if self.chord is None or (none and not self.rays_a and not self.rays_b):
+            return 0, 0.0, 0.0  # nothing could rule it out
         dx, dy, length, trusted = self.chord
         along = dx * (ox - self.ax) + dy * (oy - self.ay)
         reach = hu * abs(dx * ux + dy * uy) + hv * abs(dy * ux - dx * uy)
