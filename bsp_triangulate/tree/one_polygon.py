@@ -422,14 +422,6 @@ class _Tree:
         self.m = len(sequence)
         self.exact = grid_exact(self.sx, self.sy)
         self.sign = orient_float if self.exact else orient
-        # the working plane is the output's XY (x mirrored or not): a correct triangle, strictly
-        # counter-clockwise there, needs no orientation test in the output
-        sign_x = -1.0 if prepared.mirrored else 1.0
-        vertices = prepared.vertices
-        self.plane_xy = bool(
-            np.array_equal(prepared.y, vertices[:, 1])
-            and np.array_equal(prepared.x, sign_x * vertices[:, 0])
-        )
         self._grid: SegmentGrid | None = None
         self._windows: ElevationWindows | None = None  # rule "elevation", long sub-polygons
         self._points: SegmentGrid | None = None  # positions, for rule "delaunay"
@@ -1243,7 +1235,7 @@ class _Tree:
         """Build the subtrees of the work items into ``rows``, in pre-order. With
         ``deferred``, a sub-polygon of fewer than :meth:`_lockstep_positions` positions is not
         built but listed there as (row it goes before, lo, hi, v1_at_hi, parent, depth, side)."""
-        ids = self.ids
+        ids, xs, ys = self.ids, self.xs, self.ys
         triangles, parent, depth, side = rows.triangles, rows.parent, rows.depth, rows.side
         # as given: loops cut off at a repeated vertex, each triangulated as a tree of its own
         loops: list[tuple[int, int, bool, int, int, int]] = []
@@ -1292,12 +1284,10 @@ class _Tree:
             node = count
             # counter-clockwise in the working plane before mirroring
             first, second = (lo, hi) if mirrored else (hi, lo)
-            if (
-                self.as_given
-                and (fallback or not self.plane_xy)
-                and self._clockwise(first, second, apex)
-            ):
-                first, second = second, first  # a fallback triangle of invalid input
+            # a fallback apex of invalid input may lie right of the chord (a correct one is
+            # strictly left): that triangle is turned counter-clockwise in the working plane
+            if fallback and self.sign(xs[hi], ys[hi], xs[lo], ys[lo], xs[apex], ys[apex]) < 0:
+                first, second = second, first
                 if self.loss_watch is not None:
                     self.loss_watch.reversed(self.sx, self.sy, lo, hi, apex)
             triangles[node] = (ids[first], ids[second], ids[apex])
@@ -1437,11 +1427,6 @@ class _Tree:
             if wanted.any():
                 return int(chunk[np.argmax(wanted)])
         return int(chunk[0])
-
-    def _clockwise(self, a: int, b: int, c: int) -> bool:
-        """Triangle of positions (a, b, c) is clockwise in the output's XY."""
-        v = self.prepared.vertices[self.ids[[a, b, c]]]
-        return orient(v[0, 0], v[0, 1], v[1, 0], v[1, 1], v[2, 0], v[2, 1]) < 0
 
     def _label(self, position: int) -> str:
         vid = int(self.ids[position])

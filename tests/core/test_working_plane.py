@@ -121,3 +121,19 @@ def test_batch_tree_that_does_not_cover_its_polygon_is_left_to_the_engine(
     # through the public call the engine's own triangles come back, and they are right
     listed = triangulate_many(polygons)
     assert triangle_area2_sum(listed[0]) == pytest.approx(32.0)
+
+
+@pytest.mark.parametrize("tilt", [0.05, -0.05])
+@pytest.mark.parametrize("order", [1, -1], ids=["as drawn", "reversed"])
+def test_valid_steep_face_as_given_gives_the_triangles_of_the_strict_mode(
+    tilt: float, order: int
+) -> None:
+    """A concave face tilted about 87 degrees is worked in its dominant plane. As given, a
+    valid one gets the strict mode's tree: each triangle counter-clockwise in that plane,
+    whatever its turn in XY (none is a fallback, so none is turned or counted as lost)."""
+    outline = np.array([[0, 0], [10, 0], [10, 6], [6, 6], [6, 3], [4, 3], [4, 6], [0, 6]], float)
+    ring = np.column_stack([outline[:, 0], tilt * outline[:, 1], outline[:, 1]])[::order]
+    strict = triangulate([ring], invalid="fail")
+    given = triangulate([ring], invalid="as_given")
+    for field in ("triangles", "parent", "depth", "side"):
+        assert np.array_equal(getattr(strict, field), getattr(given, field)), field
