@@ -31,7 +31,6 @@ from ..geometry.predicates import (
 )
 from ..geometry.predicates_batch import sure_signs
 from ..geometry.rings import PreparedRings, normalise_rings, prepare, ring_label
-from ..geometry.shared_points import point_numbers
 from ..geometry.spatial_index import ChainBoxes, SegmentGrid
 from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
@@ -1216,16 +1215,6 @@ class _Tree:
         delaunay, whose one-step search per node costs far more than rule first's."""
         return DELAUNAY_POSITIONS if type(self.rule) is DelaunayRule else MAX_POSITIONS
 
-    def _touching_before(self) -> np.ndarray:
-        """Per position p: how many positions before p hold a vertex that shares its point
-        with another vertex (touching rings: left to the one-step builder)."""
-        ids = self.ids
-        distinct, first = np.unique(ids[:-1], return_index=True)
-        group = point_numbers(self.sx[first], self.sy[first])
-        shared = np.zeros(int(ids.max()) + 1, dtype=bool)
-        shared[distinct] = np.bincount(group)[group] > 1
-        return np.concatenate([[0], np.cumsum(shared[ids])])
-
     def _grow(
         self,
         work: list[tuple[int, int, bool, int, int, int]],
@@ -1242,7 +1231,6 @@ class _Tree:
         count = rows.count
         mirrored = self.prepared.mirrored
         tick = self.tick
-        touching = self._touching_before() if deferred is not None else None
         limit = self._lockstep_positions()
         # rule first: fans in long sub-polygons decided in batches (their nodes never deferred)
         fans = type(self.rule) is FirstRule and self.m > SMALL_SEQUENCE
@@ -1251,7 +1239,7 @@ class _Tree:
             if not work:
                 work.append(loops.pop(0))
             lo, hi, v1_at_hi, par, dep, sd = work.pop()
-            if deferred is not None and hi - lo < limit and touching[hi + 1] == touching[lo]:
+            if deferred is not None and hi - lo < limit:
                 deferred.append((count, lo, hi, v1_at_hi, par, dep, sd))
                 continue
             if tick is not None and count & 63 == 0:
@@ -1369,8 +1357,10 @@ class _Tree:
         self, rows: _Rows, deferred: list[tuple[int, int, int, bool, int, int, int]]
     ) -> _Rows:
         """``rows`` with the subtrees of the ``deferred`` sub-polygons built one step at a
-        time, each in its place in pre-order (a deferred sub-polygon shares no point with
-        another part of the sequence, so it cuts off no loop: its subtree is one block)."""
+        time, each in its place in pre-order as one block. A sub-polygon that cuts off a loop
+        (a pinch of invalid input, whose loop the whole tree builds last, as a tree of its
+        own) raises :class:`TriangulationError`: the whole tree is then built one step at a
+        time."""
         table = np.array(deferred, dtype=np.int64)
         at, above, dep, sd = table[:, 0], table[:, 4], table[:, 5], table[:, 6]
         count = rows.count
@@ -1382,8 +1372,11 @@ class _Tree:
             self.tick = lambda share: tick(done + share * left)
         try:
             for _, lo, hi, v1_at_hi, *_ in deferred:
-                starts.append(blocks.count)
+                start = blocks.count
+                starts.append(start)
                 self._grow([(lo, hi, v1_at_hi, -1, 0, 0)], blocks, None)
+                if np.count_nonzero(blocks.parent[start + 1 : blocks.count] < 0):
+                    raise TriangulationError(self._label(lo) + ": a loop is cut off")
         finally:
             self.tick = tick
         local = np.array([*starts, blocks.count], dtype=np.int64)

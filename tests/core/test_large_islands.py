@@ -3,8 +3,9 @@ ones.
 
 - The small sub-polygons of a long sequence, built all at once by the lock-step builder
   (``tree/subtrees.py``), give the same triangles, parents, depths and sides as the one-step
-  builder, under rules first and elevation, with the mirrored working plane, with touching
-  rings (left to the one-step builder), and with the lock-step calls split into groups.
+  builder, under rules first, elevation and delaunay, with the mirrored working plane, with
+  touching rings (islands sharing a point with the shell or with each other, a vertex on
+  another ring's edge), and with the lock-step calls split into groups.
 - The bridge search that tests blocks of candidates at once (``_Bridger.find_bridge``) picks
   the bridge that testing one candidate at a time picks.
 - Rule delaunay's outward search on long sub-polygons picks the apex that testing every
@@ -73,10 +74,42 @@ def _same(first: object, second: object) -> None:
         assert a.dtype == b.dtype and np.array_equal(a, b), field
 
 
+def _touching_islands(vertices: int, seed: int) -> list[np.ndarray]:
+    """A wavy shell with islands on a grid that touch in pairs: two triangles meeting at a
+    point, or a square with a triangle whose corner lies on the midpoint of the square's edge
+    (integer directions and halves: every touching point exact). Clockwise islands."""
+    rnd = random.Random(seed)
+    rings = _wavy(vertices, 0, seed)[:1]
+    directions = [(5, 0), (3, 4), (4, 3), (0, 5), (-3, 4), (-4, 3)]
+    for row in range(6):
+        for column in range(6):
+            centre = np.array([-50.0 + 20 * column, -50.0 + 20 * row])
+            if math.hypot(*centre) > 70:
+                continue
+            u = np.array(rnd.choice(directions), dtype=np.float64)
+            v = np.array([-u[1], u[0]])
+            if (row + column) % 2:
+                for sign in (1, -1):
+                    tip = centre + sign * 1.5 * u
+                    rings.append(np.array([centre, tip - 0.5 * v, tip + 0.5 * v]))
+            else:
+                corners = ((-1, -1), (1, -1), (1, 1), (-1, 1))
+                rings.append(np.array([centre + 0.5 * (a * u + b * v) for a, b in corners]))
+                far = centre + 1.5 * u
+                rings.append(np.array([centre + 0.5 * u, far - 0.5 * v, far + 0.5 * v]))
+    return [rings[0]] + [r if _clockwise(r) else r[::-1].copy() for r in rings[1:]]
+
+
+def _clockwise(ring: np.ndarray) -> bool:
+    x, y = ring[:, 0], ring[:, 1]
+    return float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)) < 0
+
+
 CASES = [
     ("wavy", _wavy(1200, 30, 1)),
     ("wavy mirrored", [r[:, ::-1].copy() for r in _wavy(900, 20, 2)]),
     ("wavy touching", [*_wavy(800, 16, 3), np.array([(100.0 * 1.0, 0.0), (90, -3), (90, 3)])]),
+    ("islands touching in pairs", _touching_islands(700, 6)),
 ]
 
 
