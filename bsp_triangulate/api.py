@@ -170,6 +170,13 @@ def triangulate_many(
                 plane,
             ).items():
                 results[index] = tree
+    if planar_tolerance <= 0:
+        # the small polygons the batch path left (touching rings, ...): the engine's
+        # sequences, their trees in lock-step
+        left = [i for i in plain if results[i] is None]
+        prepared = _prepared_at_once(left, polygons.__getitem__, rule, invalid, plane)
+        for index, done in prepared.items():
+            results[index] = done
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
@@ -267,6 +274,42 @@ def _at_once_wanted(rule: str, planar_tolerance: float, invalid: str) -> bool:
 def _point_count(points: object) -> int:
     """How many interior points one polygon is given (None: none)."""
     return 0 if points is None else len(points)
+
+
+def _prepared_at_once(
+    index: Sequence[int],
+    rings_of: Callable[[int], Sequence[object]],
+    rule: str,
+    invalid: str,
+    plane: str,
+    decided: Callable[[int], None] | None = None,
+) -> dict[int, Triangulation]:
+    """``tree.prepared_batch.triangulate_prepared`` of the polygons numbered ``index`` (their
+    rings ``rings_of(number)``), by
+    polygon number (none where the lock-step builder takes none of them), in chunks of
+    ``_PREPARED_CHUNK`` polygons; ``decided`` is called after each with how many it
+    decided (it may raise to stop)."""
+    from .tree.prepared_batch import triangulate_prepared
+
+    found: dict[int, Triangulation] = {}
+    for first in range(0, len(index), _PREPARED_CHUNK):
+        part = index[first : first + _PREPARED_CHUNK]
+        if len(part) < 2:
+            break
+        with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+            try:
+                done = triangulate_prepared([rings_of(i) for i in part], rule, invalid, plane)
+            except (ArithmeticError, ValueError, TypeError, IndexError):
+                done = {}  # the engine takes them and names what is wrong
+        found.update((part[k], tree) for k, tree in done.items())
+        if decided is not None:
+            decided(len(done))
+    return found
+
+
+# polygons per call of the prepared batch: enough for the lock-step rounds, few enough for
+# progress reports (and a cancel) between calls
+_PREPARED_CHUNK = 512
 
 
 def _check_many_options(
@@ -406,6 +449,17 @@ def triangulate_packed(
         for index, tree in (trees | known_trees).items():
             decided[index] = True
             report.one_more()
+            pieces.append(Piece.of(index, tree))
+    if planar_tolerance <= 0:
+        left = np.flatnonzero(~decided if counts is None else ~decided & (counts == 0)).tolist()
+
+        def reported(count: int) -> None:
+            for _ in range(count):
+                report.one_more()
+
+        prepared = _prepared_at_once(left, polygons.rings, rule, invalid, plane, reported)
+        for index, tree in prepared.items():
+            decided[index] = True
             pieces.append(Piece.of(index, tree))
     for index in np.flatnonzero(~decided).tolist():
         report.one_more()

@@ -281,7 +281,7 @@ def _point_count(rings: object) -> int:
         return -1
 
 
-def _twins(ext: np.ndarray, ext_start: np.ndarray) -> np.ndarray:
+def sequence_twins(ext: np.ndarray, ext_start: np.ndarray) -> np.ndarray:
     """Per position: the other position of the same vertex in its sequence (bridge ends), or
     -1; position 0 of each sequence (never inside a sub-polygon) and triples are left out."""
     ids = ext.copy()
@@ -366,7 +366,7 @@ def _triangulate(flat: FlatRings, rule: str, known: np.ndarray, shortcut: bool =
     local = ext - flat.poly_vstart[polys_ok][ext_owner]
     trees = build_trees(
         local,
-        _twins(ext, ext_start),
+        sequence_twins(ext, ext_start),
         wx[ext],
         wy[ext],
         flat.vz[ext],

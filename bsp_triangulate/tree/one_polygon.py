@@ -1638,6 +1638,35 @@ def _triangulate(
     return result
 
 
+def bridged_sequence(
+    rings: Sequence[object], *, rule: str, invalid: str, plane: str = "auto"
+) -> tuple[PreparedRings, np.ndarray, tuple[int, int]] | None:
+    """The steps of :func:`_triangulate` before the tree, for a polygon without interior
+    points or snapping: its prepared rings, its bridged sequence and its axes; None where
+    the polygon takes another way there (degenerate, negligible area, a sequence of fewer
+    than 3 positions) or a step raises (the engine then says why)."""
+    try:
+        apex_rule = get_rule(rule)
+        as_given = _as_given(invalid)
+        clean, axes = normalise_rings(rings, plane)
+        prepared = prepare(clean, axes)
+        if prepared.is_degenerate or negligible_area(prepared):
+            return None
+        ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
+        sequence = bridge_islands(
+            prepared.x,
+            prepared.y,
+            ring_ids,
+            prepared.ring_numbers,
+            relaxed=as_given,
+            delaunay=getattr(apex_rule, "in_plane", False),
+        )
+        sequence = remove_spikes(prepared.x, prepared.y, sequence)
+    except (TriangulationError, ArithmeticError, ValueError, TypeError, IndexError):
+        return None
+    return (prepared, sequence, axes) if len(sequence) >= 3 else None
+
+
 def _delaunay_mesh(
     prepared: PreparedRings,
     ring_ids: list[np.ndarray],

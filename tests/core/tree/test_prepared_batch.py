@@ -1,0 +1,93 @@
+"""Small polygons that the batch path leaves to the engine (touching rings, invalid rings),
+their sequences prepared as the engine prepares them and their trees built in lock-step
+(``tree/prepared_batch.py``): ``triangulate_many`` and ``triangulate_packed`` give exactly
+``triangulate``'s results (every field, dtypes included) or its errors, under every rule and
+both modes for invalid input; the tests also check that the lock-step trees were taken."""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+import pytest
+
+from bsp_triangulate import PackedPolygons, TriangulationError, triangulate
+from bsp_triangulate.api import triangulate_many, triangulate_packed
+from bsp_triangulate.tree import prepared_batch
+from bsp_triangulate.tree.batch import triangulate_batch
+
+from ..random_polygons import random_polygon, rings_are_disjoint, with_z
+
+FIELDS = ("vertices", "triangles", "parent", "depth", "side", "point_ids")
+
+
+def _touching_set(seed: int, count: int, rule: str) -> list:
+    """Polygons whose islands touch the outer ring or each other at a vertex, a few
+    self-crossing rings (a bow-tie, invalid) and a degenerate one among them."""
+    rnd = random.Random(seed)
+    polygons = [random_polygon(rnd, islands=rnd.randint(0, 1), touching=2) for _ in range(count)]
+    polygons += [[[(0, 0), (10, 10), (10, 0), (0, 10)]], [[(0, 0), (5, 0), (9, 0)]]]
+    if rule == "elevation":
+        polygons = [with_z(rnd, rings) for rings in polygons]
+    return polygons
+
+
+def _expected(rings: list, rule: str, invalid: str) -> object:
+    try:
+        return triangulate(rings, rule=rule, invalid=invalid)
+    except TriangulationError as exc:
+        return exc
+
+
+def _same(got: object, want: object) -> bool:
+    if isinstance(want, TriangulationError):
+        return isinstance(got, TriangulationError) and str(got) == str(want)
+    return all(
+        getattr(got, name).dtype == getattr(want, name).dtype
+        and np.array_equal(getattr(got, name), getattr(want, name))
+        for name in FIELDS
+    )
+
+
+@pytest.mark.parametrize("invalid", ["fail", "as_given"])
+@pytest.mark.parametrize("rule", ["first", "elevation", "delaunay"])
+def test_touching_polygons_in_lockstep_equal_the_engine(
+    rule: str, invalid: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    polygons = _touching_set(sum(map(ord, rule + invalid)), 70, rule)
+    touching = [not rings_are_disjoint(rings) for rings in polygons[:-2]]
+    assert sum(touching) >= 40
+    # the batch path leaves these to the engine
+    left = [r is None for r in triangulate_batch(polygons, rule)]
+    assert sum(left) >= 40
+    taken = []
+    original = prepared_batch.triangulate_prepared
+
+    def counted(*args: object) -> dict:
+        done = original(*args)
+        taken.append(len(done))
+        return done
+
+    monkeypatch.setattr(prepared_batch, "triangulate_prepared", counted)
+    many = triangulate_many(polygons, rule=rule, invalid=invalid, on_error="return")
+    assert sum(taken) >= 0.8 * sum(left)
+    packed = triangulate_packed(
+        PackedPolygons.of(polygons), rule=rule, invalid=invalid, on_error="return"
+    )
+    listed = packed.to_list()
+    for number, rings in enumerate(polygons):
+        want = _expected(rings, rule, invalid)
+        assert _same(many[number], want), number
+        got = packed.errors.get(number, listed[number])
+        assert _same(got, want), number
+
+
+def test_few_polygons_left_to_the_engine_are_not_batched(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two small touching polygons: too few for the lock-step rounds, the engine builds them."""
+    polygons = _touching_set(3, 2, "first")[:2]
+    built = []
+    monkeypatch.setattr(prepared_batch, "build_trees", lambda *args: built.append(1))
+    results = triangulate_many(polygons)
+    assert built == []
+    for rings, got in zip(polygons, results):
+        assert _same(got, triangulate(rings))
