@@ -341,14 +341,25 @@ class _Bridger:
     def planned(self, vid: int, island: np.ndarray, h_index: int) -> tuple[int, int] | None:
         """(node, vertex id) of the bridge to the planned target ``vid``
         (:func:`.bridge_plan.plan_targets`: the nearest vertex passing the tests that do not
-        depend on the sequence), or None where the one-by-one search must decide: ``vid``
-        occurs more than once, or an earlier bridge crosses the segment."""
-        if vid in self.more or self.first[vid] < 0:
+        depend on the sequence), or None where the one-by-one search must decide: an earlier
+        bridge crosses the segment, ``vid`` is at the island's own point, or none of its
+        occurrences holds the island in its open angle. Of several occurrences that do, the
+        first in the sequence, as the search takes (``_nearest_exact``: one distance, ties by
+        position)."""
+        if self.first[vid] < 0:
             return None
         h = int(island[h_index])
         if self.bridge_count and self._crosses_bridge(vid, h):
             return None
-        return int(self.first[vid]), vid
+        if vid not in self.more:
+            return int(self.first[vid]), vid
+        hx, hy = float(self.x[h]), float(self.y[h])
+        if self.x[vid] == hx and self.y[vid] == hy:
+            return None
+        ks = [k for k in self.occurrences(vid) if self._inside_angle(k, hx, hy)]
+        if not ks:
+            return None
+        return min(ks, key=lambda k: int(self.label[k])), vid
 
     def linked(self, vid: int, island: np.ndarray, h_index: int) -> tuple[int, int] | None:
         """(node, vertex id) of the bridge along a link (:mod:`.delaunay_links`: a Gabriel

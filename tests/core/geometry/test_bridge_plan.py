@@ -118,7 +118,25 @@ def test_a_planned_target_behind_an_earlier_bridge_is_left_to_the_one_by_one_sea
     bridger.splice(0, island, 0)  # the bridge 0-4: (0, 0)-(10, 10)
     assert bridger.planned(7, other, 0) is None  # (10, 0)-(0, 10) crosses it
     assert bridger.planned(1, other, 0) == (int(bridger.first[1]), 1)
-    assert bridger.planned(0, other, 0) is None  # a bridge end: which occurrence is open
+    # a bridge end: neither occurrence holds (10, 0) in its open angle (it lies along 0-1)
+    assert bridger.planned(0, other, 0) is None
+
+
+def test_a_planned_target_at_a_bridge_end_takes_the_occurrence_whose_angle_holds_the_island():
+    # as above; the third island's leftmost vertex (2, 4) is nearest to (0, 0), which the
+    # bridge to (10, 10) splits into two occurrences: the one between that bridge and the
+    # edge up to (0, 10) holds it, and the one-by-one search takes it too
+    x = np.array([0.0, 20.0, 20.0, 0.0, 10.0, 11.0, 11.0, 0.0, 2.0, 3.0, 2.5])
+    y = np.array([0.0, 0.0, 20.0, 20.0, 10.0, 10.0, 11.0, 10.0, 4.0, 4.0, 4.5])
+    outer = np.array([0, 1, 2, 3, 7])
+    island = np.array([4, 5, 6])
+    third = np.array([8, 10, 9])
+    bridger = bridges._Bridger(x, y, [outer, island, third])
+    bridger.splice(0, island, 0)
+    assert len(bridger.occurrences(0)) == 2
+    expected = bridger.find_bridge(third, 0)
+    assert expected is not None and expected[1] == 0
+    assert bridger.planned(0, third, 0) == expected
 
 
 @pytest.mark.parametrize("seed", range(6))
