@@ -285,10 +285,9 @@ def _prepared_at_once(
     decided: Callable[[int], None] | None = None,
 ) -> dict[int, Triangulation]:
     """``tree.prepared_batch.triangulate_prepared`` of the polygons numbered ``index`` (their
-    rings ``rings_of(number)``), by
-    polygon number (none where the lock-step builder takes none of them), in chunks of
-    ``_PREPARED_CHUNK`` polygons; ``decided`` is called after each with how many it
-    decided (it may raise to stop)."""
+    rings ``rings_of(number)``), by polygon number (none where the lock-step builder takes
+    none of them), in chunks of ``_PREPARED_CHUNK`` polygons; ``decided`` is called after
+    each with how many it decided (it may raise to stop)."""
     from .tree.prepared_batch import triangulate_prepared
 
     found: dict[int, Triangulation] = {}

@@ -270,10 +270,6 @@ class _Bridger:
     def _add_points(self, ring: np.ndarray) -> None:
         self.point_in_seq[self.point_of[ring]] = True
 
-    def has_point(self, vid: int) -> bool:
-        """The sequence has a vertex at the point of vertex ``vid``."""
-        return bool(self.point_in_seq[self.point_of[vid]])
-
     def occurrences(self, vid: int) -> list[int]:
         """The nodes of ``vid`` in the sequence."""
         return [int(self.first[vid]), *self.more.get(vid, ())]
@@ -656,7 +652,7 @@ class _Bridger:
                 self._add_bridge(sk, h)
                 parts = [sk, h] if k == 0 else [h, sk]
             self._insert_few_after(int(self.prv[0]) if k == 0 else k, parts)
-            self.point_in_seq[self.point_of[h]] = True
+            self._add_points(island)
             return
         h = int(island[h_index])
         sk = int(self.vid[k])

@@ -71,15 +71,14 @@ def _trees(sequences: list[np.ndarray], prepared: list, rule: str) -> object:
     lengths = np.array([len(s) for s in sequences], dtype=np.int64)
     ext_len = lengths + 1
     ext_start = np.cumsum(ext_len) - ext_len
-    local = np.concatenate([np.concatenate([s, s[:1]]) for s in sequences])
+    closed = [np.concatenate([s, s[:1]]) for s in sequences]
+    local = np.concatenate(closed)
     # vertex ids unique across the polygons, for the bridge ends' twins
     counts = np.array([len(p.vertices) for p in prepared], dtype=np.int64)
     offset = np.repeat(np.cumsum(counts) - counts, ext_len)
-    sx = np.concatenate([p.x[np.concatenate([s, s[:1]])] for p, s in zip(prepared, sequences)])
-    sy = np.concatenate([p.y[np.concatenate([s, s[:1]])] for p, s in zip(prepared, sequences)])
-    sz = np.concatenate(
-        [p.vertices[np.concatenate([s, s[:1]]), 2] for p, s in zip(prepared, sequences)]
-    )
+    sx = np.concatenate([p.x[c] for p, c in zip(prepared, closed)])
+    sy = np.concatenate([p.y[c] for p, c in zip(prepared, closed)])
+    sz = np.concatenate([p.vertices[c, 2] for p, c in zip(prepared, closed)])
     mirrored = np.array([p.mirrored for p in prepared], dtype=bool)
     name = rule
     if rule == "elevation" and np.all(sz == sz[0]):

@@ -106,16 +106,24 @@ def test_islands_near_a_wavy_shell_get_the_same_bridges(monkeypatch: pytest.Monk
     assert sum(used) > 0
 
 
-def test_a_planned_target_behind_an_earlier_bridge_is_left_to_the_one_by_one_search():
-    # outer square, two islands; the bridge (0, 0)-(10, 10) made by hand crosses the planned
-    # segment (10, 0)-(0, 10) but not (10, 0)-(20, 0); (0, 0) now occurs twice
-    x = np.array([0.0, 20.0, 20.0, 0.0, 10.0, 11.0, 11.0, 0.0, 10.0, 10.0, 11.0])
-    y = np.array([0.0, 0.0, 20.0, 20.0, 10.0, 10.0, 11.0, 10.0, 0.0, 1.0, 1.0])
+def spliced_beside(third: list[tuple[float, float]]) -> tuple[bridges._Bridger, np.ndarray]:
+    """A bridger over an outer square (with a vertex at (0, 10)), a triangle at (10, 10) and a
+    third island (clockwise ``third``, its first point leftmost), the triangle joined by
+    the bridge (0, 0)-(10, 10), which makes (0, 0) occur twice; and the third island's ids."""
+    points = [(0.0, 0.0), (20.0, 0.0), (20.0, 20.0), (0.0, 20.0), (10.0, 10.0), (11.0, 10.0)]
+    points += [(11.0, 11.0), (0.0, 10.0), *third]
+    x, y = (np.array(column) for column in zip(*points))
     outer = np.array([0, 1, 2, 3, 7])
     island = np.array([4, 5, 6])
-    other = np.array([8, 10, 9])
+    other = np.arange(8, 8 + len(third))
     bridger = bridges._Bridger(x, y, [outer, island, other])
     bridger.splice(0, island, 0)  # the bridge 0-4: (0, 0)-(10, 10)
+    return bridger, other
+
+
+def test_a_planned_target_behind_an_earlier_bridge_is_left_to_the_one_by_one_search():
+    # the bridge crosses the planned segment (10, 0)-(0, 10) but not (10, 0)-(20, 0)
+    bridger, other = spliced_beside([(10.0, 0.0), (11.0, 1.0), (10.0, 1.0)])
     assert bridger.planned(7, other, 0) is None  # (10, 0)-(0, 10) crosses it
     assert bridger.planned(1, other, 0) == (int(bridger.first[1]), 1)
     # a bridge end: neither occurrence holds (10, 0) in its open angle (it lies along 0-1)
@@ -123,16 +131,10 @@ def test_a_planned_target_behind_an_earlier_bridge_is_left_to_the_one_by_one_sea
 
 
 def test_a_planned_target_at_a_bridge_end_takes_the_occurrence_whose_angle_holds_the_island():
-    # as above; the third island's leftmost vertex (2, 4) is nearest to (0, 0), which the
-    # bridge to (10, 10) splits into two occurrences: the one between that bridge and the
-    # edge up to (0, 10) holds it, and the one-by-one search takes it too
-    x = np.array([0.0, 20.0, 20.0, 0.0, 10.0, 11.0, 11.0, 0.0, 2.0, 3.0, 2.5])
-    y = np.array([0.0, 0.0, 20.0, 20.0, 10.0, 10.0, 11.0, 10.0, 4.0, 4.0, 4.5])
-    outer = np.array([0, 1, 2, 3, 7])
-    island = np.array([4, 5, 6])
-    third = np.array([8, 10, 9])
-    bridger = bridges._Bridger(x, y, [outer, island, third])
-    bridger.splice(0, island, 0)
+    # the third island's leftmost vertex (2, 4) is nearest to (0, 0), which the bridge to
+    # (10, 10) splits into two occurrences: the one between that bridge and the edge up to
+    # (0, 10) holds it, and the one-by-one search takes it too
+    bridger, third = spliced_beside([(2.0, 4.0), (2.5, 4.5), (3.0, 4.0)])
     assert len(bridger.occurrences(0)) == 2
     expected = bridger.find_bridge(third, 0)
     assert expected is not None and expected[1] == 0
