@@ -208,7 +208,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--counts", type=int, nargs="*", default=[5_000, 50_000])
     parser.add_argument("--engine", type=int, default=300, help="polygons run by the engine")
-    parser.add_argument("--rule", default="first", choices=("first", "elevation"))
+    parser.add_argument("--rule", default="first", choices=("first", "elevation", "delaunay"))
     parser.add_argument("--no-farms", action="store_true")
     parser.add_argument("--profile", action="store_true", help="cProfile the batch call")
     parser.add_argument("--stages", action="store_true", help="CPU time per step of the batch")

@@ -194,8 +194,10 @@ class PackedTriangulations:
         vertices, triangles, parent, depth, side = (
             self.vertices, self.triangles, self.parent, self.depth, self.side
         )  # fmt: skip
+        # one empty view for every result without points (it has no element to change)
+        none = self.point_ids[:0]
         out: list[Triangulation | TriangulationError] = [
-            Triangulation(vertices[a:b], triangles[c:d], parent[c:d], depth[c:d], side[c:d])
+            Triangulation(vertices[a:b], triangles[c:d], parent[c:d], depth[c:d], side[c:d], none)
             for a, b, c, d in rows
         ]
         if len(self.point_ids):

@@ -103,11 +103,25 @@ class Sequences:
     bent_rank: np.ndarray
     loops: np.ndarray
     runs: RunBoxes | None = None
+    circle_bounds: np.ndarray | None = None
 
     def rows_at(self, positions: np.ndarray) -> np.ndarray:
         """The ``table`` rows of ``positions`` (gathered as four complex numbers per row,
         which numpy copies faster than eight floats)."""
         return np.take(self.table.view(np.complex128), positions, axis=0).view(np.float64)
+
+    def circle_bounds_at(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per position, the error bounds of :func:`_delaunay_guess` for its sequence: of a
+        cross product of two coordinate differences and of the in-circle value (gathered as
+        one complex number, computed once, when first needed)."""
+        if self.circle_bounds is None:
+            ex, ey = self.extent_x, self.extent_y
+            bounds = np.empty(len(ex), dtype=np.complex128)
+            bounds.real = 16.0 * _EPS * ex * ey + UNDERFLOW_SLACK
+            bounds.imag = 128.0 * _EPS * ex * ey * (ex * ex + ey * ey) + UNDERFLOW_SLACK
+            self.circle_bounds = bounds
+        both = np.take(self.circle_bounds, positions)
+        return both.real, both.imag
 
     def run_boxes(self) -> RunBoxes:
         """The boxes of the runs of every sequence (computed once, when first needed)."""
@@ -1239,22 +1253,24 @@ def _delaunay_apex(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     clear = np.ones(n, dtype=bool)
     more = np.flatnonzero(span > 1)
     if len(more):
-        widest = int(span[more].max())
-        if len(more) * widest <= _ONE_TABLE:
-            classes = [(more, widest)]
-        else:
-            width_of = np.searchsorted(_GUESS_WIDTHS, span[more])
-            classes = []
-            for k in np.unique(width_of).tolist():
-                idx = more[width_of == k]
-                width = int(_GUESS_WIDTHS[k]) if k < len(_GUESS_WIDTHS) else widest
-                classes.append((idx, width))
-        for idx, width in classes:
-            # tables of a bounded size stay in the cache
-            step = max(_GUESS_CHUNK // width, 1)
-            for first in range(0, len(idx), step):
-                part = idx[first : first + step]
-                guess[part], clear[part] = _delaunay_guess(seqs, lo[part], hi[part], width)
+        # nodes by span, so that each table's width is about its nodes' own
+        sizes = span[more]
+        order = np.argsort(sizes, kind="stable")
+        more, sizes = more[order], sizes[order]
+        total = len(more)
+        first = 0
+        while first < total:
+            # as many nodes as fit a table of the widest of them
+            last = min(first + max(_GUESS_CHUNK // int(sizes[first]), 1), total)
+            while True:
+                width = int(sizes[last - 1])
+                fits = min(first + max(_GUESS_CHUNK // width, 1), total)
+                if fits >= last:
+                    break
+                last = fits
+            part = more[first:last]
+            guess[part], clear[part] = _delaunay_guess(seqs, lo[part], hi[part], width)
+            first = last
     found = np.zeros(n, dtype=bool)
     nodes = np.flatnonzero(clear)
     passed = _facing(seqs, lo[nodes], hi[nodes], guess[nodes])
@@ -1303,8 +1319,6 @@ _DELAUNAY_EVERY = _RUN_MIN
 _ELEVATION_EVERY = _RUN_MIN
 # table entries per call of :func:`_delaunay_guess`
 _GUESS_CHUNK = 1 << 14
-# padded row widths of the tables of :func:`_delaunay_guess`
-_GUESS_WIDTHS = np.array([2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512])
 
 
 def _delaunay_guess(
@@ -1318,7 +1332,9 @@ def _delaunay_guess(
     and after it in candidate order. Tables are (candidates, nodes), padded with lo + 1.
     """
     m = len(lo)
-    sx, sy = seqs.sx, seqs.sy
+    # points as complex numbers: one gather brings both coordinates (the nodes lie all over
+    # the sequences, so each gather is mostly cache misses)
+    sxy = seqs.xy.view(np.complex128).ravel()
     # columns are nodes: every operation runs along a row of all nodes
     k = np.arange(width, dtype=np.int64)[:, None]
     pos = (hi - 1) - k
@@ -1326,12 +1342,12 @@ def _delaunay_guess(
     # base a = s_hi -> b = s_lo; per candidate d: D = d - a, E = D . (d - b), the cross
     # product B x D (> 0: d strictly left); the circle through a, b and d has its centre at
     # E / (B x D) times half the base's normal, so the smaller that key, the larger the angle
-    ax, ay = sx[hi], sy[hi]
-    bx, by = sx[lo] - ax, sy[lo] - ay
-    dx = np.take(sx, pos)
-    dx -= ax
-    dy = np.take(sy, pos)
-    dy -= ay
+    a, b = sxy[hi], sxy[lo]
+    ax, ay = a.real, a.imag
+    bx, by = b.real - ax, b.imag - ay
+    d = np.take(sxy, pos)
+    dx = np.subtract(d.real, ax)
+    dy = np.subtract(d.imag, ay)
     e = dx - bx
     e *= dx
     f = dy - by
@@ -1357,23 +1373,25 @@ def _delaunay_guess(
     # bound; with X, Y the sequence's extents, |D|, |B|, |d - b| <= (X, Y) per axis, so
     # |E| <= 2 (X^2 + Y^2) and |B x D| <= 2 X Y, and each float value is within a few
     # roundings of those magnitudes (16 eps and 128 eps cover them)
-    ex, ey = seqs.extent_x[lo], seqs.extent_y[lo]
-    cross_bound = 16.0 * _EPS * ex * ey + UNDERFLOW_SLACK
-    circle_bound = 128.0 * _EPS * ex * ey * (ex * ex + ey * ey) + UNDERFLOW_SLACK
+    cross_bound, circle_bound = seqs.circle_bounds_at(lo)
     value = cross[head, rows] * e
     value -= e[head, rows] * cross
     clear = value > circle_bound
     clear |= cross < -cross_bound
-    clear |= k >= hi - lo - 1
     clear[head, rows] = True
     sure = ~lost
-    col, r = np.nonzero(~clear)
-    if len(r):
+    # the padding repeats lo + 1: its entries are that candidate's, and the guess's own
+    # (where the guess is lo + 1) pass as the guess itself does
+    np.logical_not(clear, out=clear)
+    if clear.any():
+        col, r = np.nonzero(clear)
         p = pos[col, r]
-        px, py = sx[p], sy[p]
+        px, py = seqs.sx[p], seqs.sy[p]
         g = guess[r]
-        fine = ((px == ax[r]) & (py == ay[r])) | ((px == sx[lo[r]]) & (py == sy[lo[r]]))
-        fine |= (px == sx[g]) & (py == sy[g]) & (p < g)
+        at_a = (px == ax[r]) & (py == ay[r])
+        at_b = (px == b.real[r]) & (py == b.imag[r])
+        fine = at_a | at_b
+        fine |= (px == seqs.sx[g]) & (py == seqs.sy[g]) & (p <= g)
         sure[r[~fine]] = False
     return guess, sure
 
