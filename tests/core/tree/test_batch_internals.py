@@ -297,16 +297,15 @@ def near_cocircular_polygon(rng: np.random.Generator, count: int, wobble: float)
     return [ring]
 
 
-@pytest.mark.parametrize("wobble", [0.0, 1e-16, 1e-14, 1e-12, 1e-9])
-def test_rule_delaunay_float_guess_equals_exact_tries_near_cocircular(
-    wobble: float, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """Nearly cocircular vertices: the float guess decides a node only beyond its error
-    bounds, so its apexes are those of the exact tries, and the results the engine's."""
+def guesses_against_tries(monkeypatch: pytest.MonkeyPatch) -> dict:
+    """Makes every round of rule delaunay compare its apexes with the exact tries of all
+    its nodes; the counts returned: nodes, nodes left to the tries by the float guess, and
+    nodes whose apex is lo + 1 in a round of wider nodes (their guess tables are padded
+    with lo + 1's copies)."""
     from bsp_triangulate.tree import lockstep
 
     apex, tries = lockstep._delaunay_apex, lockstep._delaunay_tries
-    counts = {"nodes": 0, "tried": 0}
+    counts = {"nodes": 0, "tried": 0, "padded": 0}
 
     def both(seqs, state):
         found, chosen = apex(seqs, state)
@@ -314,6 +313,9 @@ def test_rule_delaunay_float_guess_equals_exact_tries_near_cocircular(
         assert np.array_equal(found, exact_found)
         assert np.array_equal(chosen[found], exact[found])
         counts["nodes"] += state.shape[1]
+        lo, hi = state[lockstep._LO], state[lockstep._HI]
+        narrower = hi - lo < (hi - lo).max()
+        counts["padded"] += int(np.count_nonzero(found & narrower & (chosen == lo + 1)))
         return found, chosen
 
     def counted(seqs, state):
@@ -322,7 +324,40 @@ def test_rule_delaunay_float_guess_equals_exact_tries_near_cocircular(
 
     monkeypatch.setattr(lockstep, "_delaunay_apex", both)
     monkeypatch.setattr(lockstep, "_delaunay_tries", counted)
+    return counts
+
+
+@pytest.mark.parametrize("wobble", [0.0, 1e-16, 1e-14, 1e-12, 1e-9])
+def test_rule_delaunay_float_guess_equals_exact_tries_near_cocircular(
+    wobble: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Nearly cocircular vertices: the float guess decides a node only beyond its error
+    bounds, so its apexes are those of the exact tries, and the results the engine's."""
+    counts = guesses_against_tries(monkeypatch)
     rng = np.random.default_rng(23)
     polygons = [near_cocircular_polygon(rng, int(rng.integers(4, 40)), wobble) for _ in range(40)]
     assert batch_equals_engine(polygons, "delaunay") == len(polygons)
     assert counts["nodes"] > counts["tried"] > 0
+
+
+def test_rule_delaunay_float_guess_equals_exact_tries_on_stars_of_many_sizes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Stars with an island, of 4 to 60 vertices: each round's guess tables mix nodes of
+    every span, the narrower ones padded with copies of their last candidate, which is
+    often the apex. The guess decides most nodes, and as the exact tries do."""
+    counts = guesses_against_tries(monkeypatch)
+    rng = np.random.default_rng(29)
+    polygons = []
+    for _ in range(60):
+        count = int(rng.integers(4, 61))
+        angles = np.sort(rng.uniform(0.0, 2.0 * np.pi, count))
+        radius = rng.uniform(40.0, 100.0, count)
+        outer = np.column_stack([radius * np.cos(angles), radius * np.sin(angles)])
+        island = 10.0 * np.column_stack([np.cos(angles[:3]), np.sin(angles[:3])])[::-1]
+        polygons.append([outer + 1_000.5, island + 1_000.5])
+    # a few shells of 4 to 6 vertices cross their island: the engine's
+    assert batch_equals_engine(polygons, "delaunay") >= 0.9 * len(polygons)
+    # a padded copy of a guess at lo + 1 decides as that guess (else about 18 % are tried)
+    assert counts["tried"] < 0.05 * counts["nodes"]
+    assert counts["padded"] > 100
