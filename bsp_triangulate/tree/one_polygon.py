@@ -38,7 +38,7 @@ from .delaunay_points import points_mesh, tree_of_cdt
 from .elevation_order import ElevationWindows
 from .points_batch import InsertedMesh
 from .shadows import Shadows
-from .subtrees import DELAUNAY_POSITIONS, MAX_POSITIONS, build_subtrees
+from .subtrees import DELAUNAY_POSITIONS, MAX_POSITIONS, build_subtrees, worth_lockstep
 
 INVALID_MODES = ("fail", "as_given")
 _FIRST = FirstRule()
@@ -1173,7 +1173,7 @@ class _Tree:
                 self._grow([(1, self.m, True, -1, 0, 0)], rows, deferred)
                 if deferred:
                     built = None
-                    if _worth_lockstep(deferred, name):
+                    if worth_lockstep([hi - lo for _, lo, hi, *_ in deferred], name):
                         built = self._with_subtrees(rows, deferred, name)
                     # else, or where the lock-step builder found no tree: one step at a time
                     rows = built if built is not None else self._with_blocks(rows, deferred)
@@ -1495,20 +1495,6 @@ class _LossWatch:
         raise _RepairWinsError()
 
 
-# the lock-step builder pays a round per tree level: it is worth it only when this many
-# sub-polygons' worth of positions advance together (a deep chain alone costs a numpy round
-# per triangle); rule first's one-step search is the cheapest, so it needs more of them
-_LOCKSTEP_BREADTH = {"first": 16, "elevation": 8, "delaunay": 8}
-
-
-def _worth_lockstep(deferred: list[tuple[int, int, int, bool, int, int, int]], rule: str) -> bool:
-    """The deferred sub-polygons are many enough beside the largest of them (whose depth
-    bounds the lock-step rounds) to be built in lock-step under ``rule`` rather than one step
-    at a time."""
-    sizes = [hi - lo for _, lo, hi, *_ in deferred]
-    return sum(sizes) >= _LOCKSTEP_BREADTH[rule] * max(sizes)
-
-
 def _snap(clean: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
     from ..terrain.planar import snap_to_plane
 
@@ -1597,16 +1583,14 @@ def _triangulate(
         check_area(prepared, inserted, axes)
         return inserted
     point_rings = [np.array([vid], dtype=np.int64) for vid in point_ids[point_ids >= 0].tolist()]
-    sequence = bridge_islands(
-        prepared.x,
-        prepared.y,
+    sequence = _bridged(
+        prepared,
         ring_ids + point_rings,
         prepared.ring_numbers + (-1 - np.flatnonzero(point_ids >= 0)).tolist(),
-        relaxed=as_given,
-        delaunay=getattr(apex_rule, "in_plane", False),
+        apex_rule,
+        as_given,
+        np.arange(len(prepared.vertices)) >= ring_count if has_points else None,
     )
-    is_point = np.arange(len(prepared.vertices)) >= ring_count
-    sequence = remove_spikes(prepared.x, prepared.y, sequence, is_point if has_points else None)
     if len(sequence) < 3:
         return Triangulation(vertices=prepared.vertices, point_ids=point_ids)
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given, tick)
@@ -1653,18 +1637,32 @@ def bridged_sequence(
         if prepared.is_degenerate or negligible_area(prepared):
             return None
         ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
-        sequence = bridge_islands(
-            prepared.x,
-            prepared.y,
-            ring_ids,
-            prepared.ring_numbers,
-            relaxed=as_given,
-            delaunay=getattr(apex_rule, "in_plane", False),
-        )
-        sequence = remove_spikes(prepared.x, prepared.y, sequence)
+        sequence = _bridged(prepared, ring_ids, prepared.ring_numbers, apex_rule, as_given)
     except (TriangulationError, ArithmeticError, ValueError, TypeError, IndexError):
         return None
     return (prepared, sequence, axes) if len(sequence) >= 3 else None
+
+
+def _bridged(
+    prepared: PreparedRings,
+    rings: list[np.ndarray],
+    numbers: list[int],
+    apex_rule: ApexRule,
+    as_given: bool,
+    is_point: np.ndarray | None = None,
+) -> np.ndarray:
+    """The bridged sequence of ``rings`` (vertex ids of ``prepared``; ``numbers`` their
+    input ring numbers, one-point islands negative), spikes removed (``is_point``: per
+    vertex, a given interior point, which stays)."""
+    sequence = bridge_islands(
+        prepared.x,
+        prepared.y,
+        rings,
+        numbers,
+        relaxed=as_given,
+        delaunay=getattr(apex_rule, "in_plane", False),
+    )
+    return remove_spikes(prepared.x, prepared.y, sequence, is_point)
 
 
 def _delaunay_mesh(

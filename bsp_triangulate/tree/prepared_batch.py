@@ -16,11 +16,7 @@ from ..triangulation import Triangulation, TriangulationError
 from .batch import sequence_twins
 from .lockstep import build_trees
 from .one_polygon import bridged_sequence, check_area
-from .subtrees import MAX_POSITIONS
-
-# the lock-step rounds pay only where this many sequences' worth of positions advance
-# together (as for the subtrees of one large polygon)
-_BREADTH = {"first": 16, "elevation": 8, "delaunay": 8}
+from .subtrees import LOCKSTEP_BREADTH, MAX_POSITIONS, worth_lockstep
 
 
 def triangulate_prepared(
@@ -30,15 +26,14 @@ def triangulate_prepared(
     field by field) of the ``polygons`` decided here, by their index; the others are left
     out. Sequences of at most ``subtrees.MAX_POSITIONS`` positions are built, and only
     where they are many enough for the lock-step rounds."""
-    if rule not in _BREADTH:
+    if rule not in LOCKSTEP_BREADTH:
         return {}
     found = []
     for index, rings in enumerate(polygons):
         prepared = bridged_sequence(rings, rule=rule, invalid=invalid, plane=plane)
         if prepared is not None and len(prepared[1]) < MAX_POSITIONS:
             found.append((index, *prepared))
-    sizes = [len(sequence) for _, _, sequence, _ in found]
-    if not sizes or sum(sizes) < _BREADTH[rule] * max(sizes):
+    if not worth_lockstep([len(sequence) for _, _, sequence, _ in found], rule):
         return {}
     trees = _trees([sequence for _, _, sequence, _ in found], [p for _, p, _, _ in found], rule)
     results: dict[int, Triangulation] = {}

@@ -23,6 +23,17 @@ MAX_POSITIONS = 256
 DELAUNAY_POSITIONS = 1024
 # positions per lock-step call
 GROUP_POSITIONS = 200_000
+# the lock-step builder pays a round per tree level: it is worth it only when this many
+# sequences' worth of positions advance together (a deep chain alone costs a numpy round per
+# triangle); rule first's one-step search is the cheapest, so it needs more of them
+LOCKSTEP_BREADTH = {"first": 16, "elevation": 8, "delaunay": 8}
+
+
+def worth_lockstep(sizes: list[int], rule: str) -> bool:
+    """Sequences of these ``sizes`` are many enough beside the largest of them (whose depth
+    bounds the lock-step rounds) to be built in lock-step under ``rule`` rather than one step
+    at a time."""
+    return bool(sizes) and sum(sizes) >= LOCKSTEP_BREADTH[rule] * max(sizes)
 
 
 @dataclass

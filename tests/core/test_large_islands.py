@@ -139,7 +139,7 @@ def test_small_sub_polygons_built_one_step_in_place_match_one_step(
     for invalid in ("fail", "as_given"):
         plain = _one_step(monkeypatch, rings, rule=rule, invalid=invalid)
         with monkeypatch.context() as patch:
-            patch.setattr(one_polygon, "_worth_lockstep", lambda deferred, rule: False)
+            patch.setattr(one_polygon, "worth_lockstep", lambda sizes, rule: False)
             _same(plain, triangulate(rings, rule=rule, invalid=invalid))
         with monkeypatch.context() as patch:
             patch.setattr(one_polygon._Tree, "_with_subtrees", lambda self, *args: None)
