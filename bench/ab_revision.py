@@ -2,10 +2,11 @@
 
 The revision's ``bsp_triangulate`` is extracted (``git archive``) into a temporary folder
 under another package name, so both import side by side. Each round times every side once,
-in turn (the order alternates), each call in its own forked process, best of 2 calls there;
-the report gives each side's best round and the median of the same-round ratios (working
-tree over revision), the figures that carry over on a shared machine whose speed drifts.
-Before timing, the two sides' results are compared field by field.
+in turn (the order alternates), in its own forked process, best of 2 calls there (one where
+it takes over 5 s, as ``common.timed`` does for every benchmark); the report gives each
+side's best round and the median of the same-round ratios (working tree over revision), the
+figures that carry over on a shared machine whose speed drifts. Before timing, the two
+sides' results are compared field by field.
 
 Usage: python bench/ab_revision.py [--base HEAD] [--case stars] [--rule first] [--rounds 6]
 Cases: stars, footprints (the core set), mid, radial, wavy, river, water-huge3 (the large set).
@@ -19,13 +20,12 @@ import subprocess
 import sys
 import tarfile
 import tempfile
-import time
 from collections.abc import Callable
 from io import BytesIO
 from pathlib import Path
 
 import numpy as np
-from common import ROOT, within
+from common import ROOT, timed, within
 
 import bsp_triangulate
 
@@ -84,15 +84,6 @@ def same_results(first: list, second: list) -> bool:
     return len(first) == len(second)
 
 
-def best_of_two(function: Callable[[], object]) -> float:
-    best = float("inf")
-    for _ in range(2):
-        start = time.perf_counter()
-        function()
-        best = min(best, time.perf_counter() - start)
-    return best
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--base", default="HEAD", help="git revision to compare with (HEAD)")
@@ -116,7 +107,7 @@ def main() -> None:
         order = list(sides)
         for round_ in range(arguments.rounds):
             for name in order if round_ % 2 == 0 else order[::-1]:
-                seconds[name].append(within(lambda n=name: best_of_two(calls[n]), 3_600.0))
+                seconds[name].append(within(lambda n=name: timed(calls[n], 2)[0], 3_600.0))
     base_s, new_s = np.array(seconds["revision"]), np.array(seconds["working tree"])
     print(f"{arguments.case}, rule {arguments.rule}, {arguments.rounds} alternated rounds")
     print(f"same results field by field: {'yes' if same else 'NO'}")
