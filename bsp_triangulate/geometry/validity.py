@@ -5,8 +5,10 @@ where it can prove validity; False means "not proven" (GEOS has to decide). A po
 valid when
 
 - no part is empty; every ring is closed in XY, has at least 4 points and finite coordinates
-  (|x|, |y| <= 1e150), and is star-shaped around its vertex mean ``c``: every edge turns
-  strictly the same way around ``c`` and the ring winds around ``c`` exactly once. Such a ring
+  (|x|, |y| <= 1e150), and is star-shaped around a point ``c`` (its vertex mean, or a
+  point a few steps nearer its kernel where the mean does not see the whole ring): every
+  edge turns strictly the same way around ``c`` and the ring winds around ``c`` exactly
+  once. Such a ring
   is simple: each ray from ``c`` meets it exactly once, so no two edges meet except adjacent
   ones at their common vertex, and it has no repeated point and no zero area. A ring of at
   most ``SMALL_RING_EDGES`` edges that is not star-shaped (an L, T or U building outline) is
@@ -41,6 +43,8 @@ MAX_PARTS = 32
 MAX_PAIRS = 1 << 20
 # Rings of at most this many edges that are not star-shaped are tested edge pair by edge pair.
 SMALL_RING_EDGES = 16
+# Steps of _kernel_guess (8 find the kernel of every ring of the radial test cases).
+_KERNEL_STEPS = 8
 
 
 def _segments_apart(p1x, p1y, p2x, p2y, q1x, q1y, q2x, q2y) -> np.ndarray:
@@ -204,7 +208,8 @@ def _rings_in_question(table: PolygonTable, proven: np.ndarray) -> _Rings | None
 
 
 def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
-    """Each ring closed, finite, and star-shaped around its vertex mean, winding once."""
+    """Each ring closed, finite, and star-shaped around its vertex mean or, failing that,
+    around a point found nearer its kernel (:func:`_kernel_guess`), winding once."""
     x, y, first, length = rings.x, rings.y, rings.first, rings.length
     last = first + length - 1
     # the largest magnitude of each ring, from its extents (NaN where a coordinate is NaN)
@@ -214,6 +219,36 @@ def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
     edges = length - 1
     cx = (np.add.reduceat(x, first) - x[last]) / edges
     cy = (np.add.reduceat(y, first) - y[last]) / edges
+    star = _star_shaped(x, y, first, length, cx, cy)
+    # the vertex mean lies outside the kernel of many star-shaped rings (unevenly digitised,
+    # or with edges that point almost at the centre): one more try around another point
+    again = np.flatnonzero(~star & ~reject & (edges > SMALL_RING_EDGES) & proven[rings.geometry])
+    if len(again):
+        owner, within = _ragged(length[again])
+        source = first[again][owner] + within
+        sub_first = np.cumsum(length[again]) - length[again]
+        gx, gy = _kernel_guess(x[source], y[source], sub_first, length[again], cx[again], cy[again])
+        star[again] = _star_shaped(x[source], y[source], sub_first, length[again], gx, gy)
+    # a small ring that is not star-shaped (an L, T or U outline) may still be proven simple
+    small = np.flatnonzero(~star & ~reject & (edges <= SMALL_RING_EDGES) & proven[rings.geometry])
+    if len(small):
+        star[small] = _small_rings_simple(rings, small)
+    reject |= ~star
+    proven[rings.geometry[reject]] = False
+
+
+def _star_shaped(
+    x: np.ndarray,
+    y: np.ndarray,
+    first: np.ndarray,
+    length: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+) -> np.ndarray:
+    """Per closed ring (points ``first`` .. ``first + length - 1`` of x, y): every edge turns
+    strictly the same way around the ring's centre (cx, cy), and the ring winds around it
+    exactly once (exact signs)."""
+    last = first + length - 1
     # coordinates relative to the ring's centre c: orient(a, b, c) from them is Shewchuk's
     # orient2d(a, b, c) operation for operation, so its error bound holds; signs are exact
     rx = x - np.repeat(cx, length)
@@ -246,13 +281,50 @@ def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
         np.add.reduceat(upward, first, dtype=np.int64),
         np.add.reduceat(downward, first, dtype=np.int64),
     )
-    star = (counter | clockwise) & (crossings == 1)
-    # a small ring that is not star-shaped (an L, T or U outline) may still be proven simple
-    small = np.flatnonzero(~star & ~reject & (edges <= SMALL_RING_EDGES) & proven[rings.geometry])
-    if len(small):
-        star[small] = _small_rings_simple(rings, small)
-    reject |= ~star
-    proven[rings.geometry[reject]] = False
+    return (counter | clockwise) & (crossings == 1)
+
+
+def _kernel_guess(
+    x: np.ndarray,
+    y: np.ndarray,
+    first: np.ndarray,
+    length: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    steps: int = _KERNEL_STEPS,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per closed ring, a point likelier to lie in its kernel (the points that see the whole
+    ring) than (cx, cy): a few steps, each across the line of the edge that (cx, cy) lies
+    farthest behind, half as far again beyond it. Only a guess: :func:`_star_shaped`
+    decides, exactly."""
+    with np.errstate(all="ignore"):
+        ex, ey = np.diff(x), np.diff(y)
+        junk = (first + length - 1)[:-1]
+        # the ring's orientation: twice its signed area
+        cross = x[:-1] * y[1:] - y[:-1] * x[1:]
+        cross[junk] = 0.0
+        area = np.add.reduceat(cross, first)
+        turn = np.repeat(np.sign(area), length)[:-1]
+        norm = np.hypot(ex, ey)
+        nx, ny = -ey * turn / norm, ex * turn / norm  # unit normals into the ring
+        owner = np.repeat(np.arange(len(first)), length)[:-1]
+        for _ in range(steps):
+            depth = (cx[owner] - x[:-1]) * nx + (cy[owner] - y[:-1]) * ny
+            depth[junk] = np.inf
+            depth[~np.isfinite(depth)] = np.inf
+            worst = np.minimum.reduceat(depth, first)
+            behind = worst < 0
+            if not behind.any():
+                break
+            # the first edge of each ring at its worst depth
+            at = np.flatnonzero(depth == worst[owner])
+            at = at[np.r_[True, owner[at][1:] != owner[at][:-1]]]
+            ring = owner[at]
+            move = behind[ring]
+            at, ring = at[move], ring[move]
+            cx[ring] -= 1.5 * worst[ring] * nx[at]
+            cy[ring] -= 1.5 * worst[ring] * ny[at]
+    return cx, cy
 
 
 def _small_rings_simple(rings: _Rings, chosen: np.ndarray) -> np.ndarray:

@@ -185,5 +185,34 @@ def special_cases() -> list[bytes]:
     return cases
 
 
+def radial_cases(seed: int = 5, count: int = 300) -> tuple[list[bytes], list[bool]]:
+    """Rings of 40 to 400 vertices star-shaped around a point that is often not their vertex
+    mean (radii 55-145 %, or a densely digitised side), half of them with one pair of
+    neighbouring vertices swapped (a bow tie, or a fold that stays simple); per case whether
+    it was left as generated (simple)."""
+    rng = np.random.default_rng(seed)
+    cases, intact = [], []
+    for index in range(count):
+        n = int(rng.integers(40, 401))
+        if index % 2:
+            angles = 2 * np.pi * np.arange(n) / n
+        else:  # three quarters of the vertices on one quarter of the ring
+            dense = 3 * n // 4
+            angles = np.r_[
+                np.linspace(0, np.pi / 2, dense, endpoint=False),
+                np.linspace(np.pi / 2, 2 * np.pi, n - dense, endpoint=False),
+            ]
+        radii = 100 * rng.uniform(0.55, 1.45, n)
+        centre = rng.uniform(-1e4, 1e4, 2)
+        ring = centre + np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
+        swapped = index % 4 >= 2
+        if swapped:
+            k = int(rng.integers(0, n - 1))
+            ring[[k, k + 1]] = ring[[k + 1, k]]
+        cases.append(polygon_wkb([ring if rng.random() < 0.5 else ring[::-1]]))
+        intact.append(not swapped)
+    return cases, intact
+
+
 def all_cases() -> list[bytes]:
     return special_cases() + star_cases() + grid_cases() + convex_cases() + footprint_cases()[0]

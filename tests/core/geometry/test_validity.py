@@ -10,7 +10,13 @@ import shapely
 from bsp_triangulate.formats.wkb import polygon_table
 from bsp_triangulate.geometry.rings_batch import flatten_rings, touching_polygons
 from bsp_triangulate.geometry.validity import proven_valid, proven_valid_rings
-from tests.core.validity_cases import all_cases, footprint_cases, special_cases, star_cases
+from tests.core.validity_cases import (
+    all_cases,
+    footprint_cases,
+    radial_cases,
+    special_cases,
+    star_cases,
+)
 
 
 def _proven(wkbs: list[bytes]) -> np.ndarray:
@@ -39,6 +45,17 @@ def test_building_outlines_that_are_not_star_shaped_are_proven_edge_pair_by_edge
     assert proven[intact].all()
     # the broken ones GEOS rejects are many, and none of them is proven
     assert (~valid).sum() > 200
+
+
+def test_star_shaped_rings_whose_vertex_mean_sees_not_all_of_them():
+    wkbs, intact = radial_cases()
+    proven = _proven(wkbs)
+    valid = shapely.is_valid(shapely.from_wkb(wkbs))
+    assert not (proven & ~valid).any()
+    # every ring as generated is proven, whether or not its vertex mean lies in its kernel
+    assert proven[intact].all()
+    # the swapped pairs make bow ties that GEOS rejects
+    assert (~valid).sum() > 30
 
 
 def test_the_answer_does_not_depend_on_the_other_geometries_of_the_batch():
