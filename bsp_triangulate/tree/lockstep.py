@@ -1629,6 +1629,10 @@ def build_trees(
     ok = np.ones(count, dtype=bool)
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
     top_z = float(np.abs(sz).max(initial=0.0)) if rule == "elevation" else 0.0
+    # reopened nodes (rows, lo, hi) whose ranges take the shortcut again once they are
+    # emitted, and reopenings per sequence
+    waiting = np.zeros((3, 0), dtype=np.int64)
+    reopenings = np.zeros(count, dtype=np.int64)
     # rows are written as they are emitted; a sequence that fails is not read
     while state.shape[1]:
         lo = state[_LO]
@@ -1666,9 +1670,12 @@ def build_trees(
         emitted = np.empty((len(emit), _RECORD), dtype=record.dtype)
         emitted[...] = done[:_RECORD].T
         records[done[_ROW]] = emitted.view(record_item).reshape(len(emit))
+        if waiting.shape[1]:
+            waiting = _shortcut_again(seqs, waiting, done[_ROW])
         state = _next_state(state, emit, done, apex, retry, blocker)
         if reopened is not None:
             state = _with_reopened(state, reopened, seqs)
+            waiting = _waiting_with(waiting, reopened, reopenings)
     again = ~ok & seqs.proven[seq_start]
     # triangles (s_hi, s_lo, apex), (s_lo, s_hi, apex) where mirrored: counter-clockwise in
     # the output coordinates
@@ -1765,6 +1772,41 @@ def _with_reopened(state: np.ndarray, nodes: np.ndarray, seqs: Sequences) -> np.
         drop |= (state[_SEQ] == seq) & (state[_ROW] >= row) & (state[_ROW] < row + hi - lo - 1)
         seqs.proven[lo:hi] = False
     return np.concatenate([state[:, ~drop], nodes], axis=1)
+
+
+def _shortcut_again(seqs: Sequences, waiting: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The ``waiting`` reopened nodes (rows, lo, hi) not among the emitted ``rows``; the
+    ranges of those emitted take the shortcut again.
+
+    A reopened node is tested with every table; once it is emitted its triangle is correct,
+    and its subtree is no different from any other below correct ancestors (a wrong node in
+    it is found and reopened in turn)."""
+    back = np.isin(waiting[0], rows)
+    for lo, hi in zip(*waiting[1:, back].tolist()):
+        seqs.proven[lo:hi] = True
+    return waiting[:, ~back]
+
+
+def _waiting_with(waiting: np.ndarray, nodes: np.ndarray, reopenings: np.ndarray) -> np.ndarray:
+    """``waiting`` (see :func:`_shortcut_again`) without the nodes inside the subtrees of the
+    fresh reopened ``nodes``, with those of the ``nodes`` whose sequence has been reopened at
+    most ``_SHORTCUT_RETURNS`` times (after that a reopened subtree keeps every table, so
+    that no tree is built again and again)."""
+    seq = nodes[_SEQ]
+    np.add.at(reopenings, seq, 1)
+    if waiting.shape[1]:
+        row, lo, hi = waiting
+        inside = np.zeros(len(row), dtype=bool)
+        # positions are those of all sequences laid end to end: ranges of one sequence only
+        for first, last in zip(nodes[_LO].tolist(), nodes[_HI].tolist()):
+            inside |= (lo >= first) & (hi <= last)
+        waiting = waiting[:, ~inside]
+    back = reopenings[seq] <= _SHORTCUT_RETURNS
+    return np.concatenate([waiting, nodes[[_ROW, _LO, _HI]][:, back]], axis=1)
+
+
+# reopenings of a sequence after which reopened subtrees keep every table
+_SHORTCUT_RETURNS = 8
 
 
 def _roots(

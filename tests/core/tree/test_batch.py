@@ -766,7 +766,8 @@ def test_trees_mended_in_place(rule: str, monkeypatch: pytest.MonkeyPatch) -> No
     delaunay and elevation: with their checks for such edges off): the wrong node's subtree
     is built again in place (``_reopened``), no tree is built again as a whole, and every
     result equals the engine's; with no ancestor looked at, trees are built again as a
-    whole, with the same results."""
+    whole, with the same results. A mended subtree takes the shortcut again below its
+    reopened node (``_shortcut_again``); kept on every table, the results are the same."""
     polygons = radial_polygons(random.Random(33), 12)
     if rule == "delaunay":
         monkeypatch.setattr(
@@ -778,11 +779,24 @@ def test_trees_mended_in_place(rule: str, monkeypatch: pytest.MonkeyPatch) -> No
         monkeypatch.setattr(lockstep, "_ELEVATION_EVERY", 1 << 62)
     mends = MendLog(monkeypatch)
     log = RestartLog(monkeypatch, mend=True)
+    returned = []
+    shortcut_again = lockstep._shortcut_again
+
+    def counted(seqs, waiting, rows):
+        left = shortcut_again(seqs, waiting, rows)
+        returned.append(waiting.shape[1] - left.shape[1])
+        return left
+
+    monkeypatch.setattr(lockstep, "_shortcut_again", counted)
     problems, handled = mismatches(polygons, rule=rule)
     assert problems == []
     assert handled == len(polygons)
     assert sum(mends.mended) > 0
     assert not log.restarted
+    assert sum(returned) > 0
+
+    monkeypatch.setattr(lockstep, "_SHORTCUT_RETURNS", 0)
+    assert mismatches(polygons, rule=rule)[0] == []
 
     log = RestartLog(monkeypatch)
     assert mismatches(polygons, rule=rule)[0] == []
