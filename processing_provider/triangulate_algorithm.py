@@ -563,7 +563,9 @@ class TriangulateAlgorithm(QgsProcessingAlgorithm):
     def _points_z_field(self, parameters: dict[str, Any], context: QgsProcessingContext) -> str:
         if parameters.get(self.POINTS_Z_FIELD) in (None, ""):
             return ""
-        fields = self.parameterAsFields(parameters, self.POINTS_Z_FIELD, context)
+        # parameterAsStrings from QGIS 3.32 on; parameterAsFields is deprecated since 3.40
+        read = getattr(self, "parameterAsStrings", None) or self.parameterAsFields
+        fields = read(parameters, self.POINTS_Z_FIELD, context)
         return fields[0] if fields else ""
 
     def _dem_given(self, parameters: dict[str, Any]) -> bool:
