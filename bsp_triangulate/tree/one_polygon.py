@@ -345,6 +345,32 @@ def _circle_reach(ax: float, ay: float, bx: float, by: float, cx: float, cy: flo
     return reach * (1.0 + 1e-6) + 1e-300
 
 
+def _circle_around(
+    ax: float, ay: float, bx: float, by: float, cx: float, cy: float, reach: float
+) -> tuple[float, float, float] | None:
+    """The circle through a, b and c as (centre x, centre y, a squared radius beyond which a
+    point is surely strictly outside: the float radius plus a margin of 1e-6 ``reach`` and
+    1e-12 of the coordinates' magnitude, far above the rounding of a well-shaped corner's
+    centre and of the points' distances to it), computed at the corner of the largest angle;
+    None where that angle is within about half a degree of 180 (the centre not trusted)."""
+    best = None
+    for px, py, qx, qy, rx, ry in ((ax, ay, bx, by, cx, cy), (bx, by, cx, cy, ax, ay),
+                                   (cx, cy, ax, ay, bx, by)):  # fmt: skip
+        ux, uy, vx, vy = qx - px, qy - py, rx - px, ry - py
+        uu, vv = ux * ux + uy * uy, vx * vx + vy * vy
+        d = 2.0 * (ux * vy - uy * vx)
+        scale = math.sqrt(uu) * math.sqrt(vv)
+        if scale > 0 and (best is None or abs(d) * best[0] > best[1] * scale):
+            best = (scale, abs(d), px, py, ux, uy, vx, vy, uu, vv, d)
+    if best is None or not best[1] >= 2e-2 * best[0] or not reach < math.inf:
+        return None
+    _, _, px, py, ux, uy, vx, vy, uu, vv, d = best
+    ox, oy = (vy * uu - uy * vv) / d, (ux * vv - vx * uu) / d
+    magnitude = max(abs(ax), abs(ay), abs(bx), abs(by), abs(cx), abs(cy))
+    radius = math.hypot(ox, oy) + 1e-6 * reach + 1e-12 * magnitude
+    return px + ox, py + oy, radius * radius
+
+
 class _Ties:
     """Rule elevation's correct candidates found on one base (z1, z2), by the elevations
     exactly as far from the base's mean as theirs: their own z, and the one on the other
@@ -727,11 +753,26 @@ class _Tree:
             while len(untested):
                 if best >= 0:
                     # strictly outside the best circle: never better (the circles' parts on
-                    # this side of the base shrink as the best improves)
-                    inside = incircle_many(
-                        ax, ay, bx, by, sx[best], sy[best], sx[untested], sy[untested]
-                    )
-                    untested, sure = untested[inside >= 0], sure[inside >= 0]
+                    # this side of the base shrink as the best improves). Those beyond its
+                    # reach from the midpoint or surely outside its float circle leave first,
+                    # the rest take the exact test (a grid cell along a densely digitised
+                    # boundary holds hundreds of positions, nearly all far outside)
+                    cx, cy = float(sx[best]), float(sy[best])
+                    reach = _circle_reach(ax, ay, bx, by, cx, cy)
+                    px, py = sx[untested], sy[untested]
+                    near = np.abs(px - mx) <= reach
+                    near &= np.abs(py - my) <= reach
+                    circle = _circle_around(ax, ay, bx, by, cx, cy, reach)
+                    if circle is not None:
+                        ox, oy, limit = circle
+                        px, py = px - ox, py - oy
+                        near &= px * px + py * py <= limit
+                    untested, sure = untested[near], sure[near]
+                    if len(untested):
+                        inside = incircle_many(
+                            ax, ay, bx, by, sx[best], sy[best], sx[untested], sy[untested]
+                        )
+                        untested, sure = untested[inside >= 0], sure[inside >= 0]
                     if len(untested) == 0:
                         break
                 # most promising first: smallest centre offset (largest angle), in float;

@@ -155,6 +155,53 @@ def test_incircle_of_points_around_one_circle_matches_exact_arithmetic(count: in
     np.testing.assert_array_equal(got[list(sample)], expected)
 
 
+def test_points_the_circle_filter_drops_are_strictly_outside() -> None:
+    """The float circle that lets the one-step search drop candidates before the exact
+    in-circle test (``one_polygon._circle_around``): every point it drops is strictly outside
+    the circle (exact arithmetic), on triangles of every shape and size far from the origin,
+    with points near the circle, inside, and at the corners; slivers get no filter."""
+    from bsp_triangulate.tree.one_polygon import _circle_around, _circle_reach
+
+    rnd = random.Random(56)
+    dropped = kept = refused = 0
+    for _ in range(300):
+        x0, y0 = rnd.uniform(-1e7, 1e7), rnd.uniform(-1e7, 1e7)
+        size = 10.0 ** rnd.uniform(-4, 4)
+        corners = [(x0 + size * rnd.uniform(-1, 1), y0 + size * rnd.uniform(-1, 1)) for _ in "abc"]
+        if rnd.random() < 0.2:  # a sliver: c almost on the line a-b
+            (ax, ay), (bx, by) = corners[:2]
+            t = rnd.uniform(-0.5, 1.5)
+            corners[2] = (ax + t * (bx - ax) + 1e-9 * size, ay + t * (by - ay))
+        (ax, ay), (bx, by), (cx, cy) = corners
+        if _orientation(corners) <= 0:
+            (ax, ay), (bx, by) = (bx, by), (ax, ay)
+        reach = _circle_reach(ax, ay, bx, by, cx, cy)
+        circle = _circle_around(ax, ay, bx, by, cx, cy, reach)
+        if circle is None:
+            refused += 1
+            continue
+        ox, oy, limit = circle
+        radius = limit**0.5
+        for _ in range(40):
+            angle = rnd.uniform(0, 6.283)
+            scale = rnd.choice([1 - 1e-9, 1.0, 1 + 1e-9, 1 + 1e-6, 1 + 1e-3, rnd.uniform(0, 3)])
+            point = (ox + scale * radius * np.cos(angle), oy + scale * radius * np.sin(angle))
+            point = rnd.choice([point, point, point, (ax, ay), (cx, cy)])
+            dx, dy = point[0] - ox, point[1] - oy
+            if dx * dx + dy * dy > limit:
+                dropped += 1
+                assert _incircle_fraction((ax, ay), (bx, by), (cx, cy), point) < 0
+            else:
+                kept += 1
+    assert dropped > 1000 and kept > 1000 and refused > 20
+
+
+def _orientation(corners: list[tuple[float, float]]) -> int:
+    (ax, ay), (bx, by), (cx, cy) = (tuple(map(Fraction, p)) for p in corners)
+    value = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    return (value > 0) - (value < 0)
+
+
 @pytest.mark.parametrize("step", [0.1, 81.993426195884126, 1 / 3])
 def test_cell_centres_on_rectangles_and_their_ties_match_exact_arithmetic(step: float) -> None:
     # points of a grid far from the origin (a DEM's cell centres): the corners of any
