@@ -33,7 +33,7 @@ import numpy as np
 
 from ..formats.wkb import PolygonTable
 from .predicates import CCW_ERRBOUND, UNDERFLOW_SLACK, orient_sure_many
-from .rings_batch import covers_in_order
+from .rings_batch import covers_in_order, ragged_index
 
 # Coordinates beyond this stay finite in every product below.
 _LARGEST = 1e150
@@ -224,8 +224,7 @@ def _check_rings(rings: _Rings, proven: np.ndarray) -> None:
     # or with edges that point almost at the centre): one more try around another point
     again = np.flatnonzero(~star & ~reject & (edges > SMALL_RING_EDGES) & proven[rings.geometry])
     if len(again):
-        owner, within = _ragged(length[again])
-        source = first[again][owner] + within
+        source = ragged_index(first[again], length[again])
         sub_first = np.cumsum(length[again]) - length[again]
         gx, gy = _kernel_guess(x[source], y[source], sub_first, length[again], cx[again], cy[again])
         star[again] = _star_shaped(x[source], y[source], sub_first, length[again], gx, gy)
@@ -297,6 +296,7 @@ def _kernel_guess(
     ring) than (cx, cy): a few steps, each across the line of the edge that (cx, cy) lies
     farthest behind, half as far again beyond it. Only a guess: :func:`_star_shaped`
     decides, exactly."""
+    cx, cy = cx.copy(), cy.copy()
     with np.errstate(all="ignore"):
         ex, ey = np.diff(x), np.diff(y)
         junk = (first + length - 1)[:-1]
