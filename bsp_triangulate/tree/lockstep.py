@@ -1629,9 +1629,9 @@ def build_trees(
     ok = np.ones(count, dtype=bool)
     state = _roots(np.flatnonzero(m >= 3), seq_start, m, tri_start)
     top_z = float(np.abs(sz).max(initial=0.0)) if rule == "elevation" else 0.0
-    # reopened nodes (rows, lo, hi) whose ranges take the shortcut again once they are
-    # emitted, and reopenings per sequence
-    waiting = np.zeros((3, 0), dtype=np.int64)
+    # the rows of reopened nodes whose ranges take the shortcut again once they are emitted,
+    # and reopenings per sequence
+    waiting = np.zeros(0, dtype=np.int64)
     reopenings = np.zeros(count, dtype=np.int64)
     # rows are written as they are emitted; a sequence that fails is not read
     while state.shape[1]:
@@ -1670,8 +1670,8 @@ def build_trees(
         emitted = np.empty((len(emit), _RECORD), dtype=record.dtype)
         emitted[...] = done[:_RECORD].T
         records[done[_ROW]] = emitted.view(record_item).reshape(len(emit))
-        if waiting.shape[1]:
-            waiting = _shortcut_again(seqs, waiting, done[_ROW])
+        if len(waiting):
+            waiting = _shortcut_again(seqs, waiting, done)
         state = _next_state(state, emit, done, apex, retry, blocker)
         if reopened is not None:
             state = _with_reopened(state, reopened, seqs)
@@ -1765,44 +1765,47 @@ _REOPEN_LEVELS = 32
 
 def _with_reopened(state: np.ndarray, nodes: np.ndarray, seqs: Sequences) -> np.ndarray:
     """The open nodes ``state`` without those in the subtrees of ``nodes`` (fresh open nodes
-    from :func:`_reopened`), then ``nodes``, whose sub-polygons are from now on tested with
-    every table."""
-    drop = np.zeros(state.shape[1], dtype=bool)
-    for seq, row, lo, hi in zip(*(nodes[k].tolist() for k in (_SEQ, _ROW, _LO, _HI))):
-        drop |= (state[_SEQ] == seq) & (state[_ROW] >= row) & (state[_ROW] < row + hi - lo - 1)
+    from :func:`_reopened`), then ``nodes``, whose sub-polygons are tested with every table
+    until they are emitted (see :func:`_shortcut_again`)."""
+    for lo, hi in zip(nodes[_LO].tolist(), nodes[_HI].tolist()):
         seqs.proven[lo:hi] = False
-    return np.concatenate([state[:, ~drop], nodes], axis=1)
+    return np.concatenate([state[:, ~_in_subtrees(state[_ROW], nodes)], nodes], axis=1)
 
 
-def _shortcut_again(seqs: Sequences, waiting: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """The ``waiting`` reopened nodes (rows, lo, hi) not among the emitted ``rows``; the
-    ranges of those emitted take the shortcut again.
+def _in_subtrees(rows: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """Per record row of ``rows``: it lies in the subtree of one of the open ``nodes`` (the
+    hi - lo - 1 rows from the node's own, in pre-order; record rows are those of every
+    sequence, so a range holds rows of one sequence only)."""
+    inside = np.zeros(len(rows), dtype=bool)
+    for row, lo, hi in zip(*(nodes[k].tolist() for k in (_ROW, _LO, _HI))):
+        inside |= (rows >= row) & (rows < row + hi - lo - 1)
+    return inside
+
+
+def _shortcut_again(seqs: Sequences, waiting: np.ndarray, done: np.ndarray) -> np.ndarray:
+    """The ``waiting`` reopened nodes (their rows) not among the emitted nodes ``done``
+    (state columns); the ranges of those emitted take the shortcut again.
 
     A reopened node is tested with every table; once it is emitted its triangle is correct,
     and its subtree is no different from any other below correct ancestors (a wrong node in
     it is found and reopened in turn)."""
-    back = np.isin(waiting[0], rows)
-    for lo, hi in zip(*waiting[1:, back].tolist()):
+    back = np.isin(done[_ROW], waiting)
+    if not back.any():
+        return waiting
+    for lo, hi in zip(done[_LO, back].tolist(), done[_HI, back].tolist()):
         seqs.proven[lo:hi] = True
-    return waiting[:, ~back]
+    return waiting[~np.isin(waiting, done[_ROW, back])]
 
 
 def _waiting_with(waiting: np.ndarray, nodes: np.ndarray, reopenings: np.ndarray) -> np.ndarray:
     """``waiting`` (see :func:`_shortcut_again`) without the nodes inside the subtrees of the
-    fresh reopened ``nodes``, with those of the ``nodes`` whose sequence has been reopened at
-    most ``_SHORTCUT_RETURNS`` times (after that a reopened subtree keeps every table, so
-    that no tree is built again and again)."""
+    fresh reopened ``nodes``, with the rows of those of the ``nodes`` whose sequence has been
+    reopened at most ``_SHORTCUT_RETURNS`` times (after that a reopened subtree keeps every
+    table, so that no tree is built again and again)."""
     seq = nodes[_SEQ]
     np.add.at(reopenings, seq, 1)
-    if waiting.shape[1]:
-        row, lo, hi = waiting
-        inside = np.zeros(len(row), dtype=bool)
-        # positions are those of all sequences laid end to end: ranges of one sequence only
-        for first, last in zip(nodes[_LO].tolist(), nodes[_HI].tolist()):
-            inside |= (lo >= first) & (hi <= last)
-        waiting = waiting[:, ~inside]
-    back = reopenings[seq] <= _SHORTCUT_RETURNS
-    return np.concatenate([waiting, nodes[[_ROW, _LO, _HI]][:, back]], axis=1)
+    waiting = waiting[~_in_subtrees(waiting, nodes)]
+    return np.concatenate([waiting, nodes[_ROW, reopenings[seq] <= _SHORTCUT_RETURNS]])
 
 
 # reopenings of a sequence after which reopened subtrees keep every table

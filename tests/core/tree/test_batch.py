@@ -782,9 +782,9 @@ def test_trees_mended_in_place(rule: str, monkeypatch: pytest.MonkeyPatch) -> No
     returned = []
     shortcut_again = lockstep._shortcut_again
 
-    def counted(seqs, waiting, rows):
-        left = shortcut_again(seqs, waiting, rows)
-        returned.append(waiting.shape[1] - left.shape[1])
+    def counted(seqs, waiting, done):
+        left = shortcut_again(seqs, waiting, done)
+        returned.append(len(waiting) - len(left))
         return left
 
     monkeypatch.setattr(lockstep, "_shortcut_again", counted)
