@@ -19,7 +19,15 @@ from dataclasses import dataclass
 import mapbox_earcut
 import numpy as np
 import shapely
-from common import SHARED_DATA, BudgetExceededError, Row, rows_table, timed, within
+from common import (
+    SHARED_DATA,
+    BudgetExceededError,
+    Row,
+    best_rounds,
+    rows_table,
+    timed,
+    within,
+)
 from generate import (
     DEFAULT_COUNT,
     ensure_islands,
@@ -153,15 +161,11 @@ def compare(
     libraries = dict(LIBRARIES)
     if delaunay:
         libraries[DELAUNAY] = time_ours_delaunay
-    best: dict[str, Timing | str] = {}
-    for _ in range(rounds):
-        for name, run in libraries.items():
-            if isinstance(best.get(name), str):
-                continue  # over budget or failed: not tried again
-            timing = measure(run, polygons, repeat, budget)
-            previous = best.get(name)
-            if isinstance(timing, str) or previous is None or timing.seconds < previous.seconds:
-                best[name] = timing
+    runs = {
+        name: lambda run=run: measure(run, polygons, repeat, budget)
+        for name, run in libraries.items()
+    }
+    best = best_rounds(runs, rounds, lambda timing: timing.seconds)
     seconds: dict[str, float] = {}
     rows: list[Row] = []
     for name, timing in best.items():

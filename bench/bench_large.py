@@ -23,7 +23,15 @@ import json
 
 import mapbox_earcut
 import numpy as np
-from common import SHARED_DATA, BudgetExceededError, Row, rows_table, timed, within
+from common import (
+    SHARED_DATA,
+    BudgetExceededError,
+    Row,
+    best_rounds,
+    rows_table,
+    timed,
+    within,
+)
 from generate import dem_height, mid_size_polygons, radial_polygons, river_polygon, wavy_polygon
 
 from bsp_triangulate import Triangulation, triangulate_many
@@ -124,18 +132,10 @@ def compare(
     vertices = sum(len(ring) for rings in polygons for ring in rings)
     case = f"{case} ({vertices:,} vertices)"
     lifted = with_z(polygons)
-    runs = {"earcut": lambda: time_earcut(polygons, 2)}
+    runs = {"earcut": lambda: measure(lambda: time_earcut(polygons, 2), budget)}
     for rule in rules:
-        runs[rule] = lambda rule=rule: time_ours(lifted, rule, 2)
-    best: dict[str, tuple[float, int, int] | str] = {}
-    for _ in range(rounds):
-        for name, function in runs.items():
-            if isinstance(best.get(name), str):
-                continue  # over budget or failed: not tried again
-            timing = measure(function, budget)
-            previous = best.get(name)
-            if isinstance(timing, str) or previous is None or timing[0] < previous[0]:
-                best[name] = timing
+        runs[rule] = lambda rule=rule: measure(lambda: time_ours(lifted, rule, 2), budget)
+    best = best_rounds(runs, rounds, lambda timing: timing[0])
     earcut = best["earcut"]
     if isinstance(earcut, str):
         return [Row(case, "mapbox_earcut: time", earcut)]

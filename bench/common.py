@@ -85,6 +85,25 @@ def timed(function: Callable[[], Any], repeat: int = 1) -> tuple[float, Any]:
     return best, result
 
 
+def best_rounds(
+    runs: dict[str, Callable[[], Any]], rounds: int, seconds: Callable[[Any], float]
+) -> dict[str, Any]:
+    """Per name, the best (by ``seconds``) of ``rounds`` alternated rounds of its run: each
+    round calls every run once, in turn, so that every library gets the same chances on a
+    machine whose speed drifts. A run that returns a string (over budget, failed) keeps it and
+    is not called again."""
+    best: dict[str, Any] = {}
+    for _ in range(rounds):
+        for name, run in runs.items():
+            if isinstance(best.get(name), str):
+                continue
+            timing = run()
+            previous = best.get(name)
+            if isinstance(timing, str) or previous is None or seconds(timing) < seconds(previous):
+                best[name] = timing
+    return best
+
+
 class BudgetExceededError(Exception):
     """A measurement did not finish within its time budget."""
 
