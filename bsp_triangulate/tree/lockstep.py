@@ -44,6 +44,7 @@ from ..geometry.predicates_batch import (
     sure_signs,
 )
 from ..geometry.rings_batch import ragged_index
+from .one_by_one import first_subtree
 
 # test items x sub-polygon vertices per numpy pass: tables of about 1 MB stay in the cache
 _CHUNK_ELEMENTS = 1 << 17
@@ -1634,7 +1635,17 @@ def build_trees(
     waiting = np.zeros(0, dtype=np.int64)
     reopenings = np.zeros(count, dtype=np.int64)
     # rows are written as they are emitted; a sequence that fails is not read
+    # sequences whose nodes stay in the rounds
+    one_off = np.zeros(count, dtype=bool)
     while state.shape[1]:
+        if rule == "first" and state.shape[1] < _ONE_BY_ONE:
+            built = _one_by_one(seqs, state, record, one_off)
+            if built.any():
+                if len(waiting):
+                    waiting = waiting[~np.isin(waiting, state[_ROW, built])]
+                state = state[:, ~built]
+                if not state.shape[1]:
+                    break
         lo = state[_LO]
         if rule != "first":
             if rule == "delaunay":
@@ -1827,3 +1838,43 @@ def _roots(
     state[_SEQ] = poly
     state[_BLOCK] = -1
     return state
+
+
+# open nodes below which the lock-step rounds (mostly their fixed numpy calls) give way to one
+# Python step per node (on earcut's water-huge3, 213 rounds of under 16 nodes took 0.05 s,
+# their subtrees one node at a time 0.011 s)
+_ONE_BY_ONE = 16
+# edge tests per position of a sub-polygon built one node at a time, after which its nodes go
+# back to the rounds (a fan of s positions takes about s * s / 2; the rounds, at least s)
+_ONE_BY_ONE_TESTS = 256
+
+
+def _one_by_one(
+    seqs: Sequences, state: np.ndarray, record: np.ndarray, off: np.ndarray
+) -> np.ndarray:
+    """Rule "first": the subtrees of the open nodes ``state`` built one node at a time
+    (``one_by_one.first_subtree``, exact), written to ``record``; per column whether it was
+    built. A node that finds no candidate, or a subtree over its budget of edge tests, leaves
+    its column to the rounds (which mend or fail its tree) and marks its sequence ``off``."""
+    built = np.zeros(state.shape[1], dtype=bool)
+    for j, column in enumerate(state.T.tolist()):
+        lo, hi, top, parent, depth, side, row, at_hi, first, seq, _ = column
+        if off[seq]:
+            continue
+        xs = seqs.sx[lo : hi + 1].tolist()
+        ys = seqs.sy[lo : hi + 1].tolist()
+        budget = _ONE_BY_ONE_TESTS * (hi - lo)
+        nodes = first_subtree(xs, ys, 0, hi - lo, top - lo, at_hi == 1, seqs.exact, budget)
+        if nodes is None:
+            off[seq] = True
+            continue
+        built[j] = True
+        out = np.array(nodes, dtype=np.int64)
+        rows = row + np.arange(len(out))
+        out[:, :3] += lo
+        above = out[:, 3]
+        out[:, 3] = np.where(above < 0, parent, row + above - first)
+        out[:, 4] += depth
+        out[0, 5] = side
+        record[rows] = out
+    return built

@@ -26,7 +26,6 @@ from ..geometry.predicates import (
     ring_area_sign,
     shoelace_products,
     strictly_between,
-    strictly_between_one,
     sum_error,
 )
 from ..geometry.predicates_batch import sure_signs
@@ -36,6 +35,7 @@ from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
 from .delaunay_points import points_mesh, tree_of_cdt
 from .elevation_order import ElevationWindows
+from .one_by_one import edge_blocks, facing_one
 from .points_batch import InsertedMesh
 from .shadows import Shadows
 from .subtrees import DELAUNAY_POSITIONS, MAX_POSITIONS, build_subtrees, worth_lockstep
@@ -128,29 +128,6 @@ def facing_candidates(
         np.where(turn < 0, after_next | after_prev, after_next | spike),
     )
     return (signs[0] > 0) & inside[0] & inside[1]
-
-
-def facing_one(xs: list[float], ys: list[float], lo: int, hi: int, c: int) -> bool:
-    """Scalar :func:`facing_candidates` for the one candidate position ``c`` (Python lists)."""
-    ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
-    cx, cy = xs[c], ys[c]
-    if orient(ax, ay, bx, by, cx, cy) <= 0:
-        return False
-    px, py, nx, ny = xs[c - 1], ys[c - 1], xs[c + 1], ys[c + 1]
-    turn = orient(px, py, cx, cy, nx, ny)
-    spike = turn == 0 and (nx - cx) * (px - cx) + (ny - cy) * (py - cy) > 0
-    for tx, ty in ((ax, ay), (bx, by)):
-        after_next = orient(cx, cy, nx, ny, tx, ty) >= 0
-        after_prev = orient(px, py, cx, cy, tx, ty) >= 0
-        if turn > 0:
-            inside = after_next and after_prev
-        elif turn < 0:
-            inside = after_next or after_prev
-        else:
-            inside = after_next or spike
-        if not inside:
-            return False
-    return True
 
 
 def correct_candidates(
@@ -264,67 +241,6 @@ def pairs_failing(
             bad[rows[hit[crossing]]] = True
             blockers.append(edges[hit[crossing]])
     return np.flatnonzero(bad), np.concatenate(blockers)
-
-
-def pair_fails(
-    corners: tuple[float, float, float, float, float, float],
-    px: float,
-    py: float,
-    qx: float,
-    qy: float,
-    sign: Callable[[float, float, float, float, float, float], int] = orient,
-) -> bool:
-    """Scalar :func:`pairs_failing` for one triangle ``corners`` = (ax, ay, bx, by, cx, cy)
-    (base a -> b, apex c, counter-clockwise) and one edge p-q: the edge breaks condition 2
-    or 3. ``sign`` is :func:`orient`, or :func:`orient_float` for grid-exact coordinates."""
-    ax, ay, bx, by, cx, cy = corners
-    fp1, fq1 = sign(bx, by, cx, cy, px, py), sign(bx, by, cx, cy, qx, qy)
-    # both ends strictly outside side b-c: neither on a new side nor inside (T is ccw)
-    if fp1 < 0 and fq1 < 0:
-        return False
-    fp2, fq2 = sign(cx, cy, ax, ay, px, py), sign(cx, cy, ax, ay, qx, qy)
-    if fp2 < 0 and fq2 < 0:
-        return False
-    # condition 3: a vertex in the relative interior of a new side
-    for f1, f2, ux, uy in ((fp1, fp2, px, py), (fq1, fq2, qx, qy)):
-        if f1 == 0 and strictly_between_one(ux, uy, bx, by, cx, cy):
-            return True
-        if f2 == 0 and strictly_between_one(ux, uy, ax, ay, cx, cy):
-            return True
-    # condition 2: separating-axis test
-    if max(fp1, fq1) <= 0 or max(fp2, fq2) <= 0:
-        return False
-    if sign(ax, ay, bx, by, px, py) <= 0 and sign(ax, ay, bx, by, qx, qy) <= 0:
-        return False
-    if px == qx and py == qy:
-        return True
-    g = (
-        sign(px, py, qx, qy, ax, ay),
-        sign(px, py, qx, qy, bx, by),
-        sign(px, py, qx, qy, cx, cy),
-    )
-    return min(g) < 0 < max(g)
-
-
-def _edge_blocks(
-    corners: tuple[float, float, float, float, float, float],
-    xmin: float,
-    ymin: float,
-    xmax: float,
-    ymax: float,
-    xs: list[float],
-    ys: list[float],
-    e: int,
-    sign: Callable[[float, float, float, float, float, float], int],
-) -> bool:
-    """Edge (e, e + 1) breaks condition 2 or 3 for the triangle ``corners`` (whose bounding
-    box is given: an edge whose box misses it cannot touch the triangle)."""
-    px, py, qx, qy = xs[e], ys[e], xs[e + 1], ys[e + 1]
-    if (px < xmin and qx < xmin) or (px > xmax and qx > xmax):
-        return False
-    if (py < ymin and qy < ymin) or (py > ymax and qy > ymax):
-        return False
-    return pair_fails(corners, px, py, qx, qy, sign)
 
 
 def _circle_reach(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> float:
@@ -924,7 +840,7 @@ class _Tree:
                     xmin, xmax = min(corners[0::2]), max(corners[0::2])
                     ymin, ymax = min(corners[1::2]), max(corners[1::2])
                     for e in edges:
-                        if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
+                        if edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
                             return done + j
             done += count
         return done
@@ -1057,7 +973,7 @@ class _Tree:
         xmin, xmax = min(corners[0::2]), max(corners[0::2])
         ymin, ymax = min(corners[1::2]), max(corners[1::2])
         for e in blockers:
-            if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
+            if edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
                 return True
         if self.boxes is not None and hi - lo > SMALL_SEQUENCE:
             return self._blocked_boxes(lo, hi, c, corners, blockers)
@@ -1089,7 +1005,7 @@ class _Tree:
         ymin, ymax = min(ay, by, cy), max(ay, by, cy)
         for start, end in runs:
             for e in range(start, end):
-                if _edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
+                if edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
                     _remember(blockers, e)
                     return True
         return False

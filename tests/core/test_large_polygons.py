@@ -23,7 +23,8 @@ from bsp_triangulate.geometry.predicates import ring_area_sign
 from bsp_triangulate.geometry.rings import normalise_rings, prepare
 from bsp_triangulate.geometry.spatial_index import ChainBoxes
 from bsp_triangulate.rules import get_rule
-from bsp_triangulate.tree.one_polygon import _edge_blocks, _Tree, facing_one
+from bsp_triangulate.tree.one_by_one import edge_blocks, facing_one
+from bsp_triangulate.tree.one_polygon import _Tree
 
 from .checks import check_triangulation
 from .random_polygons import random_polygon
@@ -45,7 +46,7 @@ def _blocked_by_any_edge(tree: _Tree, lo: int, hi: int, c: int) -> bool:
     xs, ys = tree.xs, tree.ys
     corners = (xs[hi], ys[hi], xs[lo], ys[lo], xs[c], ys[c])
     box = (min(corners[0::2]), min(corners[1::2]), max(corners[0::2]), max(corners[1::2]))
-    return any(_edge_blocks(corners, *box, xs, ys, e, tree.sign) for e in range(lo, hi))
+    return any(edge_blocks(corners, *box, xs, ys, e, tree.sign) for e in range(lo, hi))
 
 
 def _polygons() -> list[tuple[str, list]]:

@@ -18,12 +18,8 @@ from bsp_triangulate.geometry.predicates import (
     strictly_between,
     strictly_between_one,
 )
-from bsp_triangulate.tree.one_polygon import (
-    facing_candidates,
-    facing_one,
-    pair_fails,
-    pairs_failing,
-)
+from bsp_triangulate.tree.one_by_one import facing_one, pair_fails
+from bsp_triangulate.tree.one_polygon import facing_candidates, pairs_failing
 
 SCALES = [1.0, 0.1, 1e-9 / 3, 1e15]
 

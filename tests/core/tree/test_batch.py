@@ -769,6 +769,8 @@ def test_trees_mended_in_place(rule: str, monkeypatch: pytest.MonkeyPatch) -> No
     whole, with the same results. A mended subtree takes the shortcut again below its
     reopened node (``_shortcut_again``); kept on every table, the results are the same."""
     polygons = radial_polygons(random.Random(33), 12)
+    # twelve trees: every round would have under 16 open nodes, built one node at a time
+    monkeypatch.setattr(lockstep, "_ONE_BY_ONE", 0)
     if rule == "delaunay":
         monkeypatch.setattr(
             lockstep, "_edge_across_sure", lambda seqs, lo, hi, c: np.zeros(len(lo), bool)
@@ -863,6 +865,8 @@ def test_crossing_edges_across_fans(monkeypatch: pytest.MonkeyPatch) -> None:
     from bsp_triangulate.tree import lockstep as batch_bsp
 
     polygons = radial_polygons(random.Random(30), 12)
+    # twelve trees: every round would have under 16 open nodes, built one node at a time
+    monkeypatch.setattr(batch_bsp, "_ONE_BY_ONE", 0)
     edges_across = batch_bsp._edges_across
     rejected = []
 

@@ -1,0 +1,180 @@
+"""The correct-triangle conditions (docs/algorithm.md, section 4) for one candidate in
+Python scalars, and the subtrees of small sub-polygons built with them one node at a time
+(rule "first"): where only a few sub-polygons are left, a Python step per node costs less
+than a round of numpy calls of the lock-step builder."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from ..geometry.predicates import orient, orient_float, strictly_between_one
+
+
+def facing_one(xs: list[float], ys: list[float], lo: int, hi: int, c: int) -> bool:
+    """Scalar :func:`facing_candidates` for the one candidate position ``c`` (Python lists)."""
+    ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
+    cx, cy = xs[c], ys[c]
+    if orient(ax, ay, bx, by, cx, cy) <= 0:
+        return False
+    px, py, nx, ny = xs[c - 1], ys[c - 1], xs[c + 1], ys[c + 1]
+    turn = orient(px, py, cx, cy, nx, ny)
+    spike = turn == 0 and (nx - cx) * (px - cx) + (ny - cy) * (py - cy) > 0
+    for tx, ty in ((ax, ay), (bx, by)):
+        after_next = orient(cx, cy, nx, ny, tx, ty) >= 0
+        after_prev = orient(px, py, cx, cy, tx, ty) >= 0
+        if turn > 0:
+            inside = after_next and after_prev
+        elif turn < 0:
+            inside = after_next or after_prev
+        else:
+            inside = after_next or spike
+        if not inside:
+            return False
+    return True
+
+
+def pair_fails(
+    corners: tuple[float, float, float, float, float, float],
+    px: float,
+    py: float,
+    qx: float,
+    qy: float,
+    sign: Callable[[float, float, float, float, float, float], int] = orient,
+) -> bool:
+    """Scalar :func:`pairs_failing` for one triangle ``corners`` = (ax, ay, bx, by, cx, cy)
+    (base a -> b, apex c, counter-clockwise) and one edge p-q: the edge breaks condition 2
+    or 3. ``sign`` is :func:`orient`, or :func:`orient_float` for grid-exact coordinates."""
+    ax, ay, bx, by, cx, cy = corners
+    fp1, fq1 = sign(bx, by, cx, cy, px, py), sign(bx, by, cx, cy, qx, qy)
+    # both ends strictly outside side b-c: neither on a new side nor inside (T is ccw)
+    if fp1 < 0 and fq1 < 0:
+        return False
+    fp2, fq2 = sign(cx, cy, ax, ay, px, py), sign(cx, cy, ax, ay, qx, qy)
+    if fp2 < 0 and fq2 < 0:
+        return False
+    # condition 3: a vertex in the relative interior of a new side
+    for f1, f2, ux, uy in ((fp1, fp2, px, py), (fq1, fq2, qx, qy)):
+        if f1 == 0 and strictly_between_one(ux, uy, bx, by, cx, cy):
+            return True
+        if f2 == 0 and strictly_between_one(ux, uy, ax, ay, cx, cy):
+            return True
+    # condition 2: separating-axis test
+    if max(fp1, fq1) <= 0 or max(fp2, fq2) <= 0:
+        return False
+    if sign(ax, ay, bx, by, px, py) <= 0 and sign(ax, ay, bx, by, qx, qy) <= 0:
+        return False
+    if px == qx and py == qy:
+        return True
+    g = (
+        sign(px, py, qx, qy, ax, ay),
+        sign(px, py, qx, qy, bx, by),
+        sign(px, py, qx, qy, cx, cy),
+    )
+    return min(g) < 0 < max(g)
+
+
+def edge_blocks(
+    corners: tuple[float, float, float, float, float, float],
+    xmin: float,
+    ymin: float,
+    xmax: float,
+    ymax: float,
+    xs: list[float],
+    ys: list[float],
+    e: int,
+    sign: Callable[[float, float, float, float, float, float], int],
+) -> bool:
+    """Edge (e, e + 1) breaks condition 2 or 3 for the triangle ``corners`` (whose bounding
+    box is given: an edge whose box misses it cannot touch the triangle)."""
+    px, py, qx, qy = xs[e], ys[e], xs[e + 1], ys[e + 1]
+    if (px < xmin and qx < xmin) or (px > xmax and qx > xmax):
+        return False
+    if (py < ymin and qy < ymin) or (py > ymax and qy > ymax):
+        return False
+    return pair_fails(corners, px, py, qx, qy, sign)
+
+
+def first_correct(
+    xs: list[float],
+    ys: list[float],
+    lo: int,
+    hi: int,
+    top: int,
+    sign: Callable[[float, float, float, float, float, float], int],
+    blockers: list[int],
+    budget: list[int],
+) -> int:
+    """The first of the candidates ``top``, ``top`` - 1, ... of sub-polygon [lo, hi] that
+    forms a correct triangle on the base (hi, lo), or -1; each tested against every edge of
+    the sub-polygon, the ``blockers`` (edges that blocked earlier candidates, the most recent
+    first) before the others. Each candidate tested against every edge takes hi - lo from
+    ``budget[0]``; -2 once it is spent."""
+    ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
+    for c in range(top, lo, -1):
+        if not facing_one(xs, ys, lo, hi, c):
+            continue
+        cx, cy = xs[c], ys[c]
+        corners = (ax, ay, bx, by, cx, cy)
+        xmin, xmax = min(ax, bx, cx), max(ax, bx, cx)
+        ymin, ymax = min(ay, by, cy), max(ay, by, cy)
+        blocked = False
+        for e in blockers:
+            if lo <= e < hi and edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
+                blocked = True
+                break
+        if blocked:
+            continue
+        budget[0] -= hi - lo
+        if budget[0] < 0:
+            return -2
+        for e in range(lo, hi):
+            if edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
+                blockers.insert(0, e)
+                del blockers[_BLOCKERS:]
+                break
+        else:
+            return c
+    return -1
+
+
+# edges remembered per subtree as likely blockers
+_BLOCKERS = 8
+
+
+def first_subtree(
+    xs: list[float],
+    ys: list[float],
+    lo: int,
+    hi: int,
+    top: int,
+    at_hi: bool,
+    exact: bool,
+    budget: int,
+) -> list[tuple[int, int, int, int, int, int]] | None:
+    """Rule "first": the BSP subtree of sub-polygon [lo, hi] of the sequence ``xs``, ``ys``
+    (positions in Python lists; the root's candidates from ``top`` down, those above it
+    rejected already; its V1 at hi where ``at_hi``), in pre-order: per node (lo, hi, apex,
+    parent, depth, side), parent the index of the parent's node in the list (-1 at the
+    root), depth from the root's 0, side 0 at the root, else 1 (left) or 2 (right). None where
+    a node finds no correct candidate, or after ``budget`` edge tests (a sub-polygon whose
+    nodes reject many candidates each is left to the vectorised tables). ``exact``: every
+    float orientation of the coordinates is exact (grid coordinates)."""
+    sign = orient_float if exact else orient
+    nodes: list[tuple[int, int, int, int, int, int]] = []
+    blockers: list[int] = []
+    remaining = [budget]
+    work = [(lo, hi, top, at_hi, -1, 0, 0)]
+    while work:
+        lo, hi, top, at_hi, parent, depth, side = work.pop()
+        apex = first_correct(xs, ys, lo, hi, top, sign, blockers, remaining)
+        if apex < 0:
+            return None
+        here = len(nodes)
+        nodes.append((lo, hi, apex, parent, depth, side))
+        # the left child (base V1 V3) comes first in pre-order: pushed last
+        upper, lower = (apex, hi, True), (lo, apex, False)
+        left, right = (upper, lower) if at_hi else (lower, upper)
+        for (clo, chi, flag), child_side in ((right, 2), (left, 1)):
+            if chi - clo > 1:
+                work.append((clo, chi, chi - 1, flag, here, depth + 1, child_side))
+    return nodes

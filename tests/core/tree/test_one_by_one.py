@@ -1,0 +1,65 @@
+"""Where few open nodes are left, the lock-step builder builds their subtrees one node at a time
+(``one_by_one.first_subtree``, rule first): the trees are the engine's, whether every round,
+none or only the last ones go that way, and whether a subtree keeps to its budget of edge
+tests or goes back to the rounds."""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+import pytest
+
+from bsp_triangulate.tree import lockstep
+from bsp_triangulate.tree.batch import triangulate_batch
+
+from ..random_polygons import random_polygon
+from .test_batch_internals import batch_equals_engine, near_collinear_polygon
+
+
+def _polygons() -> list:
+    rnd = random.Random(61)
+    rng = np.random.default_rng(62)
+    polygons = [
+        random_polygon(rnd, islands=rnd.randint(0, 3), touching=rnd.randint(0, 2))
+        for _ in range(60)
+    ]
+    polygons += [random_polygon(rnd, islands=2, grid=True) for _ in range(20)]
+    polygons += [random_polygon(rnd, islands=1, integer=False) for _ in range(20)]
+    for wobble in (0.0, 1e-15, 1e-9):
+        polygons += [
+            near_collinear_polygon(rng, int(rng.integers(5, 120)), wobble) for _ in range(8)
+        ]
+    return polygons
+
+
+POLYGONS = _polygons()
+
+
+@pytest.mark.parametrize(
+    ("open_nodes", "tests"),
+    [(0, 256), (1 << 30, 256), (1 << 30, 1), (1 << 30, 4), (16, 256)],
+    ids=["never", "always", "no budget", "small budget", "the last rounds"],
+)
+def test_trees_equal_the_engines(
+    monkeypatch: pytest.MonkeyPatch, open_nodes: int, tests: int
+) -> None:
+    monkeypatch.setattr(lockstep, "_ONE_BY_ONE", open_nodes)
+    monkeypatch.setattr(lockstep, "_ONE_BY_ONE_TESTS", tests)
+    assert batch_equals_engine(POLYGONS) >= 0.6 * len(POLYGONS)
+
+
+def test_a_crossing_polygon_fails_as_in_the_rounds(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A bow-tie and a ring crossing its island: no tree, one node at a time or not."""
+    bow_tie = [np.array([(0.0, 0.0), (4.0, 4.0), (4.0, 0.0), (0.0, 4.0)])]
+    crossing = [
+        np.array([(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)]),
+        np.array([(2.0, 2.0), (2.0, 12.0), (8.0, 8.0)]),
+    ]
+    square = [np.array([(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)])]
+    results = []
+    for open_nodes in (0, 1 << 30):
+        monkeypatch.setattr(lockstep, "_ONE_BY_ONE", open_nodes)
+        results.append([r is None for r in triangulate_batch([bow_tie, crossing, square], "first")])
+    assert results[0] == results[1]
+    assert results[0][2] is False
