@@ -23,19 +23,20 @@ whatever the candidate's ``alpha``. Likewise the edge into A for ``alpha``. Thes
 the (alpha, beta) plane also rule out boxes that straddle the chord's line beyond B or beyond A,
 whose points near the line have an angle near 0 that no vertex's shadow covers.
 
-An edge that crosses the chord's line beyond A (its left end at ``alpha`` = a, its other end
-right of the chord, the two seen from A less than a half-turn apart) crosses every ray from A
-at an angle in (a, pi), within the distance r of its farther end: every candidate in that
-angle farther from A than r has the edge across its side from A (condition 2). Likewise
-beyond B with ``beta``. Such *rays* come from the edges that blocked candidates; they rule out
-the slivers along the chord's line, which a vertex's shadow covers only near the line's
-crossing.
+An edge whose ends lie at the angles a < b seen from A (less than a half-turn apart) crosses
+every ray from A at an angle strictly between a and b, within the distance r of its farther
+end: every candidate at such an angle farther from A than r has the edge across its side from
+A (condition 2); an edge that crosses the chord's line beyond A covers every angle from a on.
+Likewise from B with ``beta``. Such *rays* come from the edges that blocked candidates, kept
+as the least r per angle (:class:`Horizon`); they rule out the slivers along the chord's line,
+which a vertex's shadow covers only near the line's crossing, and along a long straight river
+the thin triangles reaching far downstream.
 """
 
 from __future__ import annotations
 
 import math
-from bisect import bisect_left
+from bisect import bisect_left, bisect_right
 from collections.abc import Iterator
 
 import numpy as np
@@ -47,9 +48,11 @@ _MARGIN = 1e-9
 # Points along an edge that casts its shadow (its ends' shadows do not cover each other).
 _EDGE_SAMPLES = 7
 _TWO_PI = 2.0 * math.pi
-# Rays kept per corner, and the relative slack on their squared distances (far above the
+# Rays added per base at most, and the relative slack on their squared distances (far above the
 # rounding of a distance beyond the trusted one).
-_RAYS = 8
+_RAYS = 1024
+# the upper end of an occluder across the chord's line (beyond every angle left of it)
+_BEYOND = 4.0
 _REACH_SLACK = 1.0 + 1e-6
 
 
@@ -61,6 +64,83 @@ def _distance2(box: tuple[float, ...], x: float, y: float) -> float:
     du = max(abs(ux * dx + uy * dy) - hu, 0.0)
     dv = max(abs(uy * dx - ux * dy) - hv, 0.0)
     return du * du + dv * dv
+
+
+class Horizon:
+    """Occluders seen from one corner of the base: an edge whose ends lie at the angles l < h
+    (less than a half-turn apart) and within the distance r of the corner crosses every ray
+    from it at an angle strictly between l and h, within r; a point at such an angle and
+    farther than r has the edge across its side from the corner (condition 2). Kept as the
+    least squared reach per angle: sorted ``cuts`` (ends of occluders, shrunk by the
+    margin), the reach over each open interval between two cuts (``between``) and at each
+    cut (``at``); inf where no occluder covers."""
+
+    def __init__(self) -> None:
+        self.cuts: list[float] = []
+        self.between: list[float] = []  # between cuts[i] and cuts[i + 1]
+        self.at: list[float] = []
+
+    def __bool__(self) -> bool:
+        return bool(self.cuts)
+
+    def _cut(self, angle: float) -> int:
+        """Index of the cut at ``angle``, made where there is none."""
+        cuts = self.cuts
+        i = bisect_left(cuts, angle)
+        if i < len(cuts) and cuts[i] == angle:
+            return i
+        # the new cut lies inside the interval i - 1 (or outside every one): its reach
+        inside = self.between[i - 1] if 0 < i < len(cuts) else math.inf
+        cuts.insert(i, angle)
+        self.at.insert(i, inside)
+        if 0 < i < len(cuts) - 1:
+            self.between.insert(i, inside)
+        elif i == 0 and len(cuts) > 1:
+            self.between.insert(0, math.inf)
+        elif i == len(cuts) - 1 and len(cuts) > 1:
+            self.between.append(math.inf)
+        return i
+
+    def add(self, low: float, high: float, reach2: float) -> None:
+        """An occluder over the open angles (low, high) (margins already applied)."""
+        if not low < high:
+            return
+        first = self._cut(low)
+        last = self._cut(high)
+        between, at = self.between, self.at
+        for i in range(first, last):
+            if reach2 < between[i]:
+                between[i] = reach2
+        for i in range(first + 1, last):
+            if reach2 < at[i]:
+                at[i] = reach2
+
+    def reach2(self, angle: float) -> float:
+        """The least squared reach of an occluder covering ``angle`` (inf: none)."""
+        cuts = self.cuts
+        i = bisect_left(cuts, angle)
+        if i < len(cuts) and cuts[i] == angle:
+            return self.at[i]
+        if 0 < i < len(cuts):
+            return self.between[i - 1]
+        return math.inf
+
+    def reach2_over(self, low: float, high: float) -> float:
+        """The largest of the least squared reaches over the angles [low, high] (inf where
+        some angle there has no occluder)."""
+        cuts = self.cuts
+        if not cuts or low <= cuts[0] or high >= cuts[-1]:
+            return math.inf
+        between, at = self.between, self.at
+        i = bisect_right(cuts, low) - 1
+        most = at[i] if cuts[i] == low else 0.0
+        while most < math.inf:
+            most = max(most, between[i])
+            i += 1
+            if cuts[i] >= high:
+                return most if cuts[i] > high else max(most, at[i])
+            most = max(most, at[i])
+        return most
 
 
 class Shadows:
@@ -82,9 +162,12 @@ class Shadows:
         # edge at A; inf: none), and the chord's direction, length and trusted distance
         self.corner_beta = self.corner_alpha = math.inf
         self.chord: tuple[float, float, float, float] | None = None
-        # rays (module docstring): (least angle, squared distance) beyond A and beyond B
-        self.rays_a: list[tuple[float, float]] = []
-        self.rays_b: list[tuple[float, float]] = []
+        # rays (module docstring): occluders seen from A and from B (``Horizon``), and
+        # how many were added; the last chain box's largest angles (``_box``)
+        self.rays_a = Horizon()
+        self.rays_b = Horizon()
+        self.ray_count = 0
+        self.box_top = (math.pi, math.pi)
         # squared distance from a base end within which a computed point's angles are not
         # trusted (the coordinates' rounding, 2**-52 of their scale, over it stays far below
         # the margin)
@@ -167,47 +250,56 @@ class Shadows:
         angles_p: tuple[float, float],
         angles_q: tuple[float, float],
     ) -> None:
-        """Keep the edge p-q as a ray (module docstring) where it crosses the chord's line
-        beyond A or beyond B, its ends farther than the trusted distance from that corner."""
+        """Keep the edge p-q as a ray seen from A and from B (module docstring), where its
+        angles there are less than a half-turn apart and its ends farther than the trusted
+        distance from that corner."""
+        if self.ray_count >= _RAYS:
+            return
         for which, (cx, cy), rays in (
             (0, (self.ax, self.ay), self.rays_a),
             (1, (self.bx, self.by), self.rays_b),
         ):
-            if len(rays) >= _RAYS:
-                continue
             low, high = sorted((angles_p[which], angles_q[which]))
-            if not (_MARGIN < low < math.pi - _MARGIN and math.pi + _MARGIN < high):
+            if not _MARGIN < low < math.pi - _MARGIN:
                 continue
             if high - low > math.pi - _MARGIN:
                 continue  # it crosses the line between the corners or beyond the other one
             reach2 = max((px - cx) ** 2 + (py - cy) ** 2, (qx - cx) ** 2 + (qy - cy) ** 2)
             near2 = min((px - cx) ** 2 + (py - cy) ** 2, (qx - cx) ** 2 + (qy - cy) ** 2)
             if near2 > self.near2:
-                rays.append((low, reach2 * _REACH_SLACK))
+                # across the chord's line: every angle up to pi (and the line itself)
+                top = _BEYOND if high > math.pi + _MARGIN else high - _MARGIN
+                rays.add(low + _MARGIN, top, reach2 * _REACH_SLACK)
+                self.ray_count += 1
 
     def _in_ray(self, alpha: float, beta: float, x: float, y: float) -> bool:
         """The point (x, y) strictly left of the chord, at these angles, lies in a ray."""
+        if not (alpha < math.pi - _MARGIN and beta < math.pi - _MARGIN):
+            return False
         to_a = (x - self.ax) ** 2 + (y - self.ay) ** 2
+        if self.rays_a.reach2(alpha) < to_a:
+            return True
         to_b = (x - self.bx) ** 2 + (y - self.by) ** 2
-        top = math.pi - _MARGIN
-        return any(
-            least + _MARGIN < alpha < top and to_a > reach2 for least, reach2 in self.rays_a
-        ) or any(least + _MARGIN < beta < top and to_b > reach2 for least, reach2 in self.rays_b)
+        return self.rays_b.reach2(beta) < to_b
 
-    def _box_in_ray(self, box: tuple[float, ...], alpha: float, beta: float) -> bool:
+    def _box_in_ray(
+        self,
+        box: tuple[float, ...],
+        alpha: float,
+        beta: float,
+        top_alpha: float = math.pi,
+        top_beta: float = math.pi,
+    ) -> bool:
         """Every point of the box strictly left of the chord lies in a ray (``alpha``,
-        ``beta``: the least angles of those points)."""
-        for rays, angle, cx, cy in (
-            (self.rays_a, alpha, self.ax, self.ay),
-            (self.rays_b, beta, self.bx, self.by),
+        ``beta``: the least angles of those points, ``top_alpha``, ``top_beta`` the largest;
+        pi where not known, up to the chord's line)."""
+        for rays, low, high, cx, cy in (
+            (self.rays_a, alpha, top_alpha, self.ax, self.ay),
+            (self.rays_b, beta, top_beta, self.bx, self.by),
         ):
-            distance2 = -1.0
-            for least, reach2 in rays:
-                if angle > least + _MARGIN:
-                    if distance2 < 0:
-                        distance2 = _distance2(box, cx, cy)
-                    if distance2 > reach2:
-                        return True
+            reach2 = rays.reach2_over(low, high)
+            if reach2 < math.inf and _distance2(box, cx, cy) > reach2:
+                return True
         return False
 
     def add_many(self, sx: np.ndarray, sy: np.ndarray, positions: np.ndarray) -> None:
@@ -277,12 +369,15 @@ class Shadows:
             return -1, 0.0, 0.0
         if centre - reach <= above:
             return self._straddling(ox, oy, ux, uy, hu, hv)
-        least_alpha = least_beta = math.inf
+        ax, ay, to_a, to_b = self.ax, self.ay, self.to_a, self.to_b
+        bx, by = self.bx, self.by
+        alphas, betas = [], []
         for su, sv in ((hu, hv), (hu, -hv), (-hu, hv), (-hu, -hv)):
-            alpha, beta = self.angles(ox + su * ux - sv * uy, oy + su * uy + sv * ux)
-            least_alpha = min(least_alpha, alpha)
-            least_beta = min(least_beta, beta)
-        return 1, least_alpha, least_beta
+            x, y = ox + su * ux - sv * uy, oy + su * uy + sv * ux
+            alphas.append((math.atan2(y - ay, x - ax) - to_b) % _TWO_PI)
+            betas.append((to_a - math.atan2(y - by, x - bx)) % _TWO_PI)
+        self.box_top = (max(alphas), max(betas))
+        return 1, min(alphas), min(betas)
 
     def _straddling(
         self, ox: float, oy: float, ux: float, uy: float, hu: float, hv: float
@@ -334,7 +429,11 @@ class Shadows:
                 continue
             if kind == 3 and alpha > self.corner_alpha + _MARGIN:
                 continue
-            if kind > 0 and (self.rays_a or self.rays_b) and self._box_in_ray(box, alpha, beta):
+            if (
+                kind > 0
+                and (self.rays_a or self.rays_b)
+                and self._box_in_ray(box, alpha, beta, *(self.box_top if kind == 1 else ()))
+            ):
                 continue
             if level:
                 stack.append((level - 1, 2 * k))

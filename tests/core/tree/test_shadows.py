@@ -13,7 +13,7 @@ import pytest
 from bsp_triangulate import triangulate
 from bsp_triangulate.geometry.spatial_index import ChainBoxes
 from bsp_triangulate.tree import one_polygon
-from bsp_triangulate.tree.shadows import Shadows
+from bsp_triangulate.tree.shadows import Horizon, Shadows
 
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")
 
@@ -313,3 +313,63 @@ def test_an_edge_across_the_line_beyond_the_base_rules_out_the_slivers_past_it(
             assert inside or edge, c
             by_the_edge_alone += not inside
     assert by_the_edge_alone > 20
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e4])
+def test_an_edge_beyond_the_base_rules_out_the_candidates_behind_it(scale: float) -> None:
+    """Candidates far beyond A behind an edge that lies wholly left of the chord (it crosses
+    neither the chord's line nor their triangles' corners, so no vertex's shadow covers
+    them): seen from A, the edge spans their angles nearer than they are, so it crosses
+    their side from A, and they are skipped (``Horizon``); every candidate skipped truly
+    fails (exact rational tests)."""
+    behind = [(float(x), -1.5) for x in range(24, 61)]
+    chain = [(-3.0, 0.0), (-4.0, 3.0), (-2.0, -9.0), (12.0, -0.2), (12.0, -3.0), *behind]
+    chain += [(4.0, 2.0), (3.0, 0.0)]
+    points = np.array(chain) * scale - 100.0
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    xs, ys = x.tolist(), y.tolist()
+    lo, hi = 0, len(chain) - 1
+    shadows = Shadows(xs, ys, ChainBoxes(x, y, leaf=4), lo, hi)
+    wall = chain.index((12.0, -0.2))
+    shadows.add_edge(wall)
+    yielded = set(shadows.candidates(hi - 1))
+    exact = [(Fraction(u), Fraction(v)) for u, v in zip(xs, ys)]
+    a, b = exact[hi], exact[lo]
+    assert yielded.isdisjoint(chain.index(p) for p in behind)
+    by_the_edge_alone = 0
+    for c in set(range(lo + 1, hi)) - yielded:
+        facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
+        if facing > 0:
+            inside = any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi))
+            edge = _meets_inside(a, b, exact[c], exact[wall], exact[wall + 1])
+            assert inside or edge, c
+            by_the_edge_alone += not inside
+    assert by_the_edge_alone > 20
+
+
+def _horizon_reach2(occluders: list, angle: float) -> float:
+    return min((r for low, high, r in occluders if low < angle < high), default=math.inf)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_horizon_keeps_the_least_reach_per_angle(seed: int) -> None:
+    """``Horizon``: the least squared reach of the occluders over each angle, and its largest
+    value over a range, equal those of every occluder looked at (cuts included)."""
+    rng = np.random.default_rng(seed)
+    horizon = Horizon()
+    occluders = []
+    for _ in range(60):
+        low = float(rng.choice([rng.uniform(0, 3), rng.integers(0, 30) / 10]))
+        high = low + float(rng.choice([rng.uniform(0, 1), rng.integers(1, 10) / 10]))
+        reach2 = float(rng.uniform(1, 100))
+        horizon.add(low, high, reach2)
+        occluders.append((low, high, reach2))
+    cuts = sorted({v for low, high, _ in occluders for v in (low, high)})
+    probes = cuts + [(u + v) / 2 for u, v in zip(cuts, cuts[1:])] + rng.uniform(-1, 5, 50).tolist()
+    for angle in probes:
+        assert horizon.reach2(angle) == _horizon_reach2(occluders, angle)
+    for _ in range(300):
+        low, high = sorted(rng.choice(probes, 2).tolist())
+        inside = [p for p in probes if low <= p <= high]
+        expected = max(_horizon_reach2(occluders, p) for p in inside)
+        assert horizon.reach2_over(low, high) == expected
