@@ -50,7 +50,7 @@ _EDGE_SAMPLES = 7
 _TWO_PI = 2.0 * math.pi
 # Rays added per base at most, and the relative slack on their squared distances (far above the
 # rounding of a distance beyond the trusted one).
-_RAYS = 1024
+_RAYS = 256
 # the upper end of an occluder across the chord's line (beyond every angle left of it)
 _BEYOND = 4.0
 _REACH_SLACK = 1.0 + 1e-6
