@@ -1638,7 +1638,7 @@ def build_trees(
     # sequences whose nodes stay in the rounds
     one_off = np.zeros(count, dtype=bool)
     while state.shape[1]:
-        if rule == "first" and state.shape[1] < _ONE_BY_ONE:
+        if rule == "first" and state.shape[1] < _ONE_BY_ONE and _few_positions(seqs, state):
             built = _one_by_one(seqs, state, record, one_off)
             if built.any():
                 if len(waiting):
@@ -1847,6 +1847,20 @@ _ONE_BY_ONE = 16
 # edge tests per position of a sub-polygon built one node at a time, after which its nodes go
 # back to the rounds (a fan of s positions takes about s * s / 2; the rounds, at least s)
 _ONE_BY_ONE_TESTS = 256
+# the sum of the open nodes' squared spans up to which they go one node at a time, per
+# position of the largest span (see _few_positions), and where some is proven valid
+_ONE_BY_ONE_WORK = 1024
+_ONE_BY_ONE_WORK_PROVEN = 256
+
+
+def _few_positions(seqs: Sequences, state: np.ndarray) -> bool:
+    """The open nodes' subtrees cost less one node at a time than in rounds: a fan of s
+    positions tests about s * s / 2 edges one node at a time (about 0.3 us each), and takes s
+    rounds (about 250 us each with every table, about 100 us where a proven polygon's
+    candidates take the bent positions' tables), which the deepest subtree bounds."""
+    spans = state[_HI] - state[_LO]
+    work = _ONE_BY_ONE_WORK_PROVEN if seqs.proven[state[_LO]].any() else _ONE_BY_ONE_WORK
+    return int((spans * spans).sum()) <= work * int(spans.max(initial=0))
 
 
 def _one_by_one(

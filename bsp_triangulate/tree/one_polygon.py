@@ -916,15 +916,16 @@ class _Tree:
     def _near_shadows(self, lo: int, hi: int, blockers: list[int]) -> Shadows:
         """:meth:`_shadows`, with those of the ``_NEAR_SHADOWS`` positions next to either end
         of the base."""
-        shadows = self._shadows(lo, hi, blockers)
+        shadows = self._shadows(lo, hi, blockers, rays=False)
         near = np.r_[lo + 1 : min(lo + 1 + _NEAR_SHADOWS, hi), max(hi - _NEAR_SHADOWS, lo + 1) : hi]
         shadows.add_many(self.sx, self.sy, near)
         return shadows
 
-    def _shadows(self, lo: int, hi: int, blockers: list[int]) -> Shadows:
+    def _shadows(self, lo: int, hi: int, blockers: list[int], rays: bool = True) -> Shadows:
         """The shadows on the base of [lo, hi] of the ends of the edges ``blockers`` (the
-        caller adds more as it finds them)."""
-        shadows = Shadows(self.xs, self.ys, self.boxes, lo, hi)
+        caller adds more as it finds them); ``rays``: the caller asks for candidates
+        (:meth:`Shadows.candidates`), which the edges' rays rule out too."""
+        shadows = Shadows(self.xs, self.ys, self.boxes, lo, hi, rays)
         for e in blockers:
             shadows.add_edge(e)
         return shadows

@@ -48,12 +48,19 @@ _MARGIN = 1e-9
 # Points along an edge that casts its shadow (its ends' shadows do not cover each other).
 _EDGE_SAMPLES = 7
 _TWO_PI = 2.0 * math.pi
-# Rays added per base at most, and the relative slack on their squared distances (far above the
-# rounding of a distance beyond the trusted one).
+# Rays added per base at most (from A and B together), and the relative slack on their
+# squared distances (far above the rounding of a distance beyond the trusted one).
 _RAYS = 256
 # the upper end of an occluder across the chord's line (beyond every angle left of it)
 _BEYOND = 4.0
+# cuts a range query of a Horizon walks at most (a longer one rules nothing out)
+_WALK = 32
 _REACH_SLACK = 1.0 + 1e-6
+
+
+def _square(dx: float, dy: float) -> float:
+    """dx * dx + dy * dy (inf on overflow, where ``**`` would raise)."""
+    return dx * dx + dy * dy
 
 
 def _distance2(box: tuple[float, ...], x: float, y: float) -> float:
@@ -127,27 +134,36 @@ class Horizon:
 
     def reach2_over(self, low: float, high: float) -> float:
         """The largest of the least squared reaches over the angles [low, high] (inf where
-        some angle there has no occluder)."""
+        some angle there has no occluder, or where the range holds more than ``_WALK``
+        cuts)."""
         cuts = self.cuts
-        if not cuts or low <= cuts[0] or high >= cuts[-1]:
-            return math.inf
+        if not (cuts and cuts[0] < low <= high < cuts[-1]):
+            return math.inf  # (also for nan angles)
         between, at = self.between, self.at
         i = bisect_right(cuts, low) - 1
         most = at[i] if cuts[i] == low else 0.0
-        while most < math.inf:
+        for _ in range(_WALK):
             most = max(most, between[i])
             i += 1
             if cuts[i] >= high:
                 return most if cuts[i] > high else max(most, at[i])
             most = max(most, at[i])
-        return most
+            if most == math.inf:
+                break
+        return math.inf  # a gap, or too many cuts to walk: not ruled out
 
 
 class Shadows:
     """The staircase of shadows on the base (positions ``hi`` -> ``lo``) of a sub-polygon."""
 
     def __init__(
-        self, xs: list[float], ys: list[float], boxes: ChainBoxes, lo: int, hi: int
+        self,
+        xs: list[float],
+        ys: list[float],
+        boxes: ChainBoxes,
+        lo: int,
+        hi: int,
+        rays: bool = True,
     ) -> None:
         self.xs, self.ys, self.boxes, self.lo, self.hi = xs, ys, boxes, lo, hi
         ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
@@ -163,15 +179,14 @@ class Shadows:
         self.corner_beta = self.corner_alpha = math.inf
         self.chord: tuple[float, float, float, float] | None = None
         # rays (module docstring): occluders seen from A and from B (``Horizon``), and
-        # how many were added; the last chain box's largest angles (``_box``)
+        # how many were added (none where the caller never asks, ``rays`` False)
         self.rays_a = Horizon()
         self.rays_b = Horizon()
-        self.ray_count = 0
-        self.box_top = (math.pi, math.pi)
+        self.ray_count = 0 if rays else _RAYS
         # squared distance from a base end within which a computed point's angles are not
         # trusted (the coordinates' rounding, 2**-52 of their scale, over it stays far below
         # the margin)
-        self.near2 = (boxes.pad * 2.0**12) ** 2
+        self.near2 = _square(boxes.pad * 2.0**12, 0.0)
         nx, ny = ay - by, bx - ax  # left of the chord A -> B
         norm = math.hypot(nx, ny)
         if 0 < norm < math.inf:
@@ -236,9 +251,8 @@ class Shadows:
         for k in range(1, _EDGE_SAMPLES + 1):
             t = k / (_EDGE_SAMPLES + 1)
             x, y = px + t * (qx - px), py + t * (qy - py)
-            if (x - self.ax) ** 2 + (y - self.ay) ** 2 > near and (x - self.bx) ** 2 + (
-                y - self.by
-            ) ** 2 > near:
+            away = _square(x - self.ax, y - self.ay) > near
+            if away and _square(x - self.bx, y - self.by) > near:
                 self._add(*self.angles(x, y))
 
     def _ray(
@@ -264,23 +278,22 @@ class Shadows:
                 continue
             if high - low > math.pi - _MARGIN:
                 continue  # it crosses the line between the corners or beyond the other one
-            reach2 = max((px - cx) ** 2 + (py - cy) ** 2, (qx - cx) ** 2 + (qy - cy) ** 2)
-            near2 = min((px - cx) ** 2 + (py - cy) ** 2, (qx - cx) ** 2 + (qy - cy) ** 2)
+            to_p, to_q = _square(px - cx, py - cy), _square(qx - cx, qy - cy)
+            reach2, near2 = max(to_p, to_q), min(to_p, to_q)
             if near2 > self.near2:
                 # across the chord's line: every angle up to pi (and the line itself)
                 top = _BEYOND if high > math.pi + _MARGIN else high - _MARGIN
-                rays.add(low + _MARGIN, top, reach2 * _REACH_SLACK)
-                self.ray_count += 1
+                if low + _MARGIN < top:
+                    rays.add(low + _MARGIN, top, reach2 * _REACH_SLACK)
+                    self.ray_count += 1
 
     def _in_ray(self, alpha: float, beta: float, x: float, y: float) -> bool:
         """The point (x, y) strictly left of the chord, at these angles, lies in a ray."""
         if not (alpha < math.pi - _MARGIN and beta < math.pi - _MARGIN):
             return False
-        to_a = (x - self.ax) ** 2 + (y - self.ay) ** 2
-        if self.rays_a.reach2(alpha) < to_a:
+        if self.rays_a.reach2(alpha) < _square(x - self.ax, y - self.ay):
             return True
-        to_b = (x - self.bx) ** 2 + (y - self.by) ** 2
-        return self.rays_b.reach2(beta) < to_b
+        return self.rays_b.reach2(beta) < _square(x - self.bx, y - self.by)
 
     def _box_in_ray(
         self,
@@ -356,17 +369,18 @@ class Shadows:
         stair = np.array([math.inf, *self.betas])
         return stair[at] < beta - _MARGIN
 
-    def _box(self, box: tuple[float, ...]) -> tuple[int, float, float]:
-        """(kind, least alpha, least beta) of a chain box: kind 1 if the box lies strictly
-        left of the chord, -1 if strictly right; where it straddles the chord's line, kind 2
-        if it lies beyond B along the chord, 3 if beyond A (least angles of its points left
-        of the line; the other angle then 0), else 0 (angles 0)."""
+    def _box(self, box: tuple[float, ...]) -> tuple[int, float, float, float, float]:
+        """(kind, least alpha, least beta, largest alpha, largest beta) of a chain box: kind 1
+        if the box lies strictly left of the chord, -1 if strictly right; where it straddles
+        the chord's line, kind 2 if it lies beyond B along the chord, 3 if beyond A (least
+        angles of its points left of the line; the other angle then 0), else 0 (angles 0).
+        The largest angles are pi but for kind 1."""
         nx, ny, above, below = self.side
         ox, oy, ux, uy, hu, hv = box[4:]
         centre = nx * ox + ny * oy
         reach = hu * abs(nx * ux + ny * uy) + hv * abs(ny * ux - nx * uy)
         if centre + reach < below:
-            return -1, 0.0, 0.0
+            return -1, 0.0, 0.0, math.pi, math.pi
         if centre - reach <= above:
             return self._straddling(ox, oy, ux, uy, hu, hv)
         ax, ay, to_a, to_b = self.ax, self.ay, self.to_a, self.to_b
@@ -376,12 +390,11 @@ class Shadows:
             x, y = ox + su * ux - sv * uy, oy + su * uy + sv * ux
             alphas.append((math.atan2(y - ay, x - ax) - to_b) % _TWO_PI)
             betas.append((to_a - math.atan2(y - by, x - bx)) % _TWO_PI)
-        self.box_top = (max(alphas), max(betas))
-        return 1, min(alphas), min(betas)
+        return 1, min(alphas), min(betas), max(alphas), max(betas)
 
     def _straddling(
         self, ox: float, oy: float, ux: float, uy: float, hu: float, hv: float
-    ) -> tuple[int, float, float]:
+    ) -> tuple[int, float, float, float, float]:
         """:meth:`_box` of a box that straddles the chord's line. Beyond B (every point's
         projection on the chord past B, by more than the trusted distance) each point has
         ``beta`` in (pi/2, 3 pi/2), below pi left of the line: the least ``beta`` of its left
@@ -389,7 +402,7 @@ class Shadows:
         a corner's shadow or a ray can rule such a box out."""
         none = self.corner_beta == math.inf and self.corner_alpha == math.inf
         if self.chord is None or (none and not self.rays_a and not self.rays_b):
-            return 0, 0.0, 0.0  # nothing could rule it out
+            return 0, 0.0, 0.0, math.pi, math.pi  # nothing could rule it out
         dx, dy, length, trusted = self.chord
         along = dx * (ox - self.ax) + dy * (oy - self.ay)
         reach = hu * abs(dx * ux + dy * uy) + hv * abs(dy * ux - dx * uy)
@@ -398,11 +411,13 @@ class Shadows:
         elif along + reach < -trusted:
             kind, which = 3, 0
         else:
-            return 0, 0.0, 0.0
+            return 0, 0.0, 0.0, math.pi, math.pi
         least = math.pi
         for su, sv in ((hu, hv), (hu, -hv), (-hu, hv), (-hu, -hv)):
             least = min(least, self.angles(ox + su * ux - sv * uy, oy + su * uy + sv * ux)[which])
-        return (kind, 0.0, least) if kind == 2 else (kind, least, 0.0)
+        if kind == 2:
+            return kind, 0.0, least, math.pi, math.pi
+        return kind, least, 0.0, math.pi, math.pi
 
     def candidates(self, top: int) -> Iterator[int]:
         """Candidate positions in ``[lo + 1, top]``, from the last back, that no box or point
@@ -422,7 +437,7 @@ class Shadows:
             if first > top or last < low_end:
                 continue
             box = levels[level][k]
-            kind, alpha, beta = self._box(box)
+            kind, alpha, beta, top_alpha, top_beta = self._box(box)
             if kind < 0 or (kind == 1 and self.shadowed(alpha, beta)):
                 continue
             if kind == 2 and beta > self.corner_beta + _MARGIN:
@@ -432,7 +447,7 @@ class Shadows:
             if (
                 kind > 0
                 and (self.rays_a or self.rays_b)
-                and self._box_in_ray(box, alpha, beta, *(self.box_top if kind == 1 else ()))
+                and self._box_in_ray(box, alpha, beta, top_alpha, top_beta)
             ):
                 continue
             if level:

@@ -46,6 +46,9 @@ def test_trees_equal_the_engines(
 ) -> None:
     monkeypatch.setattr(lockstep, "_ONE_BY_ONE", open_nodes)
     monkeypatch.setattr(lockstep, "_ONE_BY_ONE_TESTS", tests)
+    if open_nodes > 16:  # every open node, however large its subtree
+        monkeypatch.setattr(lockstep, "_ONE_BY_ONE_WORK", 1 << 30)
+        monkeypatch.setattr(lockstep, "_ONE_BY_ONE_WORK_PROVEN", 1 << 30)
     assert batch_equals_engine(POLYGONS) >= 0.6 * len(POLYGONS)
 
 
@@ -58,8 +61,32 @@ def test_a_crossing_polygon_fails_as_in_the_rounds(monkeypatch: pytest.MonkeyPat
     ]
     square = [np.array([(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)])]
     results = []
+    monkeypatch.setattr(lockstep, "_ONE_BY_ONE_WORK", 1 << 30)
     for open_nodes in (0, 1 << 30):
         monkeypatch.setattr(lockstep, "_ONE_BY_ONE", open_nodes)
         results.append([r is None for r in triangulate_batch([bow_tie, crossing, square], "first")])
     assert results[0] == results[1]
     assert results[0][2] is False
+
+
+def test_few_large_subtrees_stay_in_the_rounds() -> None:
+    """Fifteen convex 255-gons (proven valid): their fans would test about s * s / 2 edges
+    each one node at a time, where the rounds take s cheap rounds; the open nodes go one
+    node at a time only once their squared spans are small beside the largest."""
+    angles = np.linspace(0.0, 2.0 * np.pi, 255, endpoint=False)
+    polygons = [
+        [np.column_stack([np.cos(angles + k), np.sin(angles + k)]) * 100.0] for k in range(15)
+    ]
+    spans_seen = []
+    few = lockstep._few_positions
+
+    def recorded(seqs, state):
+        chosen = few(seqs, state)
+        if chosen:
+            spans_seen.append(int((state[lockstep._HI] - state[lockstep._LO]).max()))
+        return chosen
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(lockstep, "_few_positions", recorded)
+        assert all(result is not None for result in triangulate_batch(polygons, "first"))
+    assert spans_seen and max(spans_seen) <= 256 // 15 + 1

@@ -13,6 +13,7 @@ import pytest
 from bsp_triangulate import triangulate
 from bsp_triangulate.geometry.spatial_index import ChainBoxes
 from bsp_triangulate.tree import one_polygon
+from bsp_triangulate.tree import shadows as shadows_module
 from bsp_triangulate.tree.shadows import Horizon, Shadows
 
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")
@@ -192,7 +193,9 @@ def test_rule_elevation_skips_shadowed_candidates_with_the_same_trees(
     used: list[int] = []
     shadows = one_polygon._Tree._shadows
     monkeypatch.setattr(
-        one_polygon._Tree, "_shadows", lambda self, *args: used.append(1) or shadows(self, *args)
+        one_polygon._Tree,
+        "_shadows",
+        lambda self, *args, **kwargs: used.append(1) or shadows(self, *args, **kwargs),
     )
     rings = _river(700, 30, 4)
     rings = [np.column_stack([r, np.sin(r[:, 0] / 97) * 40 + r[:, 1] / 50]) for r in rings]
@@ -372,4 +375,24 @@ def test_horizon_keeps_the_least_reach_per_angle(seed: int) -> None:
         low, high = sorted(rng.choice(probes, 2).tolist())
         inside = [p for p in probes if low <= p <= high]
         expected = max(_horizon_reach2(occluders, p) for p in inside)
-        assert horizon.reach2_over(low, high) == expected
+        # a range of more cuts than a query walks rules nothing out (inf), never more
+        assert horizon.reach2_over(low, high) in (expected, math.inf)
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(shadows_module, "_WALK", 1 << 20)
+            assert horizon.reach2_over(low, high) == expected
+
+
+@pytest.mark.parametrize("exponent", [0, 520, 1000])
+def test_a_canal_far_beyond_float_squares_gives_the_same_tree(exponent: int) -> None:
+    """A long thin canal scaled by a power of two up to 2**1000: the rays' squared distances
+    overflow to inf (nothing ruled out), never raise, and every tree equals the unscaled
+    one's (a power-of-two scale changes no sign)."""
+    n = 400
+    x = np.linspace(0.0, 1.0, n)
+    lower = np.column_stack([x, np.full(n, -0.001)])
+    upper = np.column_stack([x[::-1], np.full(n, 0.001)])
+    ring = np.concatenate([lower, upper])
+    expected = triangulate([ring])
+    got = triangulate([ring * 2.0**exponent])
+    for name in ("triangles", "parent", "depth", "side"):
+        assert np.array_equal(getattr(got, name), getattr(expected, name)), name
