@@ -370,6 +370,7 @@ class _Tree:
         # the last long base's blockers: in a chain of nodes that each cut off a few
         # vertices, the next base's far candidates are mostly blocked by the same edges
         self._recent: list[int] = []
+        self._bends: tuple[list[int], list[int]] | None = None  # see _straight_runs
         self._z_steps: list[int] | None = None  # rule "elevation": see _level
 
     @property
@@ -767,11 +768,25 @@ class _Tree:
         xs, ys = self.xs, self.ys
         blockers: list[int] = []
         start = max(hi - 1 - _SCALAR_CANDIDATES, lo)
+        # candidates in a straight run on from either corner of the base fail (below)
+        low, top = self._straight_runs(lo, hi)
         for c in range(hi - 1, start, -1):
+            if top <= c < hi - 1 or lo + 1 < c <= low:
+                continue
             if facing_one(xs, ys, lo, hi, c) and not self._blocked(lo, hi, c, blockers):
                 return c
         if self.boxes is not None and start - lo > _SHADOWED:
-            return self._first_apex_shadowed(lo, hi, start, blockers)
+            # the candidates left but those of the runs, then lo + 1 after a run from lo
+            first = min(start, top - 1)
+            bottom = low + 1 if low > lo + 1 else lo + 1
+            apex = -1
+            if first >= bottom:
+                apex = self._first_apex_shadowed(lo, hi, start, blockers, first, bottom)
+            if apex >= 0 or bottom == lo + 1:
+                return apex
+            c = lo + 1
+            correct = facing_one(xs, ys, lo, hi, c) and not self._blocked(lo, hi, c, blockers)
+            return c if c <= start and correct else -1
         # long runs of candidates that do not face the base or that the same few edges block:
         # filter them in chunks
         size = _SCALAR_CANDIDATES
@@ -786,6 +801,38 @@ class _Tree:
                 if not self._blocked(lo, hi, c, blockers):
                     return c
         return -1
+
+    def _straight_runs(self, lo: int, hi: int) -> tuple[int, int]:
+        """(low, top): the positions lo .. low, and top .. hi, each lie in order on one line
+        (each position between them strictly between its neighbours, exact). A candidate c of
+        the base (hi, lo) with lo + 1 < c <= low has lo + 1 in the relative interior of its
+        side lo -> c, one with top <= c < hi - 1 has hi - 1 in that of its side hi -> c: both
+        fail condition 3. (low, top) = (lo + 1, hi - 1) where no such run is longer, and for
+        short sequences (no lists kept)."""
+        if self.boxes is None:
+            return lo + 1, hi - 1
+        if self._bends is None:
+            self._bends = self._bent_positions()
+        after, before = self._bends
+        return min(after[lo + 1], hi - 1), max(before[hi - 1], lo + 1)
+
+    def _bent_positions(self) -> tuple[list[int], list[int]]:
+        """Per position p of the sequence: the first position at or after p, and the last at
+        or before p, that is not strictly between its two neighbours on their line (the
+        sequence bends there, or turns back, or repeats a point; both ends count as bent)."""
+        x, y, m = self.sx, self.sy, self.m
+        xa, ya, xb, yb, xc, yc = x[:-2], y[:-2], x[1:-1], y[1:-1], x[2:], y[2:]
+        turn = orient_many(xa, ya, xb, yb, xc, yc, self.exact)
+        # collinear: strictly between in x, or in y where the three share x (comparisons of
+        # floats are exact)
+        between = ((xa < xb) & (xb < xc)) | ((xa > xb) & (xb > xc))
+        between |= (xa == xb) & (xb == xc) & (((ya < yb) & (yb < yc)) | ((ya > yb) & (yb > yc)))
+        bent = np.ones(m + 1, dtype=bool)
+        bent[1:m] = (turn != 0) | ~between
+        index = np.arange(m + 1, dtype=np.int64)
+        after = np.minimum.accumulate(np.where(bent, index, m)[::-1])[::-1]
+        before = np.maximum.accumulate(np.where(bent, index, 0))
+        return after.tolist(), before.tolist()
 
     def _fan_steps(self, lo: int, top: int, most: int) -> int:
         """How many nodes of a fan at ``lo`` are decided at once: node j (j < ``most``) has the
@@ -930,19 +977,22 @@ class _Tree:
             shadows.add_edge(e)
         return shadows
 
-    def _first_apex_shadowed(self, lo: int, hi: int, start: int, blockers: list[int]) -> int:
-        """:meth:`_first_apex` for the candidates from ``start`` back in a long sub-polygon:
-        chain boxes right of the chord or in the shadow of a vertex (``Shadows``) are
-        skipped whole; the candidates tested, as many positions after ``lo`` and the ends of
-        the edges that blocked them cast the shadows (the vertices next to either end of
-        the base: the shadows most failing candidates fall in)."""
+    def _first_apex_shadowed(
+        self, lo: int, hi: int, start: int, blockers: list[int], first: int, last: int
+    ) -> int:
+        """:meth:`_first_apex` for the candidates from ``first`` back to ``last`` (at most
+        ``start``, at least lo + 1) in a long sub-polygon: chain boxes right of the chord or
+        in the shadow of a vertex (``Shadows``) are skipped whole; the candidates tested, as
+        many positions after ``lo`` and the ends of the edges that blocked them cast the
+        shadows (the vertices next to either end of the base: the shadows most failing
+        candidates fall in)."""
         xs, ys = self.xs, self.ys
         shadows = self._shadows(lo, hi, blockers)
         for c in range(hi - 1, start, -1):
             shadows.add(c)
         for c in range(lo + 1, min(lo + 1 + _SCALAR_CANDIDATES, start + 1)):
             shadows.add(c)
-        for c in shadows.candidates(start):
+        for c in shadows.candidates(first, last):
             if not facing_one(xs, ys, lo, hi, c):
                 continue
             if not self._blocked(lo, hi, c, blockers):

@@ -419,15 +419,16 @@ class Shadows:
             return kind, 0.0, least, math.pi, math.pi
         return kind, least, 0.0, math.pi, math.pi
 
-    def candidates(self, top: int) -> Iterator[int]:
-        """Candidate positions in ``[lo + 1, top]``, from the last back, that no box or point
-        test rules out; vertices met (and shadows added by the caller) join the staircase."""
+    def candidates(self, top: int, bottom: int | None = None) -> Iterator[int]:
+        """Candidate positions in ``[bottom, top]`` (``bottom`` lo + 1 if not given), from the
+        last back, that no box or point test rules out; vertices met (and shadows added by
+        the caller) join the staircase."""
+        low_end = self.lo + 1 if bottom is None else bottom
         if self.side is None:
-            yield from range(top, self.lo, -1)
+            yield from range(top, low_end - 1, -1)
             return
         xs, ys = self.xs, self.ys
         levels, sizes, m = self.boxes.levels, self.boxes.sizes, self.boxes.m
-        low_end = self.lo + 1
         top_level = len(levels) - 1
         stack = [(top_level, k) for k in range(len(levels[top_level]))]
         while stack:

@@ -1,0 +1,87 @@
+"""Rule first on long sub-polygons skips the candidates in a straight run on from either corner
+of the base (``_Tree._straight_runs``: the corner's neighbour lies on their side, condition 3):
+the trees are those of the scan without the skip, and a canal with exactly straight banks takes
+a few tests per node instead of one per vertex of the bank."""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+import pytest
+
+from bsp_triangulate import triangulate
+from bsp_triangulate.tree import one_polygon
+
+FIELDS = ("triangles", "parent", "depth", "side")
+
+
+def _canal(rnd: random.Random, count: int, turn: float, wobble: float = 0.0) -> list:
+    """Two straight banks of ``count`` vertices each (spacing at random, on a 1/8 grid so that
+    points on a bank are exactly collinear), the whole turned by a multiple of 90 degrees
+    (``turn``: 0, 1, 2, 3); ``wobble`` moves every other vertex of the upper bank off its line."""
+    xs = np.cumsum([rnd.randint(4, 16) / 8 for _ in range(count)])
+    upper_x = np.cumsum([rnd.randint(4, 16) / 8 for _ in range(count)])
+    upper_x *= xs[-1] / upper_x[-1]
+    upper_x = np.round(upper_x * 8) / 8
+    lower = np.column_stack([xs, np.full(count, -1.0)])
+    offsets = np.where(np.arange(count) % 2 == 1, wobble, 0.0)
+    upper = np.column_stack([upper_x, 1.0 + offsets])[::-1]
+    ring = np.concatenate([lower, upper])
+    for _ in range(int(turn)):
+        ring = np.column_stack([-ring[:, 1], ring[:, 0]])
+    return [ring]
+
+
+def _with_repeats_and_spikes(rings: list) -> list:
+    """The ring with a repeated point and a spike (out and back along the bank) in its first
+    bank: positions that are not strictly between their neighbours end a run."""
+    ring = rings[0]
+    spike = ring[40] + (ring[41] - ring[40]) * 0.5
+    out = np.concatenate([ring[:20], ring[19:20], ring[20:41], [spike], ring[40:]])
+    return [out]
+
+
+def _plain(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(one_polygon._Tree, "_straight_runs", lambda self, lo, hi: (lo + 1, hi - 1))
+
+
+CASES = [
+    _canal(random.Random(1), 300, 0),
+    _canal(random.Random(2), 300, 1),
+    _canal(random.Random(3), 300, 2, wobble=0.25),
+    _canal(random.Random(4), 300, 3),
+    _with_repeats_and_spikes(_canal(random.Random(5), 300, 0)),
+]
+
+
+@pytest.mark.parametrize("rings", CASES, ids=["east", "north", "west-wobbly", "south", "spikes"])
+def test_trees_equal_the_scan_of_every_candidate(
+    rings: list, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    skipped = triangulate(rings, invalid="as_given")
+    with monkeypatch.context() as patch:
+        _plain(patch)
+        plain = triangulate(rings, invalid="as_given")
+    for name in FIELDS:
+        assert np.array_equal(getattr(skipped, name), getattr(plain, name)), name
+
+
+def test_a_straight_canal_takes_few_tests_per_node(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The exact edge tests on a canal of 2 x 600 vertices: a few per node with the runs
+    skipped, about one per vertex of the bank (quadratic) without."""
+    rings = _canal(random.Random(6), 600, 0)
+    blocked = one_polygon._Tree._blocked
+    calls = []
+
+    def counted(self, *args):
+        calls.append(1)
+        return blocked(self, *args)
+
+    monkeypatch.setattr(one_polygon._Tree, "_blocked", counted)
+    triangulate(rings)
+    with_runs = len(calls)
+    calls.clear()
+    _plain(monkeypatch)
+    triangulate(rings)
+    assert with_runs < 4 * 1200 < len(calls)
