@@ -86,7 +86,9 @@ class Sequences:
     to float32, one complex64 each), and ``bent_rank[p]`` how many of them come before
     position p; ``loops``: the outermost ranges [p, q] between the two positions of a bridge
     end of a proven sequence (an island, its bridges and the islands joined to it), as rows
-    (p, q, x0, x1, y0, y1) with their boxes, in order."""
+    (p, q, x0, x1, y0, y1) with their boxes, in order; ``run_after[p]`` and ``run_before[p]``:
+    the first position at or after p, and the last at or before it, where the sequence
+    bends (:func:`_straight_runs`)."""
 
     sx: np.ndarray
     sy: np.ndarray
@@ -103,6 +105,8 @@ class Sequences:
     bent_xy32: np.ndarray
     bent_rank: np.ndarray
     loops: np.ndarray
+    run_after: np.ndarray
+    run_before: np.ndarray
     runs: RunBoxes | None = None
     circle_bounds: np.ndarray | None = None
 
@@ -179,10 +183,46 @@ class Sequences:
         with np.errstate(over="ignore"):  # beyond float32's range: +-inf, still in order
             bent_xy32 = bent_xy.astype(np.float32).view(np.complex64).ravel()
         loops = _loops(sx, sy, twin, proven_at)
+        run_after, run_before = _straight_runs(sx, sy, table[:, _TURN], starts)
         return cls(
             sx, sy, xy, twin, extent_x, extent_y, table, exact, starts, proven_at, bent,
-            bent_xy, bent_xy32, bent_rank, loops,
+            bent_xy, bent_xy32, bent_rank, loops, run_after, run_before,
         )  # fmt: skip
+
+
+def _straight_runs(
+    sx: np.ndarray, sy: np.ndarray, turn: np.ndarray, starts: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per position p: the first position at or after p, and the last at or before p,
+    where its sequence bends: the position is not strictly between its neighbours on their
+    line (exact turn 0 and strictly monotone coordinates; comparisons of floats are exact), or
+    begins or ends a sequence. Between two such positions the sequence runs straight on."""
+    n = len(sx)
+    straight = np.zeros(n, dtype=bool)
+    if n > 2:
+        xa, xb, xc, ya, yb, yc = sx[:-2], sx[1:-1], sx[2:], sy[:-2], sy[1:-1], sy[2:]
+        between = ((xa < xb) & (xb < xc)) | ((xa > xb) & (xb > xc))
+        between |= (xa == xb) & (xb == xc) & (((ya < yb) & (yb < yc)) | ((ya > yb) & (yb > yc)))
+        straight[1:-1] = (turn[1:-1] == 0.0) & between
+    # each sequence's first position and its closing repeat
+    straight[starts] = False
+    straight[starts[1:] - 1] = False
+    straight[n - 1 :] = False
+    index = np.arange(n, dtype=np.int64)
+    after = np.minimum.accumulate(np.where(straight, n, index)[::-1])[::-1]
+    before = np.maximum.accumulate(np.where(straight, -1, index))
+    return after, before
+
+
+def _past_runs(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Rule first's next candidates ``c`` of the bases (s_hi, s_lo), moved past those in a
+    straight run back from s_hi (s_hi-1 then lies in the relative interior of their side from
+    s_hi) or on from s_lo (s_lo+1 on their side from s_lo): all fail condition 3, and s_lo+1
+    comes last. A run back from s_hi to s_lo+1 leaves no candidate (c = lo)."""
+    top = np.maximum(seqs.run_before[hi - 1], lo + 1)
+    c = np.where((c >= top) & (c <= hi - 2), top - 1, c)
+    low = np.minimum(seqs.run_after[lo + 1], hi - 1)
+    return np.where((c >= lo + 2) & (c <= low), lo + 1, c)
 
 
 def _loops(sx: np.ndarray, sy: np.ndarray, twin: np.ndarray, proven: np.ndarray) -> np.ndarray:
@@ -863,6 +903,9 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     correct = np.zeros(n, dtype=bool)
     blocker = block.copy()
     _tables_of(seqs, lo, hi, np.flatnonzero(passed), apex, correct, blocker)
+    going = np.flatnonzero(~correct & (apex > lo + 1))
+    if len(going):
+        apex[going] = _past_runs(seqs, lo[going], hi[going], apex[going])
     return correct, apex, blocker
 
 
@@ -1878,7 +1921,11 @@ def _one_by_one(
         xs = seqs.sx[lo : hi + 1].tolist()
         ys = seqs.sy[lo : hi + 1].tolist()
         budget = _ONE_BY_ONE_TESTS * (hi - lo)
-        nodes = first_subtree(xs, ys, 0, hi - lo, top - lo, at_hi == 1, seqs.exact, budget)
+        runs = (
+            (seqs.run_after[lo : hi + 1] - lo).tolist(),
+            (seqs.run_before[lo : hi + 1] - lo).tolist(),
+        )
+        nodes = first_subtree(xs, ys, 0, hi - lo, top - lo, at_hi == 1, seqs.exact, budget, runs)
         if nodes is None:
             off[seq] = True
             continue

@@ -103,14 +103,23 @@ def first_correct(
     sign: Callable[[float, float, float, float, float, float], int],
     blockers: list[int],
     budget: list[int],
+    runs: tuple[list[int], list[int]] | None = None,
 ) -> int:
     """The first of the candidates ``top``, ``top`` - 1, ... of sub-polygon [lo, hi] that
     forms a correct triangle on the base (hi, lo), or -1; each tested against every edge of
     the sub-polygon, the ``blockers`` (edges that blocked earlier candidates, the most recent
     first) before the others. Each candidate tested against every edge takes hi - lo from
-    ``budget[0]``; -2 once it is spent."""
+    ``budget[0]``; -2 once it is spent. ``runs``: per position, the first position at or
+    after it and the last at or before it where the sequence bends (``lockstep``'s
+    ``_straight_runs``): candidates in a straight run on from either corner of the base fail
+    condition 3 (the corner's neighbour lies on their side) and are skipped."""
     ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
+    low, first = lo + 1, hi - 1
+    if runs is not None:
+        low, first = min(runs[0][lo + 1], hi - 1), max(runs[1][hi - 1], lo + 1)
     for c in range(top, lo, -1):
+        if first <= c < hi - 1 or lo + 1 < c <= low:
+            continue
         if not facing_one(xs, ys, lo, hi, c):
             continue
         cx, cy = xs[c], ys[c]
@@ -150,6 +159,7 @@ def first_subtree(
     at_hi: bool,
     exact: bool,
     budget: int,
+    runs: tuple[list[int], list[int]] | None = None,
 ) -> list[tuple[int, int, int, int, int, int]] | None:
     """Rule "first": the BSP subtree of sub-polygon [lo, hi] of the sequence ``xs``, ``ys``
     (positions in Python lists; the root's candidates from ``top`` down, those above it
@@ -158,7 +168,8 @@ def first_subtree(
     root), depth from the root's 0, side 0 at the root, else 1 (left) or 2 (right). None where
     a node finds no correct candidate, or after ``budget`` edge tests (a sub-polygon whose
     nodes reject many candidates each is left to the vectorised tables). ``exact``: every
-    float orientation of the coordinates is exact (grid coordinates)."""
+    float orientation of the coordinates is exact (grid coordinates); ``runs``: see
+    :func:`first_correct`."""
     sign = orient_float if exact else orient
     nodes: list[tuple[int, int, int, int, int, int]] = []
     blockers: list[int] = []
@@ -166,7 +177,7 @@ def first_subtree(
     work = [(lo, hi, top, at_hi, -1, 0, 0)]
     while work:
         lo, hi, top, at_hi, parent, depth, side = work.pop()
-        apex = first_correct(xs, ys, lo, hi, top, sign, blockers, remaining)
+        apex = first_correct(xs, ys, lo, hi, top, sign, blockers, remaining, runs)
         if apex < 0:
             return None
         here = len(nodes)

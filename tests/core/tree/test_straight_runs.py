@@ -85,3 +85,49 @@ def test_a_straight_canal_takes_few_tests_per_node(monkeypatch: pytest.MonkeyPat
     _plain(monkeypatch)
     triangulate(rings)
     assert with_runs < 4 * 1200 < len(calls)
+
+
+def _densified_rectangle(count: int, width: float, height: float) -> np.ndarray:
+    """A rectangle with ``count`` vertices on each side (exactly collinear: a 1/8 grid)."""
+    t = np.arange(count) / count
+    sides = [
+        np.column_stack([width * t, np.zeros(count)]),
+        np.column_stack([np.full(count, width), height * t]),
+        np.column_stack([width * (1 - t), np.full(count, height)]),
+        np.column_stack([np.zeros(count), height * (1 - t)]),
+    ]
+    return np.round(np.concatenate(sides) * 8) / 8
+
+
+def test_the_batch_path_skips_the_runs_with_the_engines_trees(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Densified rectangles, some with a densified hole, through the lock-step builder: the
+    trees equal the engine's, and the candidates of the runs take no rounds (a node moves past
+    a run at once instead of a few candidates per round)."""
+    from bsp_triangulate.tree import lockstep
+
+    from .test_batch_internals import batch_equals_engine
+
+    rnd = random.Random(7)
+    polygons = []
+    for _ in range(40):
+        count = rnd.randint(3, 40)
+        outer = _densified_rectangle(count, 8.0 * rnd.randint(8, 40), 8.0 * rnd.randint(8, 40))
+        polygons.append([outer])
+        hole = _densified_rectangle(max(count // 3, 2), 16.0, 16.0)[::-1] + 24.0
+        polygons.append(
+            [outer, hole] if outer[:, 0].max() > 48 and outer[:, 1].max() > 48 else [outer]
+        )
+    rounds = []
+    next_state = lockstep._next_state
+    monkeypatch.setattr(
+        lockstep, "_next_state", lambda *args: rounds.append(1) or next_state(*args)
+    )
+    monkeypatch.setattr(lockstep, "_ONE_BY_ONE", 0)
+    assert batch_equals_engine(polygons) >= 0.9 * len(polygons)
+    skipping = len(rounds)
+    rounds.clear()
+    monkeypatch.setattr(lockstep, "_past_runs", lambda seqs, lo, hi, c: c)
+    assert batch_equals_engine(polygons) >= 0.9 * len(polygons)
+    assert 2 * skipping < len(rounds)
