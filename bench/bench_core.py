@@ -30,6 +30,7 @@ from common import (
 )
 from generate import (
     DEFAULT_COUNT,
+    densified_rectangles,
     ensure_islands,
     ensure_stars,
     footprint_polygons,
@@ -44,6 +45,7 @@ QUICK_COUNT = 5_000
 FOOTPRINTS_PER_STAR = 2
 # polygons of a few hundred vertices: one per 50 stars
 STARS_PER_MID_SIZE = 50
+STARS_PER_DENSIFIED = 50
 # alternated rounds of every library on the star set (the set of the speed target)
 STAR_ROUNDS = 3
 DEFAULT_BUDGET = 1_800.0  # seconds per measurement before it is abandoned
@@ -242,6 +244,12 @@ def run(
         f"({vertex_count(footprints):,} vertices)"
     )
     rows += compare(footprint_case, footprints, 2, budget, delaunay=True)
+    densified = densified_rectangles(max(count // STARS_PER_DENSIFIED, 1))
+    densified_case = (
+        f"{len(densified):,} rotated rectangles densified to 240 vertices "
+        f"({vertex_count(densified):,} vertices)"
+    )
+    rows += compare(densified_case, densified, 2, budget, delaunay=True)
     mid_size = mid_size_polygons(max(count // STARS_PER_MID_SIZE, 1))
     mid_case = f"{len(mid_size):,} polygons of 260-600 vertices with 1 island"
     mid_case = f"{mid_case} ({vertex_count(mid_size):,} vertices)"

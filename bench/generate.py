@@ -107,6 +107,27 @@ def footprint_polygons(count: int, seed: int = SEED) -> list[Rings]:
     return polygons
 
 
+def densified_rectangles(count: int, per_side: int = 60, seed: int = SEED) -> list[Rings]:
+    """``count`` rectangles of 20 to 100 m, rotated at random, with ``per_side`` vertices on
+    each side (points interpolated along the straight edges, as densifying for a reprojection
+    leaves them), on a 150 m grid."""
+    rng = np.random.default_rng(seed)
+    side = math.ceil(math.sqrt(count))
+    t = (np.arange(per_side) / per_side)[:, None]
+    polygons: list[Rings] = []
+    for index in range(count):
+        row, column = divmod(index, side)
+        width, height = rng.uniform(20.0, 100.0, 2)
+        angle = rng.uniform(0.0, np.pi)
+        rotation = np.array([[np.cos(angle), np.sin(angle)], [-np.sin(angle), np.cos(angle)]])
+        corners = np.array([(0.0, 0.0), (width, 0.0), (width, height), (0.0, height)])
+        corners = (corners - (width / 2, height / 2)) @ rotation
+        corners += (ORIGIN_X + column * 150.0, ORIGIN_Y + row * 150.0)
+        edges = [corners[k] + t * (corners[(k + 1) % 4] - corners[k]) for k in range(4)]
+        polygons.append([np.concatenate(edges)])
+    return polygons
+
+
 def mid_size_polygons(count: int, seed: int = SEED) -> list[Rings]:
     """``count`` concave star polygons of 260 to 600 vertices with a 12-vertex island each
     (parcels with detailed boundaries), on a 300 m grid."""
