@@ -88,7 +88,7 @@ class Sequences:
     end of a proven sequence (an island, its bridges and the islands joined to it), as rows
     (p, q, x0, x1, y0, y1) with their boxes, in order; ``run_after[p]`` and ``run_before[p]``:
     the first position at or after p, and the last at or before it, where the sequence
-    bends (:func:`_straight_runs`)."""
+    bends (:func:`straight_runs`)."""
 
     sx: np.ndarray
     sy: np.ndarray
@@ -183,20 +183,22 @@ class Sequences:
         with np.errstate(over="ignore"):  # beyond float32's range: +-inf, still in order
             bent_xy32 = bent_xy.astype(np.float32).view(np.complex64).ravel()
         loops = _loops(sx, sy, twin, proven_at)
-        run_after, run_before = _straight_runs(sx, sy, table[:, _TURN], starts)
+        run_after, run_before = straight_runs(sx, sy, table[:, _TURN], starts)
         return cls(
             sx, sy, xy, twin, extent_x, extent_y, table, exact, starts, proven_at, bent,
             bent_xy, bent_xy32, bent_rank, loops, run_after, run_before,
         )  # fmt: skip
 
 
-def _straight_runs(
+def straight_runs(
     sx: np.ndarray, sy: np.ndarray, turn: np.ndarray, starts: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per position p: the first position at or after p, and the last at or before p,
-    where its sequence bends: the position is not strictly between its neighbours on their
-    line (exact turn 0 and strictly monotone coordinates; comparisons of floats are exact), or
-    begins or ends a sequence. Between two such positions the sequence runs straight on."""
+    """Per position p of the sequences laid out from ``starts`` (each with its closing
+    repeat): the first position at or after p, and the last at or before p, where its
+    sequence bends: the position is not strictly between its neighbours on their line
+    (``turn``, the exact sign of each position's turn, is 0 and the coordinates strictly
+    monotone; comparisons of floats are exact), or begins or ends a sequence. Between two such
+    positions the sequence runs straight on."""
     n = len(sx)
     straight = np.zeros(n, dtype=bool)
     if n > 2:

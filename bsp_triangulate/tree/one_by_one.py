@@ -114,9 +114,7 @@ def first_correct(
     ``_straight_runs``): candidates in a straight run on from either corner of the base fail
     condition 3 (the corner's neighbour lies on their side) and are skipped."""
     ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
-    low, first = lo + 1, hi - 1
-    if runs is not None:
-        low, first = min(runs[0][lo + 1], hi - 1), max(runs[1][hi - 1], lo + 1)
+    low, first = (lo + 1, hi - 1) if runs is None else run_bounds(runs, lo, hi)
     for c in range(top, lo, -1):
         if first <= c < hi - 1 or lo + 1 < c <= low:
             continue
@@ -144,6 +142,16 @@ def first_correct(
         else:
             return c
     return -1
+
+
+def run_bounds(runs: tuple[list[int], list[int]], lo: int, hi: int) -> tuple[int, int]:
+    """(low, top) for the base (hi, lo), from ``runs`` (per position, the first position at
+    or after it and the last at or before it where the sequence bends): lo .. low and
+    top .. hi each lie in order on one line. A candidate c with lo + 1 < c <= low has lo + 1
+    in the relative interior of its side lo -> c, one with top <= c < hi - 1 has hi - 1 in
+    that of its side hi -> c: both fail condition 3. (lo + 1, hi - 1) where no run is
+    longer."""
+    return min(runs[0][lo + 1], hi - 1), max(runs[1][hi - 1], lo + 1)
 
 
 # edges remembered per subtree as likely blockers

@@ -35,7 +35,8 @@ from ..rules import ApexRule, DelaunayRule, ElevationRule, FirstRule, get_rule
 from ..triangulation import Triangulation, TriangulationError
 from .delaunay_points import points_mesh, tree_of_cdt
 from .elevation_order import ElevationWindows
-from .one_by_one import edge_blocks, facing_one
+from .lockstep import straight_runs
+from .one_by_one import edge_blocks, facing_one, run_bounds
 from .points_batch import InsertedMesh
 from .shadows import Shadows
 from .subtrees import DELAUNAY_POSITIONS, MAX_POSITIONS, build_subtrees, worth_lockstep
@@ -785,8 +786,9 @@ class _Tree:
             if apex >= 0 or bottom == lo + 1:
                 return apex
             c = lo + 1
-            correct = facing_one(xs, ys, lo, hi, c) and not self._blocked(lo, hi, c, blockers)
-            return c if c <= start and correct else -1
+            if facing_one(xs, ys, lo, hi, c) and not self._blocked(lo, hi, c, blockers):
+                return c
+            return -1
         # long runs of candidates that do not face the base or that the same few edges block:
         # filter them in chunks
         size = _SCALAR_CANDIDATES
@@ -803,36 +805,17 @@ class _Tree:
         return -1
 
     def _straight_runs(self, lo: int, hi: int) -> tuple[int, int]:
-        """(low, top): the positions lo .. low, and top .. hi, each lie in order on one line
-        (each position between them strictly between its neighbours, exact). A candidate c of
-        the base (hi, lo) with lo + 1 < c <= low has lo + 1 in the relative interior of its
-        side lo -> c, one with top <= c < hi - 1 has hi - 1 in that of its side hi -> c: both
-        fail condition 3. (low, top) = (lo + 1, hi - 1) where no such run is longer, and for
-        short sequences (no lists kept)."""
+        """``one_by_one.run_bounds`` of the base (hi, lo): candidates in a straight run on from
+        either corner fail condition 3. (lo + 1, hi - 1), no run, for short sequences."""
         if self.boxes is None:
             return lo + 1, hi - 1
         if self._bends is None:
-            self._bends = self._bent_positions()
-        after, before = self._bends
-        return min(after[lo + 1], hi - 1), max(before[hi - 1], lo + 1)
-
-    def _bent_positions(self) -> tuple[list[int], list[int]]:
-        """Per position p of the sequence: the first position at or after p, and the last at
-        or before p, that is not strictly between its two neighbours on their line (the
-        sequence bends there, or turns back, or repeats a point; both ends count as bent)."""
-        x, y, m = self.sx, self.sy, self.m
-        xa, ya, xb, yb, xc, yc = x[:-2], y[:-2], x[1:-1], y[1:-1], x[2:], y[2:]
-        turn = orient_many(xa, ya, xb, yb, xc, yc, self.exact)
-        # collinear: strictly between in x, or in y where the three share x (comparisons of
-        # floats are exact)
-        between = ((xa < xb) & (xb < xc)) | ((xa > xb) & (xb > xc))
-        between |= (xa == xb) & (xb == xc) & (((ya < yb) & (yb < yc)) | ((ya > yb) & (yb > yc)))
-        bent = np.ones(m + 1, dtype=bool)
-        bent[1:m] = (turn != 0) | ~between
-        index = np.arange(m + 1, dtype=np.int64)
-        after = np.minimum.accumulate(np.where(bent, index, m)[::-1])[::-1]
-        before = np.maximum.accumulate(np.where(bent, index, 0))
-        return after.tolist(), before.tolist()
+            x, y, m = self.sx, self.sy, self.m
+            turn = np.zeros(m + 1)
+            turn[1:m] = orient_many(x[:-2], y[:-2], x[1:-1], y[1:-1], x[2:], y[2:], self.exact)
+            after, before = straight_runs(x, y, turn, np.zeros(1, dtype=np.int64))
+            self._bends = after.tolist(), before.tolist()
+        return run_bounds(self._bends, lo, hi)
 
     def _fan_steps(self, lo: int, top: int, most: int) -> int:
         """How many nodes of a fan at ``lo`` are decided at once: node j (j < ``most``) has the

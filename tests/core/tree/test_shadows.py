@@ -283,6 +283,35 @@ def test_corner_edges_rule_out_the_line_beyond_the_base(scale: float) -> None:
             ) or _corner_edge_inside(exact, lo, hi, c), c
 
 
+def _skipped_by_one_edge(
+    chain: list, edge_start: tuple, far: list, scale: float
+) -> tuple[Shadows, int]:
+    """Shadows on the base from the chain's last point to its first (scaled, far from the
+    origin) with those of the edge from ``edge_start`` cast; asserts that no point of
+    ``far`` is yielded and that every candidate skipped truly fails (exact rational tests).
+    Returns the shadows and how many skipped candidates that edge alone rules out."""
+    points = np.array(chain) * scale - 100.0
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    xs, ys = x.tolist(), y.tolist()
+    lo, hi = 0, len(chain) - 1
+    shadows = Shadows(xs, ys, ChainBoxes(x, y, leaf=4), lo, hi)
+    edge = chain.index(edge_start)
+    shadows.add_edge(edge)
+    yielded = set(shadows.candidates(hi - 1))
+    exact = [(Fraction(u), Fraction(v)) for u, v in zip(xs, ys)]
+    a, b = exact[hi], exact[lo]
+    assert yielded.isdisjoint(chain.index(p) for p in far)
+    by_the_edge_alone = 0
+    for c in set(range(lo + 1, hi)) - yielded:
+        facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
+        if facing > 0:
+            inside = any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi))
+            meets = _meets_inside(a, b, exact[c], exact[edge], exact[edge + 1])
+            assert inside or meets, c
+            by_the_edge_alone += not inside
+    return shadows, by_the_edge_alone
+
+
 @pytest.mark.parametrize("scale", [1.0, 1e-3, 1e4])
 def test_an_edge_across_the_line_beyond_the_base_rules_out_the_slivers_past_it(
     scale: float,
@@ -294,27 +323,9 @@ def test_an_edge_across_the_line_beyond_the_base_rules_out_the_slivers_past_it(
     slivers = [(float(x), -1.0) for x in range(20, 61)]
     chain = [(-3.0, 0.0), (-4.0, 3.0), (-2.0, -9.0), (10.0, 2.0), (10.0, -2.0), *slivers]
     chain += [(4.0, 2.0), (3.0, 0.0)]
-    points = np.array(chain) * scale - 100.0
-    x, y = points[:, 0].copy(), points[:, 1].copy()
-    xs, ys = x.tolist(), y.tolist()
-    lo, hi = 0, len(chain) - 1
-    shadows = Shadows(xs, ys, ChainBoxes(x, y, leaf=4), lo, hi)
+    shadows, by_the_edge_alone = _skipped_by_one_edge(chain, (10.0, 2.0), slivers, scale)
     assert shadows.corner_alpha == math.inf and shadows.corner_beta == math.inf
-    crossing = chain.index((10.0, 2.0))
-    shadows.add_edge(crossing)
     assert shadows.rays_a
-    yielded = set(shadows.candidates(hi - 1))
-    exact = [(Fraction(u), Fraction(v)) for u, v in zip(xs, ys)]
-    a, b = exact[hi], exact[lo]
-    assert yielded.isdisjoint(chain.index(p) for p in slivers)
-    by_the_edge_alone = 0
-    for c in set(range(lo + 1, hi)) - yielded:
-        facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
-        if facing > 0:
-            inside = any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi))
-            edge = _meets_inside(a, b, exact[c], exact[crossing], exact[crossing + 1])
-            assert inside or edge, c
-            by_the_edge_alone += not inside
     assert by_the_edge_alone > 20
 
 
@@ -328,25 +339,7 @@ def test_an_edge_beyond_the_base_rules_out_the_candidates_behind_it(scale: float
     behind = [(float(x), -1.5) for x in range(24, 61)]
     chain = [(-3.0, 0.0), (-4.0, 3.0), (-2.0, -9.0), (12.0, -0.2), (12.0, -3.0), *behind]
     chain += [(4.0, 2.0), (3.0, 0.0)]
-    points = np.array(chain) * scale - 100.0
-    x, y = points[:, 0].copy(), points[:, 1].copy()
-    xs, ys = x.tolist(), y.tolist()
-    lo, hi = 0, len(chain) - 1
-    shadows = Shadows(xs, ys, ChainBoxes(x, y, leaf=4), lo, hi)
-    wall = chain.index((12.0, -0.2))
-    shadows.add_edge(wall)
-    yielded = set(shadows.candidates(hi - 1))
-    exact = [(Fraction(u), Fraction(v)) for u, v in zip(xs, ys)]
-    a, b = exact[hi], exact[lo]
-    assert yielded.isdisjoint(chain.index(p) for p in behind)
-    by_the_edge_alone = 0
-    for c in set(range(lo + 1, hi)) - yielded:
-        facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
-        if facing > 0:
-            inside = any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi))
-            edge = _meets_inside(a, b, exact[c], exact[wall], exact[wall + 1])
-            assert inside or edge, c
-            by_the_edge_alone += not inside
+    _, by_the_edge_alone = _skipped_by_one_edge(chain, (12.0, -0.2), behind, scale)
     assert by_the_edge_alone > 20
 
 
