@@ -9,6 +9,7 @@ return extra segments, never miss one); the exact tests are done by the caller.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -326,6 +327,90 @@ class ChainBoxes:
             if len(starts) == 1:
                 break
             size *= 2
+
+    def leaves(
+        self,
+        lo: int,
+        hi: int,
+        c: int = -1,
+        corners: tuple[float, float, float, float, float, float] | None = None,
+        disc: tuple[float, float, float] | None = None,
+    ) -> Iterator[tuple[int, int]]:
+        """The runs [start, end) of segment positions in [lo, hi) of the leaf boxes that may
+        meet a shape, found by descending the boxes: the closed counter-clockwise triangle
+        ``corners`` at the positions ``lo``, ``hi`` and ``c`` or inside it (separating-axis
+        tests on each box's rectangle: its two axes and the triangle's three side normals; a
+        box holding ``lo``, ``hi`` or ``c`` meets it and is entered untested), or the
+        ``disc`` (centre x, centre y, squared radius: boxes farther from the centre are
+        apart). Every point of the chain in the shape then starts a segment of these runs or
+        ends the last one before ``hi``."""
+        levels, sizes, pad = self.levels, self.sizes, self.pad
+        if disc is not None:
+            ox, oy, limit = disc
+        else:
+            ax, ay, bx, by, cx, cy = corners
+            xmin, xmax = min(ax, bx, cx), max(ax, bx, cx)
+            ymin, ymax = min(ay, by, cy), max(ay, by, cy)
+            # outward unit normals and offsets of the triangle's sides
+            sides = []
+            for px, py, qx, qy in ((ax, ay, bx, by), (bx, by, cx, cy), (cx, cy, ax, ay)):
+                nx, ny = qy - py, px - qx
+                norm = math.hypot(nx, ny)
+                if norm > 0 and norm < math.inf:
+                    nx, ny = nx / norm, ny / norm
+                    sides.append((nx, ny, nx * px + ny * py + pad))
+        top = len(levels) - 1
+        stack = [(top, k) for k in range(len(levels[top]) - 1, -1, -1)]
+        while stack:
+            level, k = stack.pop()
+            size = sizes[level]
+            start = k * size
+            end = start + size
+            if end <= lo or start >= hi:
+                continue
+            if disc is not None:
+                x0, x1, y0, y1, px, py, ux, uy, hu, hv = levels[level][k]
+                dx, dy = max(x0 - ox, ox - x1, 0.0), max(y0 - oy, oy - y1, 0.0)
+                if dx * dx + dy * dy > limit:
+                    continue
+                tx, ty = ox - px, oy - py
+                du = max(abs(tx * ux + ty * uy) - hu, 0.0)
+                dv = max(abs(ty * ux - tx * uy) - hv, 0.0)
+                if du * du + dv * dv > limit:
+                    continue
+            elif not (level and (start <= c <= end or start <= lo or end >= hi)):
+                x0, x1, y0, y1, px, py, ux, uy, hu, hv = levels[level][k]
+                if x1 < xmin or x0 > xmax or y1 < ymin or y0 > ymax:
+                    continue
+                apart = False
+                for nx, ny, offset in sides:
+                    if (
+                        nx * px
+                        + ny * py
+                        - hu * abs(nx * ux + ny * uy)
+                        - hv * abs(ny * ux - nx * uy)
+                        > offset
+                    ):
+                        apart = True
+                        break
+                if apart:
+                    continue
+                # the triangle's corners along the box's axes, from its centre
+                da, db, dc = ax - px, bx - px, cx - px
+                ea, eb, ec = ay - py, by - py, cy - py
+                pa, pb, pc = ux * da + uy * ea, ux * db + uy * eb, ux * dc + uy * ec
+                if (pa > hu and pb > hu and pc > hu) or (pa < -hu and pb < -hu and pc < -hu):
+                    continue
+                pa, pb, pc = ux * ea - uy * da, ux * eb - uy * db, ux * ec - uy * dc
+                if (pa > hv and pb > hv and pc > hv) or (pa < -hv and pb < -hv and pc < -hv):
+                    continue
+            if level:
+                child = 2 * k
+                if child + 1 < len(levels[level - 1]):
+                    stack.append((level - 1, child + 1))
+                stack.append((level - 1, child))
+                continue
+            yield max(start, lo), min(end, hi)
 
     def _boxes(
         self,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left, bisect_right
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -19,6 +19,7 @@ from ..geometry.predicates import (
     area_surely_clear,
     grid_exact,
     incircle_many,
+    incircle_one,
     orient,
     orient_float,
     orient_many,
@@ -80,6 +81,11 @@ _FAN_REACH = 1e3
 _FAN_MARGIN = 1e-7
 _FAN_NEAR = 64.0
 _TWO_PI = 2.0 * math.pi
+# Rule "delaunay" on long sub-polygons first tries the positions this close to either end of
+# the base (most apexes lie there).
+_NEAR_ENDS = 16
+# Squared distances below this are not trusted (they lose their precision as they underflow).
+_LEAST_SQUARE = 2.0**-900
 
 
 def _rows(length: int, *rows: np.ndarray | float) -> np.ndarray:
@@ -269,7 +275,9 @@ def _circle_around(
     point is surely strictly outside: the float radius plus a margin of 1e-6 ``reach`` and
     1e-12 of the coordinates' magnitude, far above the rounding of a well-shaped corner's
     centre and of the points' distances to it), computed at the corner of the largest angle;
-    None where that angle is within about half a degree of 180 (the centre not trusted)."""
+    None where that angle is within about half a degree of 180 (the centre not trusted) or
+    the squared radius is below 2**-900 (squared distances that small lose their precision
+    as they underflow)."""
     best = None
     for px, py, qx, qy, rx, ry in ((ax, ay, bx, by, cx, cy), (bx, by, cx, cy, ax, ay),
                                    (cx, cy, ax, ay, bx, by)):  # fmt: skip
@@ -285,6 +293,8 @@ def _circle_around(
     ox, oy = (vy * uu - uy * vv) / d, (ux * vv - vx * uu) / d
     magnitude = max(abs(ax), abs(ay), abs(bx), abs(by), abs(cx), abs(cy))
     radius = math.hypot(ox, oy) + 1e-6 * reach + 1e-12 * magnitude
+    if not radius * radius > _LEAST_SQUARE:
+        return None
     return px + ox, py + oy, radius * radius
 
 
@@ -640,6 +650,9 @@ class _Tree:
             px, py = sx[: self.m], sy[: self.m]
             self._points = SegmentGrid(px, py, px, py)
         points = self._points
+        apex = self._delaunay_near_ends(lo, hi)
+        if apex >= 0:
+            return apex
         ax, ay, bx, by = float(sx[hi]), float(sy[hi]), float(sx[lo]), float(sy[lo])
         mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
         half = 0.5 * math.hypot(bx - ax, by - ay)
@@ -725,6 +738,50 @@ class _Tree:
             elif radius >= full:
                 return -1
             radius *= 2.0
+
+    def _delaunay_near_ends(self, lo: int, hi: int) -> int:
+        """:meth:`_delaunay_apex` where its choice is the position next to either end of the
+        base (``_NEAR_ENDS`` on each side) that sees it under the largest angle (in float),
+        and that is shown in Python scalars, else -1: that candidate is correct and every
+        other position strictly left of the base lies strictly outside its circle (exact),
+        so sees the base under a smaller angle. (Any other of those positions lies in that
+        candidate's circle, up to float rounding, so it alone can be shown.)"""
+        xs, ys, sign = self.xs, self.ys, self.sign
+        ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
+        mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
+        half2 = 0.25 * ((bx - ax) * (bx - ax) + (by - ay) * (by - ay))
+        nx, ny = ay - by, bx - ax  # the base's normal towards the candidates
+        best = None
+        for c in (*range(lo + 1, lo + 1 + _NEAR_ENDS), *range(hi - _NEAR_ENDS, hi)):
+            ux, uy = xs[c] - mx, ys[c] - my
+            toward = ux * nx + uy * ny
+            if toward > 0:
+                key = (ux * ux + uy * uy - half2) / toward
+                if best is None or key < best[0]:
+                    best = (key, c)
+        if best is None or not facing_one(xs, ys, lo, hi, best[1]):
+            return -1
+        c = best[1]
+        cx, cy = xs[c], ys[c]
+        circle = _circle_around(ax, ay, bx, by, cx, cy, _circle_reach(ax, ay, bx, by, cx, cy))
+        if circle is None:
+            return -1
+        ox, oy, limit = circle
+        # the triangle lies in its circle: the leaves near the circle hold every edge that
+        # may block it too
+        runs = list(self.boxes.leaves(lo, hi, disc=circle))
+        for start, end in runs:
+            for p in range(max(start, lo + 1), end):
+                dx, dy = xs[p] - ox, ys[p] - oy
+                if dx * dx + dy * dy > limit or p == c:
+                    continue
+                px, py = xs[p], ys[p]
+                if (
+                    sign(ax, ay, bx, by, px, py) > 0
+                    and incircle_one(ax, ay, bx, by, cx, cy, px, py) >= 0
+                ):
+                    return -1
+        return -1 if self._blocked_in(runs, (ax, ay, bx, by, cx, cy), []) else c
 
     def _delaunay_small(self, lo: int, hi: int, candidates: np.ndarray) -> int:
         """:meth:`_delaunay_apex` of a small sub-polygon: the candidates are tested one by
@@ -853,7 +910,7 @@ class _Tree:
             hx0, hx1 = min(hull[0::2]), max(hull[0::2])
             hy0, hy1 = min(hull[1::2]), max(hull[1::2])
             buckets: list[list[int]] = [[] for _ in range(count)]
-            for begin, end in self._leaves_meeting(lo, last, last, hull):
+            for begin, end in self.boxes.leaves(lo, last, last, hull):
                 for e in range(begin, end):
                     px, py, qx, qy = xs[e], ys[e], xs[e + 1], ys[e + 1]
                     if (px < hx0 and qx < hx0) or (px > hx1 and qx > hx1):
@@ -1022,8 +1079,8 @@ class _Tree:
         blockers: list[int],
     ) -> bool:
         """:meth:`_blocked` for long sub-polygons: the edges are those of the chain boxes
-        that the triangle may meet (:meth:`_leaves_meeting`)."""
-        return self._blocked_in(self._leaves_meeting(lo, hi, c, corners), corners, blockers)
+        that the triangle may meet (``ChainBoxes.leaves``)."""
+        return self._blocked_in(self.boxes.leaves(lo, hi, c, corners), corners, blockers)
 
     def _blocked_in(
         self,
@@ -1043,74 +1100,6 @@ class _Tree:
                     _remember(blockers, e)
                     return True
         return False
-
-    def _leaves_meeting(
-        self,
-        lo: int,
-        hi: int,
-        c: int,
-        corners: tuple[float, float, float, float, float, float],
-    ) -> Iterator[tuple[int, int]]:
-        """The runs [start, end) of edge positions in [lo, hi) of the leaf chain boxes that
-        the closed triangle ``corners`` (counter-clockwise) may meet, found by descending the
-        boxes (separating-axis tests on each box's rectangle: its two axes and the
-        triangle's three side normals). A box holding the position ``lo``, ``hi`` or ``c``
-        (a corner, or a point inside) meets the triangle: it is entered untested."""
-        boxes = self.boxes
-        levels, sizes, pad = boxes.levels, boxes.sizes, boxes.pad
-        ax, ay, bx, by, cx, cy = corners
-        xmin, xmax = min(ax, bx, cx), max(ax, bx, cx)
-        ymin, ymax = min(ay, by, cy), max(ay, by, cy)
-        # outward unit normals (T is counter-clockwise) and offsets of the triangle's sides
-        sides = []
-        for px, py, qx, qy in ((ax, ay, bx, by), (bx, by, cx, cy), (cx, cy, ax, ay)):
-            nx, ny = qy - py, px - qx
-            norm = math.hypot(nx, ny)
-            if norm > 0 and norm < math.inf:
-                nx, ny = nx / norm, ny / norm
-                sides.append((nx, ny, nx * px + ny * py + pad))
-        top = len(levels) - 1
-        stack = [(top, k) for k in range(len(levels[top]) - 1, -1, -1)]
-        while stack:
-            level, k = stack.pop()
-            size = sizes[level]
-            start = k * size
-            end = start + size
-            if end <= lo or start >= hi:
-                continue
-            if not (level and (start <= c <= end or start <= lo or end >= hi)):
-                x0, x1, y0, y1, ox, oy, ux, uy, hu, hv = levels[level][k]
-                if x1 < xmin or x0 > xmax or y1 < ymin or y0 > ymax:
-                    continue
-                apart = False
-                for nx, ny, offset in sides:
-                    if (
-                        nx * ox
-                        + ny * oy
-                        - hu * abs(nx * ux + ny * uy)
-                        - hv * abs(ny * ux - nx * uy)
-                        > offset
-                    ):
-                        apart = True
-                        break
-                if apart:
-                    continue
-                # the triangle's corners along the box's axes, from its centre
-                da, db, dc = ax - ox, bx - ox, cx - ox
-                ea, eb, ec = ay - oy, by - oy, cy - oy
-                pa, pb, pc = ux * da + uy * ea, ux * db + uy * eb, ux * dc + uy * ec
-                if (pa > hu and pb > hu and pc > hu) or (pa < -hu and pb < -hu and pc < -hu):
-                    continue
-                pa, pb, pc = ux * ea - uy * da, ux * eb - uy * db, ux * ec - uy * dc
-                if (pa > hv and pb > hv and pc > hv) or (pa < -hv and pb < -hv and pc < -hv):
-                    continue
-            if level:
-                child = 2 * k
-                if child + 1 < len(levels[level - 1]):
-                    stack.append((level - 1, child + 1))
-                stack.append((level - 1, child))
-                continue
-            yield max(start, lo), min(end, hi)
 
     def _grid_correct(
         self, lo: int, hi: int, chunk: np.ndarray, exhaustive: bool, blockers: list[np.ndarray]

@@ -238,19 +238,31 @@ def _grid_comb(teeth: int) -> list[np.ndarray]:
 def test_delaunay_outward_search_matches_every_candidate(
     monkeypatch: pytest.MonkeyPatch, name: str, rings: list
 ) -> None:
-    """Rule delaunay on long sub-polygons searches outwards from the base (positions surely
-    right of the chord dropped in float, the rest tested exactly in turn): the same tree as
-    testing every candidate, also where many positions lie on chords (the grid comb)."""
+    """Rule delaunay on long sub-polygons first tries the position next to an end of the base
+    that sees it under the largest angle (shown in scalars: correct, its circle empty), then
+    searches outwards from the base (positions surely right of the chord dropped in float,
+    the rest tested exactly in turn): the same tree as testing every candidate, also where
+    many positions lie on chords and circles (the grid comb) or share a point (bridges)."""
     searched: list[int] = []
+    shown: list[int] = []
     search = one_polygon._Tree._delaunay_apex
+    near_ends = one_polygon._Tree._delaunay_near_ends
 
     def counted(self, lo, hi):
         searched.append(hi - lo)
         return search(self, lo, hi)
 
+    def counted_near_ends(self, lo, hi):
+        apex = near_ends(self, lo, hi)
+        shown.append(apex)
+        return apex
+
     monkeypatch.setattr(one_polygon._Tree, "_delaunay_apex", counted)
+    monkeypatch.setattr(one_polygon._Tree, "_delaunay_near_ends", counted_near_ends)
     fast = _one_step(monkeypatch, rings, rule="delaunay")
     assert max(searched) > one_polygon.SMALL_SEQUENCE
+    # both ways of deciding a long sub-polygon are taken
+    assert 0 < sum(apex >= 0 for apex in shown) < len(shown)
     monkeypatch.setattr(
         one_polygon._Tree,
         "_delaunay_apex",
