@@ -1,5 +1,6 @@
-"""Large polygons: the chain boxes find every blocking edge, a long star ring is tiled, and
-the ring area sign (its float filter from the first vertex, its exact sum in chunks) is exact.
+"""Large polygons: the chain boxes find every blocking edge and every point in a disc, a long
+star ring is tiled, and the ring area sign (its float filter from the first vertex, its exact
+sum in chunks) is exact.
 
 The engine looks up the edges that may block a candidate triangle of a long sub-polygon by
 descending boxes over runs of consecutive edges (``ChainBoxes``). The boxes only prune, so the
@@ -91,6 +92,40 @@ def test_chain_boxes_find_exactly_the_blocked_candidates(
         )
         blocked += expected
     assert blocked > 0
+
+
+@pytest.mark.parametrize(("scale", "offset"), FRAMES)
+@pytest.mark.parametrize(("name", "rings"), _polygons(), ids=[n for n, _ in _polygons()])
+def test_chain_boxes_near_a_disc_hold_every_point_in_it(
+    name: str, rings: list, scale: float, offset: float
+) -> None:
+    # rule delaunay's near-end apex: every position in a circle's disc must start one of the
+    # runs found (or end the last one), as must every edge that meets it
+    rings = [[(x * scale + offset, y * scale + offset) for x, y, *_ in r] for r in rings]
+    try:
+        tree = _tree(rings)
+    except Exception:  # a scribble may not even normalise: nothing to compare
+        pytest.skip("degenerate input")
+    if tree.m < 4:
+        pytest.skip("degenerate input")
+    boxes = ChainBoxes(tree.sx, tree.sy, leaf=2)
+    rnd = random.Random(name)
+    xs, ys, m = tree.xs, tree.ys, tree.m
+    met = 0
+    for _ in range(500):
+        lo = rnd.randrange(0, m - 1)
+        hi = rnd.randrange(lo + 2, m + 1)
+        p = rnd.randrange(0, m)
+        ox, oy = xs[p] + rnd.uniform(-2, 2) * scale, ys[p] + rnd.uniform(-2, 2) * scale
+        limit = (rnd.uniform(0, 3) * scale) ** 2
+        runs = list(boxes.leaves(lo, hi, disc=(ox, oy, limit)))
+        covered = {q for start, end in runs for q in range(start, end + 1)}
+        for q in range(lo, hi + 1):
+            dx, dy = xs[q] - ox, ys[q] - oy
+            if dx * dx + dy * dy <= limit:
+                assert q in covered, (lo, hi, q)
+                met += 1
+    assert met > 0
 
 
 def tree_corners(tree: _Tree, lo: int, hi: int, c: int) -> tuple[float, ...]:
