@@ -84,7 +84,8 @@ _TWO_PI = 2.0 * math.pi
 # Rule "delaunay" on long sub-polygons first tries the positions this close to either end of
 # the base (most apexes lie there).
 _NEAR_ENDS = 16
-# Squared distances below this are not trusted (they lose their precision as they underflow).
+# Squared radii below this give no circle: the point filters square distances in the input's
+# own units, which lose their precision as they near the subnormal range.
 _LEAST_SQUARE = 2.0**-900
 
 
@@ -250,13 +251,25 @@ def pairs_failing(
     return np.flatnonzero(bad), np.concatenate(blockers)
 
 
+def _exponent(*values: float) -> int:
+    """The binary exponent of the largest |value| (0 where none is finite and non-zero):
+    ``math.ldexp(value, -exponent)`` brings it into [0.5, 1), exactly, so products of such
+    lengths neither overflow nor underflow."""
+    largest = max(map(abs, values))
+    return math.frexp(largest)[1] if 0 < largest < math.inf else 0
+
+
 def _circle_reach(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> float:
     """Distance from the midpoint of a-b beyond which the circle through a, b, c has no point
-    on c's side of the line a-b (with a safety margin: only a search extent)."""
+    on c's side of the line a-b, computed on the differences scaled by a power of two; only a
+    search extent, so with a margin of 1e-6 of it and 1e-12 of the coordinates' magnitude
+    (the midpoint's own rounding, which matters far from the origin)."""
     mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
-    half = 0.5 * math.hypot(bx - ax, by - ay)
     nx, ny = ay - by, bx - ax  # a normal of the base, of length 2 * half
     ux, uy = cx - mx, cy - my
+    e = _exponent(nx, ny, ux, uy)
+    nx, ny, ux, uy = math.ldexp(nx, -e), math.ldexp(ny, -e), math.ldexp(ux, -e), math.ldexp(uy, -e)
+    half = 0.5 * math.hypot(ny, -nx)
     toward = ux * nx + uy * ny
     if toward == 0:
         return math.inf
@@ -265,7 +278,8 @@ def _circle_reach(ax: float, ay: float, bx: float, by: float, cx: float, cy: flo
     if ux * ux + uy * uy > half * half:  # the centre is on c's side
         centre = offset * half
         reach = centre + math.hypot(centre, half)
-    return reach * (1.0 + 1e-6) + 1e-300
+    magnitude = max(abs(ax), abs(ay), abs(bx), abs(by), abs(cx), abs(cy))
+    return math.ldexp(reach, e) * (1.0 + 1e-6) + 1e-12 * magnitude + 1e-300
 
 
 def _circle_around(
@@ -274,14 +288,16 @@ def _circle_around(
     """The circle through a, b and c as (centre x, centre y, a squared radius beyond which a
     point is surely strictly outside: the float radius plus a margin of 1e-6 ``reach`` and
     1e-12 of the coordinates' magnitude, far above the rounding of a well-shaped corner's
-    centre and of the points' distances to it), computed at the corner of the largest angle;
-    None where that angle is within about half a degree of 180 (the centre not trusted) or
-    the squared radius is below 2**-900 (squared distances that small lose their precision
-    as they underflow)."""
+    centre and of the points' distances to it), computed at the corner of the largest angle
+    on the differences scaled by a power of two; None where that angle is within about half
+    a degree of 180 (the centre not trusted), or the squared radius is not finite or below
+    ``_LEAST_SQUARE``."""
+    e = _exponent(bx - ax, by - ay, cx - ax, cy - ay, cx - bx, cy - by)
     best = None
     for px, py, qx, qy, rx, ry in ((ax, ay, bx, by, cx, cy), (bx, by, cx, cy, ax, ay),
                                    (cx, cy, ax, ay, bx, by)):  # fmt: skip
-        ux, uy, vx, vy = qx - px, qy - py, rx - px, ry - py
+        ux, uy = math.ldexp(qx - px, -e), math.ldexp(qy - py, -e)
+        vx, vy = math.ldexp(rx - px, -e), math.ldexp(ry - py, -e)
         uu, vv = ux * ux + uy * uy, vx * vx + vy * vy
         d = 2.0 * (ux * vy - uy * vx)
         scale = math.sqrt(uu) * math.sqrt(vv)
@@ -290,12 +306,13 @@ def _circle_around(
     if best is None or not best[1] >= 2e-2 * best[0] or not reach < math.inf:
         return None
     _, _, px, py, ux, uy, vx, vy, uu, vv, d = best
-    ox, oy = (vy * uu - uy * vv) / d, (ux * vv - vx * uu) / d
+    ox, oy = math.ldexp((vy * uu - uy * vv) / d, e), math.ldexp((ux * vv - vx * uu) / d, e)
     magnitude = max(abs(ax), abs(ay), abs(bx), abs(by), abs(cx), abs(cy))
     radius = math.hypot(ox, oy) + 1e-6 * reach + 1e-12 * magnitude
-    if not radius * radius > _LEAST_SQUARE:
+    ox, oy, limit = px + ox, py + oy, radius * radius
+    if not (_LEAST_SQUARE < limit < math.inf and math.isfinite(ox) and math.isfinite(oy)):
         return None
-    return px + ox, py + oy, radius * radius
+    return ox, oy, limit
 
 
 class _Ties:
@@ -740,12 +757,12 @@ class _Tree:
             radius *= 2.0
 
     def _delaunay_near_ends(self, lo: int, hi: int) -> int:
-        """:meth:`_delaunay_apex` where its choice is the position next to either end of the
-        base (``_NEAR_ENDS`` on each side) that sees it under the largest angle (in float),
-        and that is shown in Python scalars, else -1: that candidate is correct and every
-        other position strictly left of the base lies strictly outside its circle (exact),
-        so sees the base under a smaller angle. (Any other of those positions lies in that
-        candidate's circle, up to float rounding, so it alone can be shown.)"""
+        """:meth:`_delaunay_apex` where its choice is, of the ``_NEAR_ENDS`` positions after
+        s_lo and as many before s_hi, the one that sees the base under the largest angle (in
+        float), and that is shown in Python scalars; else -1. It is shown where it is
+        correct and every other position strictly left of the base lies strictly outside
+        its circle (exact), so sees the base under a smaller angle. Only that one position
+        can be shown so: the others near the ends lie in its circle (up to rounding)."""
         xs, ys, sign = self.xs, self.ys, self.sign
         ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
         mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)

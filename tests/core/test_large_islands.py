@@ -25,6 +25,14 @@ from bsp_triangulate.geometry import bridges
 from bsp_triangulate.tree import one_polygon, subtrees
 
 from .checks import check_triangulation
+from .random_polygons import (
+    add_islands,
+    grid_ring,
+    is_valid,
+    star_ring,
+    touching_island,
+    with_random_orientation,
+)
 
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")
 
@@ -270,3 +278,82 @@ def test_delaunay_outward_search_matches_every_candidate(
     )
     _same(_one_step(monkeypatch, rings, rule="delaunay"), fast)
     check_triangulation(rings, fast)
+
+
+def _random_delaunay_polygon(seed: int) -> list:
+    """A random polygon of 150-600 vertices with up to 6 islands (some touching): a star with
+    float or integer vertices, a densely digitised wave (many near-cocircular positions) or
+    an integer-grid polyomino with its edges split in quarters (collinear runs, cocircular
+    quadruples)."""
+    rnd = random.Random(seed)
+    kind = rnd.choice(["star", "istar", "grid", "wave"])
+    while True:
+        if kind == "star":
+            outer = star_ring(rnd, rnd.randint(150, 600), radius=100.0, integer=False)
+            islands, integer, size = rnd.randint(0, 6), False, 6.0
+        elif kind == "istar":
+            outer = star_ring(
+                rnd, rnd.randint(150, 500), radius=rnd.choice((150, 300)), integer=True
+            )
+            islands, integer, size = rnd.randint(0, 6), True, 8.0
+        elif kind == "wave":
+            n = rnd.randint(150, 600)
+            a = 2 * np.pi * np.arange(n) / n
+            r = 100.0 * (1 + rnd.choice((0, 0.05)) * np.sin(rnd.randint(3, 20) * a))
+            outer = [(float(x), float(y)) for x, y in zip(r * np.cos(a), r * np.sin(a))]
+            islands, integer, size = rnd.randint(0, 6), False, 6.0
+        else:
+            cells = grid_ring(rnd, rnd.randint(40, 120), size=rnd.choice((12, 16)))
+            if cells is None:
+                continue
+            corners = [(4 * x, 4 * y) for x, y in cells]
+            outer = []
+            for k, (x, y) in enumerate(corners):
+                nx, ny = corners[(k + 1) % len(corners)]
+                outer += [
+                    ((4 - t) * x / 4 + t * nx / 4, (4 - t) * y / 4 + t * ny / 4) for t in range(4)
+                ]
+            islands, integer, size = rnd.randint(0, 6), True, 3.0
+        if not is_valid([outer]):
+            continue
+        rings = add_islands(rnd, outer, islands, size, integer=integer)
+        if rings is None:
+            continue
+        for _ in range(rnd.choice((0, 0, 2))):
+            touching = touching_island(rnd, rings, rnd.randrange(len(rings)))
+            if touching is not None:
+                rings.append(touching)
+        return with_random_orientation(rnd, rings)
+
+
+@pytest.mark.parametrize(
+    ("seed", "scale", "offset"),
+    [
+        (1000, 2.0**-380, 0.0),
+        (1001, 2.0**-420, 0.0),
+        (1025, 2.0**-420, 0.0),
+        (1069, 2.0**500, 0.0),
+        (1093, 2.0**500, 0.0),
+        (1021, 2.0**500, 0.0),
+        (1106, 1.0, 1e15),
+    ],
+)
+def test_delaunay_far_from_unit_scale_matches_every_candidate(
+    monkeypatch: pytest.MonkeyPatch, seed: int, scale: float, offset: float
+) -> None:
+    """Rule delaunay's float circles (search extents, the near-end apex's empty circle) hold
+    far from unit scale: lengths of 2**-420 (whose cubes underflow), 2**500 (whose squares
+    overflow) and points 1e15 from the origin (where the base's midpoint is off by 0.25)
+    give the tree of testing every candidate exactly (these polygons got another one, or no
+    tree at all)."""
+    rings = [
+        [(x * scale + offset, y * scale + offset) for x, y in r]
+        for r in _random_delaunay_polygon(seed)
+    ]
+    found = _one_step(monkeypatch, rings, rule="delaunay")
+    monkeypatch.setattr(
+        one_polygon._Tree,
+        "_delaunay_apex",
+        lambda self, lo, hi: self._delaunay_small(lo, hi, np.arange(hi - 1, lo, -1)),
+    )
+    _same(_one_step(monkeypatch, rings, rule="delaunay"), found)

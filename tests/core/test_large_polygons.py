@@ -99,8 +99,8 @@ def test_chain_boxes_find_exactly_the_blocked_candidates(
 def test_chain_boxes_near_a_disc_hold_every_point_in_it(
     name: str, rings: list, scale: float, offset: float
 ) -> None:
-    # rule delaunay's near-end apex: every position in a circle's disc must start one of the
-    # runs found (or end the last one), as must every edge that meets it
+    # rule delaunay's near-end apex reads the positions p, lo < p < hi, in the disc from the
+    # runs (start, end) found, as range(max(start, lo + 1), end): none may be missed
     rings = [[(x * scale + offset, y * scale + offset) for x, y, *_ in r] for r in rings]
     try:
         tree = _tree(rings)
@@ -119,8 +119,8 @@ def test_chain_boxes_near_a_disc_hold_every_point_in_it(
         ox, oy = xs[p] + rnd.uniform(-2, 2) * scale, ys[p] + rnd.uniform(-2, 2) * scale
         limit = (rnd.uniform(0, 3) * scale) ** 2
         runs = list(boxes.leaves(lo, hi, disc=(ox, oy, limit)))
-        covered = {q for start, end in runs for q in range(start, end + 1)}
-        for q in range(lo, hi + 1):
+        covered = {q for start, end in runs for q in range(max(start, lo + 1), end)}
+        for q in range(lo + 1, hi):
             dx, dy = xs[q] - ox, ys[q] - oy
             if dx * dx + dy * dy <= limit:
                 assert q in covered, (lo, hi, q)
