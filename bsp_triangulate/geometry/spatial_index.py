@@ -328,22 +328,34 @@ class ChainBoxes:
                 break
             size *= 2
 
-    def leaves(
+    def leaves_meeting(
+        self, lo: int, hi: int, c: int, corners: tuple[float, float, float, float, float, float]
+    ) -> Iterator[tuple[int, int]]:
+        """The runs [start, end) of segment positions in [lo, hi) of the leaf boxes that may
+        meet the closed counter-clockwise triangle ``corners``, which holds the points at the
+        positions ``lo``, ``hi`` and ``c`` (as corners or inside: a box holding one meets it
+        and is entered untested); the others by separating-axis tests on each box's
+        rectangle (its two axes and the triangle's three side normals)."""
+        return self._leaves(lo, hi, c, corners, None)
+
+    def leaves_near(
+        self, lo: int, hi: int, disc: tuple[float, float, float]
+    ) -> Iterator[tuple[int, int]]:
+        """The runs [start, end) of segment positions in [lo, hi) of the leaf boxes within
+        the ``disc`` (centre x, centre y, squared radius). Every point of the chain in the
+        disc then starts a segment of these runs or ends the last one before ``hi``."""
+        return self._leaves(lo, hi, -1, None, disc)
+
+    def _leaves(
         self,
         lo: int,
         hi: int,
-        c: int = -1,
-        corners: tuple[float, float, float, float, float, float] | None = None,
-        disc: tuple[float, float, float] | None = None,
+        c: int,
+        corners: tuple[float, float, float, float, float, float] | None,
+        disc: tuple[float, float, float] | None,
     ) -> Iterator[tuple[int, int]]:
-        """The runs [start, end) of segment positions in [lo, hi) of the leaf boxes that may
-        meet a shape, found by descending the boxes: the closed counter-clockwise triangle
-        ``corners`` at the positions ``lo``, ``hi`` and ``c`` or inside it (separating-axis
-        tests on each box's rectangle: its two axes and the triangle's three side normals; a
-        box holding ``lo``, ``hi`` or ``c`` meets it and is entered untested), or the
-        ``disc`` (centre x, centre y, squared radius: boxes farther from the centre are
-        apart). Every point of the chain in the shape then starts a segment of these runs or
-        ends the last one before ``hi``."""
+        """:meth:`leaves_meeting` (``corners``) or :meth:`leaves_near` (``disc``), found by
+        descending the boxes."""
         levels, sizes, pad = self.levels, self.sizes, self.pad
         if disc is not None:
             ox, oy, limit = disc

@@ -786,7 +786,7 @@ class _Tree:
         ox, oy, limit = circle
         # the triangle lies in its circle: the leaves near the circle hold every edge that
         # may block it too
-        runs = list(self.boxes.leaves(lo, hi, disc=circle))
+        runs = list(self.boxes.leaves_near(lo, hi, circle))
         for start, end in runs:
             for p in range(max(start, lo + 1), end):
                 dx, dy = xs[p] - ox, ys[p] - oy
@@ -927,7 +927,7 @@ class _Tree:
             hx0, hx1 = min(hull[0::2]), max(hull[0::2])
             hy0, hy1 = min(hull[1::2]), max(hull[1::2])
             buckets: list[list[int]] = [[] for _ in range(count)]
-            for begin, end in self.boxes.leaves(lo, last, last, hull):
+            for begin, end in self.boxes.leaves_meeting(lo, last, last, hull):
                 for e in range(begin, end):
                     px, py, qx, qy = xs[e], ys[e], xs[e + 1], ys[e + 1]
                     if (px < hx0 and qx < hx0) or (px > hx1 and qx > hx1):
@@ -1096,8 +1096,8 @@ class _Tree:
         blockers: list[int],
     ) -> bool:
         """:meth:`_blocked` for long sub-polygons: the edges are those of the chain boxes
-        that the triangle may meet (``ChainBoxes.leaves``)."""
-        return self._blocked_in(self.boxes.leaves(lo, hi, c, corners), corners, blockers)
+        that the triangle may meet (``ChainBoxes.leaves_meeting``)."""
+        return self._blocked_in(self.boxes.leaves_meeting(lo, hi, c, corners), corners, blockers)
 
     def _blocked_in(
         self,

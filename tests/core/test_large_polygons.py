@@ -118,7 +118,7 @@ def test_chain_boxes_near_a_disc_hold_every_point_in_it(
         p = rnd.randrange(0, m)
         ox, oy = xs[p] + rnd.uniform(-2, 2) * scale, ys[p] + rnd.uniform(-2, 2) * scale
         limit = (rnd.uniform(0, 3) * scale) ** 2
-        runs = list(boxes.leaves(lo, hi, disc=(ox, oy, limit)))
+        runs = list(boxes.leaves_near(lo, hi, (ox, oy, limit)))
         covered = {q for start, end in runs for q in range(max(start, lo + 1), end)}
         for q in range(lo + 1, hi):
             dx, dy = xs[q] - ox, ys[q] - oy
