@@ -108,12 +108,19 @@ def orient_sure_many(
     return (det > bound).astype(np.int8) - (-det > bound).astype(np.int8)
 
 
+# grid_exact's range of quanta 2**q: products of two multiples of 2**q are multiples of
+# 2**(2 q), exact down to 2**-1074; determinants of values below 2**t stay below 2**(2 t + 3).
+_GRID_LEAST = -537
+_GRID_MOST = 510
+
+
 def grid_exact(*coordinates: np.ndarray) -> bool:
     """True if every orientation determinant of these coordinates is exact in float64.
 
     That holds when all values are multiples of one power of two 2**q with magnitude below
     2**(q + 25) (e.g. integers below 33 million): differences, products and their difference
-    then all fit in 53 bits.
+    then all fit in 53 bits, and within the exponent range where 2**(2 q) does not underflow
+    (q >= -537) and the determinant stays below 2**1024 (q + 25 <= 510).
     """
     values = np.concatenate([np.ravel(c) for c in coordinates])
     if not np.isfinite(values).all():
@@ -125,6 +132,8 @@ def grid_exact(*coordinates: np.ndarray) -> bool:
     integers = (mantissa * 2.0**53).astype(np.int64)
     lowest_bit = integers & -integers
     quantum = int((exponent - 53 + np.log2(lowest_bit.astype(np.float64)).astype(np.int64)).min())
+    if not _GRID_LEAST <= quantum <= _GRID_MOST - 25:
+        return False
     return bool(np.abs(values).max() < 2.0 ** (quantum + 25))
 
 

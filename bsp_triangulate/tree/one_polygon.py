@@ -1477,7 +1477,7 @@ class _LossWatch:
         if self.limit < 0:
             self.polygon2 = _polygon_area2(self.prepared)
             self.limit = _REPAIR_AT * self.polygon2 if self.polygon2 > 0 else math.inf
-        if self.reversed2 <= self.limit:
+        if not self.reversed2 > self.limit:  # nan (an overflow): no decision
             return
         if not self.repair_made:
             self.repair_made = True
@@ -1487,7 +1487,7 @@ class _LossWatch:
                 return
             lost = _area_loss(self.prepared, fixed, self.axes)
             self.limit = max(self.limit, lost * self.polygon2)
-            if self.reversed2 <= self.limit:
+            if not self.reversed2 > self.limit:  # nan (an overflow): no decision
                 return
         raise _RepairWinsError()
 

@@ -10,7 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bsp_triangulate import triangulate, triangulate_many
 from bsp_triangulate.geometry.predicates import (
+    grid_exact,
     orient,
     orient_exact,
     orient_float,
@@ -88,3 +90,41 @@ def test_scalar_candidate_tests_equal_vectorised(seed: int, scale: float) -> Non
     assert scalar == set(failing.tolist()) & ccw
     # not vacuous: some candidates face the base, some of those fail on an edge, some pass
     assert facing.any() and scalar and len(scalar) < len(ccw)
+
+
+@pytest.mark.parametrize("exponent", [-600, -540, -538, 486, 500, 700])
+def test_grid_exact_only_where_the_determinants_stay_in_range(exponent: int) -> None:
+    # an integer grid scaled by 2**exponent: its determinants are multiples of
+    # 2**(2 exponent), which underflow below 2**-1074, and reach 2**(2 exponent + 33), which
+    # overflows past 2**1024; there the float orientation is not exact
+    values = np.array([7.0, -15.0, 16.0, 1.0, 3.0, 12.0]) * 2.0**exponent
+    assert not grid_exact(values)
+    assert grid_exact(values * 2.0 ** (-exponent))
+
+
+def test_grid_exact_keeps_its_range_ends() -> None:
+    grid = np.array([1.0, 3.0, 2.0**24])
+    assert grid_exact(grid * 2.0**-537)
+    assert grid_exact(grid * 2.0**485)
+    assert not grid_exact(grid * 2.0**486)
+
+
+# polygons on an integer grid; scaled by 2**500 the products of the float orientation
+# overflowed (inf - inf): the quadrilateral's triangles came out wrong with no error and the
+# wide triangle found no apex; scaled by 2**-540 they underflowed and the small triangle
+# found no apex
+GRID_QUAD = [(3665.0, -24599.0), (8013.0, -25385.0), (5303.0, 13574.0), (496.0, 27364.0)]
+GRID_TRIANGLE = [(16.0, 11.0), (16.0, 18.0), (13.0, 18.0)]
+WIDE_TRIANGLE = [(-99280.0, -2015.0), (-68520.0, 9209.0), (92407.0, 11552.0)]
+
+
+@pytest.mark.parametrize("exponent", [-540, 499, 500])
+@pytest.mark.parametrize("rule", ["first", "elevation", "delaunay"])
+def test_integer_grid_polygons_scaled_far_give_the_same_triangles(exponent: int, rule: str) -> None:
+    scale = 2.0**exponent
+    for ring in (GRID_QUAD, GRID_TRIANGLE, WIDE_TRIANGLE):
+        want = triangulate([ring], rule=rule).triangles
+        scaled = [[(x * scale, y * scale) for x, y in ring]]
+        assert np.array_equal(triangulate(scaled, rule=rule).triangles, want)
+        many = triangulate_many([scaled, scaled], rule=rule)
+        assert all(np.array_equal(result.triangles, want) for result in many)
