@@ -311,7 +311,8 @@ class VertexGrid:
         self.sorted_ids = ids[order]
         self.starts = np.searchsorted(key[order], np.arange(nx * ny + 1))
         self.x0, self.y0, self.cell, self.nx, self.ny = x0, y0, cell, nx, ny
-        self.pad = 1e-12 * max(abs(x0), abs(y0), abs(x0 + width), abs(y0 + height))
+        # the cell arithmetic's rounding: a few units in the last place of the coordinates
+        self.pad = 2.0**-48 * max(abs(x0), abs(y0), abs(x0 + width), abs(y0 + height))
 
     def pairs_in_boxes(
         self,

@@ -164,3 +164,22 @@ def test_islands_touching_each_other_and_the_shell_are_constrained_delaunay():
     assert len(rings) - 1 > LINKED_ISLANDS
     assert shapely.Polygon(shell, chains + free).is_valid
     check_delaunay(rings)
+
+
+@pytest.mark.parametrize("offset", [1e15, 2.0**52])
+def test_links_far_from_the_origin_give_the_same_tree(offset: float):
+    # 20 triangles in a 60 m square moved 1e15 from the origin: the vertex grid's rounding
+    # slack was 1e-12 of the coordinates (1,000 there), over its whole safe radius, so no
+    # link was found and the bridges, hence the tree, changed (the same triangles)
+    shell = [(0.0, 0.0), (60.0, 0.0), (60.0, 60.0), (0.0, 60.0)]
+    islands = [
+        [(x + 2.0, y + 1.0), (x, y + 2.0), (x, y)]
+        for y in (10.0, 20.0, 30.0, 40.0)
+        for x in (10.0, 20.0, 30.0, 40.0, 50.0)
+    ]
+    rings = [shell, *islands]
+    assert len(islands) > LINKED_ISLANDS
+    want = triangulate(rings, rule="delaunay")
+    got = triangulate([[(x + offset, y + offset) for x, y in r] for r in rings], rule="delaunay")
+    for field in ("triangles", "parent", "depth", "side"):
+        assert np.array_equal(getattr(got, field), getattr(want, field)), field
