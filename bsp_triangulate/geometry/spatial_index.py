@@ -292,6 +292,16 @@ class PointColumns:
         return segment, first, last
 
 
+def box_distance2(box: tuple[float, ...], x: float, y: float) -> float:
+    """Squared distance from (x, y) to a :class:`ChainBoxes` box's rectangle (at most the
+    distance to any point in it)."""
+    ox, oy, ux, uy, hu, hv = box[4:]
+    dx, dy = x - ox, y - oy
+    du = max(abs(ux * dx + uy * dy) - hu, 0.0)
+    dv = max(abs(uy * dx - ux * dy) - hv, 0.0)
+    return du * du + dv * dv
+
+
 class ChainBoxes:
     """Bounding boxes over runs of consecutive segments of a chain of points.
 
@@ -381,14 +391,11 @@ class ChainBoxes:
             if end <= lo or start >= hi:
                 continue
             if disc is not None:
-                x0, x1, y0, y1, px, py, ux, uy, hu, hv = levels[level][k]
+                x0, x1, y0, y1 = levels[level][k][:4]
                 dx, dy = max(x0 - ox, ox - x1, 0.0), max(y0 - oy, oy - y1, 0.0)
                 if dx * dx + dy * dy > limit:
                     continue
-                tx, ty = ox - px, oy - py
-                du = max(abs(tx * ux + ty * uy) - hu, 0.0)
-                dv = max(abs(ty * ux - tx * uy) - hv, 0.0)
-                if du * du + dv * dv > limit:
+                if box_distance2(levels[level][k], ox, oy) > limit:
                     continue
             elif not (level and (start <= c <= end or start <= lo or end >= hi)):
                 x0, x1, y0, y1, px, py, ux, uy, hu, hv = levels[level][k]

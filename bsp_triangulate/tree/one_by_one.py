@@ -111,7 +111,7 @@ def first_correct(
     first) before the others. Each candidate tested against every edge takes hi - lo from
     ``budget[0]``; -2 once it is spent. ``runs``: per position, the first position at or
     after it and the last at or before it where the sequence bends (``lockstep``'s
-    ``_straight_runs``): candidates in a straight run on from either corner of the base fail
+    ``straight_runs``): candidates in a straight run on from either corner of the base fail
     condition 3 (the corner's neighbour lies on their side) and are skipped."""
     ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
     low, first = (lo + 1, hi - 1) if runs is None else run_bounds(runs, lo, hi)

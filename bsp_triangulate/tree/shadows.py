@@ -41,7 +41,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from ..geometry.spatial_index import ChainBoxes
+from ..geometry.spatial_index import ChainBoxes, box_distance2
 
 # Angles (radians) closer than this are not trusted to compare.
 _MARGIN = 1e-9
@@ -61,16 +61,6 @@ _REACH_SLACK = 1.0 + 1e-6
 def _square(dx: float, dy: float) -> float:
     """dx * dx + dy * dy (inf on overflow, where ``**`` would raise)."""
     return dx * dx + dy * dy
-
-
-def _distance2(box: tuple[float, ...], x: float, y: float) -> float:
-    """Squared distance from (x, y) to a chain box's rectangle (at most the distance to
-    any point in it)."""
-    ox, oy, ux, uy, hu, hv = box[4:]
-    dx, dy = x - ox, y - oy
-    du = max(abs(ux * dx + uy * dy) - hu, 0.0)
-    dv = max(abs(uy * dx - ux * dy) - hv, 0.0)
-    return du * du + dv * dv
 
 
 class Horizon:
@@ -311,7 +301,7 @@ class Shadows:
             (self.rays_b, beta, top_beta, self.bx, self.by),
         ):
             reach2 = rays.reach2_over(low, high)
-            if reach2 < math.inf and _distance2(box, cx, cy) > reach2:
+            if reach2 < math.inf and box_distance2(box, cx, cy) > reach2:
                 return True
         return False
 

@@ -62,11 +62,8 @@ def _polygons() -> list[tuple[str, list]]:
     return out
 
 
-@pytest.mark.parametrize(("scale", "offset"), FRAMES)
-@pytest.mark.parametrize(("name", "rings"), _polygons(), ids=[n for n, _ in _polygons()])
-def test_chain_boxes_find_exactly_the_blocked_candidates(
-    name: str, rings: list, scale: float, offset: float
-) -> None:
+def _framed_tree(rings: list, scale: float, offset: float) -> _Tree:
+    """The tree of ``rings`` scaled and moved; the test is skipped where they degenerate."""
     rings = [[(x * scale + offset, y * scale + offset) for x, y, *_ in r] for r in rings]
     try:
         tree = _tree(rings)
@@ -74,6 +71,15 @@ def test_chain_boxes_find_exactly_the_blocked_candidates(
         pytest.skip("degenerate input")
     if tree.m < 4:
         pytest.skip("degenerate input")
+    return tree
+
+
+@pytest.mark.parametrize(("scale", "offset"), FRAMES)
+@pytest.mark.parametrize(("name", "rings"), _polygons(), ids=[n for n, _ in _polygons()])
+def test_chain_boxes_find_exactly_the_blocked_candidates(
+    name: str, rings: list, scale: float, offset: float
+) -> None:
+    tree = _framed_tree(rings, scale, offset)
     tree.boxes = ChainBoxes(tree.sx, tree.sy, leaf=2)  # deep boxes even for small rings
     rnd = random.Random(name)
     m = tree.m
@@ -101,13 +107,7 @@ def test_chain_boxes_near_a_disc_hold_every_point_in_it(
 ) -> None:
     # rule delaunay's near-end apex reads the positions p, lo < p < hi, in the disc from the
     # runs (start, end) found, as range(max(start, lo + 1), end): none may be missed
-    rings = [[(x * scale + offset, y * scale + offset) for x, y, *_ in r] for r in rings]
-    try:
-        tree = _tree(rings)
-    except Exception:  # a scribble may not even normalise: nothing to compare
-        pytest.skip("degenerate input")
-    if tree.m < 4:
-        pytest.skip("degenerate input")
+    tree = _framed_tree(rings, scale, offset)
     boxes = ChainBoxes(tree.sx, tree.sy, leaf=2)
     rnd = random.Random(name)
     xs, ys, m = tree.xs, tree.ys, tree.m
