@@ -56,8 +56,8 @@ _MAX_RECENT_BLOCKERS = 16
 # Candidates per base tested one by one before the facing test switches to chunks.
 _SCALAR_CANDIDATES = 16
 # Sub-polygons longer than this take their candidates closest elevation first from shared
-# sorted windows (rule "elevation").
-_WINDOWED = 512
+# sorted windows (rule "elevation"): all that the lock-step builder leaves.
+_WINDOWED = 256
 # Bands of at most this many candidates are tested lazily, candidate by candidate.
 _LAZY_BAND = 256
 # Positions next to either end of a base whose shadows rule "elevation" casts at once.
@@ -475,6 +475,10 @@ class _Tree:
             return self._closest_apex_windows(lo, hi, v1, v2)
         sx, sy, z = self.sx, self.sy, self.sz
         candidates = np.arange(hi - 1, lo, -1)
+        # those surely right of the chord leave first (a float sign beyond its error bound,
+        # cheaper than the exact conditions 1 and 4)
+        ax, ay, bx, by = sx[hi], sy[hi], sx[lo], sy[lo]
+        candidates = candidates[sure_signs(ax, ay, bx, by, sx[candidates], sy[candidates]) >= 0]
         candidates = candidates[facing_candidates(sx, sy, lo, hi, candidates, self.exact)]
         if len(candidates) == 0:
             return -1
@@ -549,11 +553,13 @@ class _Tree:
         for band, floor in windows.bands(lo, hi, z1 + z2):
             lazy = len(band) <= _LAZY_BAND
             if not lazy:
-                # wide bands (elevations close or equal): the cheap tests, then the edges
-                # that blocked earlier candidates, against the whole band at once
-                band = band[facing_candidates(self.sx, self.sy, lo, hi, band, self.exact)]
+                # wide bands (elevations close or equal): the cheap tests (surely right of
+                # the chord, in the shadows, then conditions 1 and 4), then the edges that
+                # blocked earlier candidates, against the whole band at once
+                band = band[sure_signs(ax, ay, bx, by, self.sx[band], self.sy[band]) >= 0]
                 if shadows is not None and len(band):
                     band = band[~shadows.shadowed_many(self.sx, self.sy, band)]
+                band = band[facing_candidates(self.sx, self.sy, lo, hi, band, self.exact)]
                 if len(band) > _SCALAR_CANDIDATES and blockers:
                     band = self._not_blocked_by(lo, hi, band, blockers)
             elif looked >= _SCALAR_CANDIDATES:
@@ -1018,18 +1024,21 @@ class _Tree:
         return [e for e in self._recent if lo <= e < hi]
 
     def _near_shadows(self, lo: int, hi: int, blockers: list[int]) -> Shadows:
-        """:meth:`_shadows`, with those of the ``_NEAR_SHADOWS`` positions next to either end
-        of the base."""
-        shadows = self._shadows(lo, hi, blockers, rays=False)
-        near = np.r_[lo + 1 : min(lo + 1 + _NEAR_SHADOWS, hi), max(hi - _NEAR_SHADOWS, lo + 1) : hi]
-        shadows.add_many(self.sx, self.sy, near)
+        """The shadows on the base of [lo, hi] (no rays) of the ``_NEAR_SHADOWS`` positions
+        next to either end of the base and of the ends of the edges ``blockers``, cast at
+        once (the points along those edges, which :meth:`Shadows.add_edge` adds too, cost
+        more than the few more candidates they would rule out)."""
+        shadows = Shadows(self.xs, self.ys, self.boxes, lo, hi, rays=False)
+        ends = np.array(blockers, dtype=np.int64)
+        first = np.arange(lo + 1, min(lo + 1 + _NEAR_SHADOWS, hi))
+        last = np.arange(max(hi - _NEAR_SHADOWS, lo + 1), hi)
+        shadows.add_many(self.sx, self.sy, np.concatenate([first, last, ends, ends + 1]))
         return shadows
 
-    def _shadows(self, lo: int, hi: int, blockers: list[int], rays: bool = True) -> Shadows:
-        """The shadows on the base of [lo, hi] of the ends of the edges ``blockers`` (the
-        caller adds more as it finds them); ``rays``: the caller asks for candidates
-        (:meth:`Shadows.candidates`), which the edges' rays rule out too."""
-        shadows = Shadows(self.xs, self.ys, self.boxes, lo, hi, rays)
+    def _shadows(self, lo: int, hi: int, blockers: list[int]) -> Shadows:
+        """The shadows on the base of [lo, hi] of the edges ``blockers`` (the caller adds
+        more as it finds them), and their rays (:meth:`Shadows.candidates`)."""
+        shadows = Shadows(self.xs, self.ys, self.boxes, lo, hi)
         for e in blockers:
             shadows.add_edge(e)
         return shadows

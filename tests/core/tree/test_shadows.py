@@ -191,11 +191,11 @@ def test_rule_elevation_skips_shadowed_candidates_with_the_same_trees(
     """Rule elevation tests candidates closest in z first; those in a shadow are skipped
     without the exact test, and the trees are those of testing every one."""
     used: list[int] = []
-    shadows = one_polygon._Tree._shadows
+    shadows = one_polygon._Tree._near_shadows
     monkeypatch.setattr(
         one_polygon._Tree,
-        "_shadows",
-        lambda self, *args, **kwargs: used.append(1) or shadows(self, *args, **kwargs),
+        "_near_shadows",
+        lambda self, *args: used.append(1) or shadows(self, *args),
     )
     rings = _river(700, 30, 4)
     rings = [np.column_stack([r, np.sin(r[:, 0] / 97) * 40 + r[:, 1] / 50]) for r in rings]
