@@ -56,7 +56,7 @@ _MAX_RECENT_BLOCKERS = 16
 # Candidates per base tested one by one before the facing test switches to chunks.
 _SCALAR_CANDIDATES = 16
 # Sub-polygons longer than this take their candidates closest elevation first from shared
-# sorted windows (rule "elevation"): all that the lock-step builder leaves.
+# sorted windows (rule "elevation"); the lock-step builder takes those under 256 positions.
 _WINDOWED = 256
 # Bands of at most this many candidates are tested lazily, candidate by candidate.
 _LAZY_BAND = 256

@@ -344,7 +344,11 @@ class Shadows:
 
     def shadowed(self, alpha: float, beta: float) -> bool:
         """Some vertex of the staircase surely lies strictly inside the triangle whose apex
-        has these angles."""
+        has these angles. A point not surely strictly left of the chord (an angle within the
+        margin of 0 or pi, or wrapped past them: a hair left of the chord's line beyond a
+        base end may compute as right of it) is never shadowed."""
+        if not (_MARGIN < alpha < math.pi - _MARGIN and _MARGIN < beta < math.pi - _MARGIN):
+            return False
         at = bisect_left(self.alphas, alpha - _MARGIN)
         return at > 0 and self.betas[at - 1] < beta - _MARGIN
 
@@ -357,7 +361,9 @@ class Shadows:
         beta = (self.to_a - np.arctan2(y - self.by, x - self.bx)) % _TWO_PI
         at = np.searchsorted(np.array(self.alphas), alpha - _MARGIN, side="left")
         stair = np.array([math.inf, *self.betas])
-        return stair[at] < beta - _MARGIN
+        sure = (alpha > _MARGIN) & (alpha < math.pi - _MARGIN)
+        sure &= (beta > _MARGIN) & (beta < math.pi - _MARGIN)
+        return sure & (stair[at] < beta - _MARGIN)
 
     def _box(self, box: tuple[float, ...]) -> tuple[int, float, float, float, float]:
         """(kind, least alpha, least beta, largest alpha, largest beta) of a chain box: kind 1

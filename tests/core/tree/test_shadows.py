@@ -389,3 +389,108 @@ def test_a_canal_far_beyond_float_squares_gives_the_same_tree(exponent: int) -> 
     got = triangulate([ring * 2.0**exponent])
     for name in ("triangles", "parent", "depth", "side"):
         assert np.array_equal(getattr(got, name), getattr(expected, name)), name
+
+
+def _hair_left_of_the_chord(
+    a: tuple[float, float], b: tuple[float, float], beyond: float, count: int, baits: int
+) -> tuple[np.ndarray, int]:
+    """A valid polygon (xyz) whose root base runs from vertex 0 (A) to vertex 1 (B), with its
+    last vertex C = A + ``beyond`` (A - B) on the chord's line beyond A in decimal, a hair
+    left of it in binary: C's computed angle at B wraps past 0 to about 2 pi. Between B and C
+    a long comb (``count`` vertices) with a deep tooth in the middle, its vertices high but
+    for ``baits`` low ones near the tooth: rule elevation's closest candidates, each holding
+    the tooth. C is correct and the closest in z of the correct ones. Returns the ring and C's
+    index."""
+    (ax, ay), (bx, by) = a, b
+    length = math.hypot(ax - bx, ay - by)
+    ux, uy = (ax - bx) / length, (ay - by) / length
+    nx, ny = uy, -ux
+
+    def at(u: float, n: float) -> tuple[float, float]:
+        return (ax + u * ux + n * nx, ay + u * uy + n * ny)
+
+    cx, cy = ax + beyond * (ax - bx), ay + beyond * (ay - by)
+    u_b, u_c, far = -length, math.hypot(cx - ax, cy - ay), 0.5 * length
+    chain = [at(u_b - 0.02 * length, 0.02 * length), at(u_b - 0.05 * length, 0.1 * length)]
+    chain.append(at(u_b - 0.05 * length, far))
+    zs = [5.0, 5.0, 5.0]
+    middle, tooth, placed = 0.5 * u_b, False, 0
+    for k, u in enumerate(np.linspace(u_b - 0.05 * length, u_c + 0.05 * length, count)[1:-1]):
+        if abs(u - middle) < 0.01 * length and not tooth:
+            chain += [
+                at(middle - 0.005 * length, far),
+                at(middle, 0.1 * length),
+                at(middle + 0.005 * length, far),
+            ]
+            zs += [7.0, 7.0, 7.0]
+            tooth = True
+            continue
+        chain.append(at(float(u), far * (1 + 0.01 * math.sin(k))))
+        bait = 0.02 * length < abs(u - middle) < 0.5 * length and placed < baits
+        zs.append(0.5 if bait else 5.0 + 0.001 * k)
+        placed += bait
+    chain += [at(u_c + 0.05 * length, far), at(u_c + 0.02 * length, 0.05 * length)]
+    zs += [6.0, 6.0]
+    ring = np.array([a, b, *chain, (cx, cy)])
+    z = 1e-3 * np.array([0.0, 0.0, *zs, 1.0])
+    return np.column_stack([ring, z]), len(ring) - 1
+
+
+@pytest.mark.parametrize(
+    ("b", "beyond", "baits"),
+    [
+        ((-0.555, -0.439), 0.36, 4),  # wraps in math.atan2: the scalar shadowed test
+        ((-1.253, -0.367), 1.72, 24),  # wraps in numpy's only: shadowed_many on a band
+    ],
+)
+def test_rule_elevation_takes_its_apex_a_hair_left_of_the_chord(
+    b: tuple[float, float], beyond: float, baits: int
+) -> None:
+    """Found by a review: an apex a hair left of the chord's line beyond a base end has an
+    angle that computes past 0 (about 2 pi); the staircase called such a point shadowed,
+    and rule elevation took another apex than its choice. A point not surely left of the
+    chord is never shadowed now."""
+    ring, apex = _hair_left_of_the_chord((0.0, 0.0), b, beyond, 340, baits)
+    for invalid in ("fail", "as_given"):
+        root = triangulate([ring], rule="elevation", invalid=invalid).triangles[0]
+        assert sorted(root.tolist()) == [0, 1, apex]
+
+
+def test_rule_first_takes_its_apex_a_hair_left_of_the_chord() -> None:
+    """The same fault under rule first: the chain boxes' walk from the last candidate back
+    skipped the first correct candidate, a hair left of the chord's line beyond A, as
+    shadowed, after 20 candidates right of the chord (a loop of the boundary below the
+    line), and took the one before it."""
+    a, b = (0.0, 0.0), (-0.555, -0.439)
+    length = math.hypot(*b)
+    ux, uy = -b[0] / length, -b[1] / length
+    nx, ny = uy, -ux
+
+    def at(u: float, n: float) -> tuple[float, float]:
+        return (u * ux + n * nx, u * uy + n * ny)
+
+    c = (-b[0] * 0.36, -b[1] * 0.36)
+    u_b, u_c, far = -length, math.hypot(*c), 0.5 * length
+    chain = [at(u_b - 0.02 * length, 0.02 * length), at(u_b - 0.05 * length, 0.1 * length)]
+    chain += [at(float(u), far) for u in np.linspace(u_b - 0.05 * length, u_c + 0.05 * length, 300)]
+    chain.append(at(u_c + 0.02 * length, 0.05 * length))
+    loop = [at(u_c + 0.01 * length, -0.05 * length)]
+    loop += [at(float(u), -0.2 * length) for u in np.linspace(u_c, 0.2 * u_c, 20)]
+    loop.append(at(0.05 * u_c, -0.02 * length))
+    ring = np.array([a, b, *chain, c, *loop])
+    apex = 2 + len(chain)
+    for invalid in ("fail", "as_given"):
+        root = triangulate([ring], rule="first", invalid=invalid).triangles[0]
+        assert sorted(root.tolist()) == [0, 1, apex]
+
+
+def test_shadowed_is_false_off_the_left_of_the_chord() -> None:
+    """Angles within the margin of 0 or pi, or past them, are never in a shadow, whatever
+    the staircase (scalar and numpy tests alike)."""
+    xs, ys = [0.0, 1.0, 0.5, 2.0, 0.0], [0.0, 0.0, 1.0, 0.0, 0.0]
+    boxes = ChainBoxes(np.array(xs), np.array(ys))
+    shadows = Shadows(xs, ys, boxes, 0, 3)
+    shadows._add(0.1, 0.1)
+    for alpha, beta in [(2.0, 2 * math.pi - 1e-17), (2.0, 0.0), (math.pi, 0.5), (-1e-12, 0.5)]:
+        assert not shadows.shadowed(alpha, beta)
+    assert shadows.shadowed(1.0, 1.0)
