@@ -552,23 +552,20 @@ class _Tree:
         ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
         for band, floor in windows.bands(lo, hi, z1 + z2):
             lazy = len(band) <= _LAZY_BAND
-            if not lazy:
-                # wide bands (elevations close or equal): the cheap tests (surely right of
-                # the chord, in the shadows, then conditions 1 and 4), then the edges that
-                # blocked earlier candidates, against the whole band at once
+            if not lazy or looked >= _SCALAR_CANDIDATES:
+                # wide bands (elevations close or equal), and the later bands of a node that
+                # did not find its apex among its first candidates: those surely right of the
+                # chord and those in the shadows leave at once
                 band = band[sure_signs(ax, ay, bx, by, self.sx[band], self.sy[band]) >= 0]
                 if shadows is not None and len(band):
                     band = band[~shadows.shadowed_many(self.sx, self.sy, band)]
+            if not lazy:
+                # wide bands: conditions 1 and 4, then the edges that blocked earlier
+                # candidates, against the whole band at once (narrow ones test each candidate
+                # only when its turn comes)
                 band = band[facing_candidates(self.sx, self.sy, lo, hi, band, self.exact)]
                 if len(band) > _SCALAR_CANDIDATES and blockers:
                     band = self._not_blocked_by(lo, hi, band, blockers)
-            elif looked >= _SCALAR_CANDIDATES:
-                # most nodes find their apex among their first candidates; one that goes on
-                # drops the candidates surely right of the chord and those in the shadows
-                # from its later bands at once (each left is tested when its turn comes)
-                band = band[sure_signs(ax, ay, bx, by, self.sx[band], self.sy[band]) >= 0]
-                if shadows is not None and len(band):
-                    band = band[~shadows.shadowed_many(self.sx, self.sy, band)]
             if len(band):
                 zc = z[band]
                 approx = np.abs(2.0 * zc - z1 - z2)

@@ -312,11 +312,7 @@ class Shadows:
         positions = positions[(positions > self.lo) & (positions < self.hi)]
         if not len(positions):
             return
-        x, y = sx[positions], sy[positions]
-        alpha = (np.arctan2(y - self.ay, x - self.ax) - self.to_b) % _TWO_PI
-        beta = (self.to_a - np.arctan2(y - self.by, x - self.bx)) % _TWO_PI
-        keep = (alpha > _MARGIN) & (alpha < math.pi - _MARGIN)
-        keep &= (beta > _MARGIN) & (beta < math.pi - _MARGIN)
+        alpha, beta, keep = self._angles_many(sx, sy, positions)
         alpha = np.concatenate([np.array(self.alphas), alpha[keep]])
         beta = np.concatenate([np.array(self.betas), beta[keep]])
         if not len(alpha):
@@ -356,14 +352,23 @@ class Shadows:
         """:meth:`shadowed` of the points at ``positions`` (coordinates ``sx``, ``sy``)."""
         if not self.alphas:
             return np.zeros(len(positions), dtype=bool)
+        alpha, beta, sure = self._angles_many(sx, sy, positions)
+        at = np.searchsorted(np.array(self.alphas), alpha - _MARGIN, side="left")
+        stair = np.array([math.inf, *self.betas])
+        return sure & (stair[at] < beta - _MARGIN)
+
+    def _angles_many(
+        self, sx: np.ndarray, sy: np.ndarray, positions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`angles` of the points at ``positions``, and where both lie in (0, pi) by
+        the margin (the point surely strictly left of the chord: only such a point casts
+        or falls in a shadow, as :meth:`_add` and :meth:`shadowed` require one by one)."""
         x, y = sx[positions], sy[positions]
         alpha = (np.arctan2(y - self.ay, x - self.ax) - self.to_b) % _TWO_PI
         beta = (self.to_a - np.arctan2(y - self.by, x - self.bx)) % _TWO_PI
-        at = np.searchsorted(np.array(self.alphas), alpha - _MARGIN, side="left")
-        stair = np.array([math.inf, *self.betas])
-        sure = (alpha > _MARGIN) & (alpha < math.pi - _MARGIN)
-        sure &= (beta > _MARGIN) & (beta < math.pi - _MARGIN)
-        return sure & (stair[at] < beta - _MARGIN)
+        left = (alpha > _MARGIN) & (alpha < math.pi - _MARGIN)
+        left &= (beta > _MARGIN) & (beta < math.pi - _MARGIN)
+        return alpha, beta, left
 
     def _box(self, box: tuple[float, ...]) -> tuple[int, float, float, float, float]:
         """(kind, least alpha, least beta, largest alpha, largest beta) of a chain box: kind 1
