@@ -206,7 +206,7 @@ def plan_targets(
         pair = np.unique(owner[keep] * len(x) + cand[keep])  # one pair per (island, vertex)
         owner, cand = pair // len(x), pair % len(x)
         d2 = (x[cand] - hx[owner]) ** 2 + (y[cand] - hy[owner]) ** 2
-        order = np.lexsort((d2, owner))
+        order = _by_owner_then(d2, owner, count)
         owner, cand, d2 = owner[order], cand[order], d2[order]
         # per island, its candidates nearest first: place in that list, and how many lie in
         # its disk (the box query finds every vertex of the disk)
@@ -251,3 +251,12 @@ def plan_targets(
         open_ = left[radius[left] <= reach_limit]
         block *= 2
     return {joins[i][0]: int(v) for i, v in enumerate(target.tolist()) if v >= 0}
+
+
+def _by_owner_then(d2: np.ndarray, owner: np.ndarray, count: int) -> np.ndarray:
+    """``np.lexsort((d2, owner))`` (owners below ``count``): two stable sorts, the second a
+    radix sort where the owners fit 16 bits."""
+    if count >= 2**15:
+        return np.lexsort((d2, owner))
+    by_d2 = np.argsort(d2, kind="stable")
+    return by_d2[np.argsort(owner[by_d2].astype(np.int16), kind="stable")]

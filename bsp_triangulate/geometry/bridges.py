@@ -903,7 +903,10 @@ def remove_spikes(
     along the outer ring); they enclose no area. The sequence is cyclic. ``kept``: per
     vertex id, True for the tips that stay (interior points joined by a bridge).
     """
-    xs, ys = x[seq].tolist(), y[seq].tolist()
+    px, py = x[seq], y[seq]
+    if len(seq) >= 3 and not ((px == np.roll(px, 2)) & (py == np.roll(py, 2))).any():
+        return seq  # no point (cyclically) equals the one two before it: no spike
+    xs, ys = px.tolist(), py.tolist()
     tip = [False] * len(seq) if kept is None else kept[seq].tolist()
     stack: list[int] = []
     for index in range(len(seq)):

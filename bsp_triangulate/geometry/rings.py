@@ -147,11 +147,61 @@ def normalise_rings(
     (``plane``: one of :data:`PLANES`)."""
     if isinstance(rings, np.ndarray) and rings.ndim == 2:
         rings = [rings]
+    if len(rings) > _MANY_RINGS:
+        many = _many_rings(rings, plane)
+        if many is not None:
+            return many
     raw = [_as_points(ring, number) for number, ring in enumerate(rings)]
     if not raw:
         return [], (0, 1)
     axes = (0, 1) if plane == "xy" else working_axes(raw[0])
     return [_clean(points, axes) for points in raw], axes
+
+
+# more rings than this are parsed and cleaned all at once (:func:`_many_rings`)
+_MANY_RINGS = 16
+
+
+def _many_rings(
+    rings: Sequence[object], plane: str
+) -> tuple[list[np.ndarray], tuple[int, int]] | None:
+    """:func:`normalise_rings` of many rings in one pass over their concatenation, where every
+    ring is a non-empty array of points with the same number of coordinates (None otherwise,
+    and where a ring has a coordinate that is not finite: the ring by ring path says which).
+    A ring cleaned loses its consecutive duplicates, then its last point where that equals
+    its first: the point before it differs from it, so one such point at most."""
+    raw = []
+    try:
+        for ring in rings:
+            raw.append(np.asarray(ring, dtype=np.float64))
+    except (TypeError, ValueError):
+        return None
+    width = raw[0].shape[1] if raw[0].ndim == 2 else 0
+    if width not in (2, 3, 4) or any(p.ndim != 2 or p.shape[1] != width or not len(p) for p in raw):
+        return None
+    every = np.concatenate(raw)
+    if width == 2:
+        every = np.column_stack([every, np.zeros(len(every))])
+    elif width == 4:
+        every = np.ascontiguousarray(every[:, :3])
+    if not np.isfinite(every).all():
+        return None
+    sizes = np.array([len(points) for points in raw], dtype=np.int64)
+    axes = (0, 1) if plane == "xy" else working_axes(every[: sizes[0]])
+    starts = np.cumsum(sizes) - sizes
+    u, v = every[:, axes[0]], every[:, axes[1]]
+    keep = np.ones(len(every), dtype=bool)
+    keep[1:] = (u[1:] != u[:-1]) | (v[1:] != v[:-1])
+    keep[starts] = True
+    # each ring's last kept point, dropped where it equals the ring's first (not alone)
+    kept = np.flatnonzero(keep)
+    counts = np.add.reduceat(keep, starts)
+    last = kept[np.cumsum(counts) - 1]
+    closing = (counts > 1) & (u[last] == u[starts]) & (v[last] == v[starts])
+    keep[last[closing]] = False
+    counts -= closing
+    every = every[keep]
+    return np.split(every, np.cumsum(counts)[:-1]), axes
 
 
 def _ranks(counts: np.ndarray) -> np.ndarray:
