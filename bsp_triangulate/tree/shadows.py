@@ -428,7 +428,7 @@ class Shadows:
         if self.side is None:
             yield from range(top, low_end - 1, -1)
             return
-        xs, ys = self.xs, self.ys
+        xs, ys, lo, hi = self.xs, self.ys, self.lo, self.hi
         levels, sizes, m = self.boxes.levels, self.boxes.sizes, self.boxes.m
         top_level = len(levels) - 1
         stack = [(top_level, k) for k in range(len(levels[top_level]))]
@@ -437,6 +437,13 @@ class Shadows:
             first = k * sizes[level]
             last = min(first + sizes[level], m)
             if first > top or last < low_end:
+                continue
+            if level and (first <= lo <= last or first <= hi <= last):
+                # a box that holds a base end straddles the chord's line between the ends
+                # (kind 0): entered untested
+                stack.append((level - 1, 2 * k))
+                if 2 * k + 1 < len(levels[level - 1]):
+                    stack.append((level - 1, 2 * k + 1))
                 continue
             box = levels[level][k]
             kind, alpha, beta, top_alpha, top_beta = self._box(box)
