@@ -141,12 +141,14 @@ def plan_targets(
     rings: list[np.ndarray],
     joins: list[tuple[int, int, bool]],
     grids: tuple[SegmentGrid, np.ndarray, SegmentGrid, np.ndarray, np.ndarray],
+    point_of: np.ndarray,
 ) -> dict[int, int]:
     """{island slot: target vertex id} for the islands joined in the order ``joins`` (slot,
     index of its bridge vertex in its ring, planned: False for the islands joined where they
     touch the sequence), where clear-cut. Every island must have 3 vertices or more.
     ``grids``: a grid over the ring vertices ``points`` (as zero-length segments), and one
-    over the ring edges from ``edge_a`` to ``edge_b``.
+    over the ring edges from ``edge_a`` to ``edge_b``; ``point_of``: per vertex the number of
+    its point (``shared_points.point_numbers``).
 
     A vertex that shares its point with another one or lies in two rings (touching rings)
     may occur in the sequence beside vertices of another ring: its ring angle says nothing,
@@ -175,11 +177,8 @@ def plan_targets(
     next_of[ids] = ids[first + (local + 1) % ring_len]
     # vertices in two rings, and vertices sharing their point
     special = np.bincount(ids, minlength=len(x)) > 1
-    order = points[np.lexsort((y[points], x[points]))]
-    same = (x[order[1:]] == x[order[:-1]]) & (y[order[1:]] == y[order[:-1]])
-    special[order[1:][same]] = True
-    special[order[:-1][same]] = True
-    del order, same
+    number = point_of[points]
+    special[points[np.bincount(number)[number] > 1]] = True
     shared = special[ids]
     if shared.any():
         # a touching vertex's rank is its earliest ring's: it is a candidate from then on
@@ -188,7 +187,7 @@ def plan_targets(
     h = np.array([int(rings[slot][index]) for slot, index, _ in joins], dtype=np.int64)
     hx, hy = x[h], y[h]
     cell = max(grid.size_x, grid.size_y)
-    radius = np.full(count, 2.0 * cell)
+    radius = np.full(count, 1.0 * cell)
     # islands whose target lies farther take the one-by-one search (boxes stay small)
     reach_limit = min(_FARTHEST * cell, 2.0 * max(grid.size_x * grid.nx, grid.size_y * grid.ny))
     target = np.full(count, -1, dtype=np.int64)

@@ -731,7 +731,7 @@ def bridge_islands(
     if not delaunay and _plannable(rings):
         joins = _join_order(len(rings), leftmost, partners, rank)
         grids = (bridger.points, bridger.point_ids, bridger.edges, bridger.edge_a, bridger.edge_b)
-        plan = plan_targets(x, y, rings, joins, grids)
+        plan = plan_targets(x, y, rings, joins, grids, bridger.point_of)
     joined = [False] * len(rings)
     touching = _TouchingQueue(partners, rank, joined)
     touching.mark(0)
