@@ -57,6 +57,8 @@ _SPIKE = 2.0
 _EPS = 2.0**-53
 # |fl(q - p)| <= (1 + eps) |q - p|, the extents and the bound itself are rounded: margin
 _BOUND_FACTOR = CCW_ERRBOUND * (1.0 + 32.0 * _EPS)
+# sequences of more positions are long (see _edges_across)
+LONG_SEQUENCE = 256
 
 
 @dataclass
@@ -88,7 +90,8 @@ class Sequences:
     end of a proven sequence (an island, its bridges and the islands joined to it), as rows
     (p, q, x0, x1, y0, y1) with their boxes, in order; ``run_after[p]`` and ``run_before[p]``:
     the first position at or after p, and the last at or before it, where the sequence
-    bends (:func:`straight_runs`)."""
+    bends (:func:`straight_runs`); ``long``: the position's sequence has more than
+    ``LONG_SEQUENCE`` positions."""
 
     sx: np.ndarray
     sy: np.ndarray
@@ -107,6 +110,7 @@ class Sequences:
     loops: np.ndarray
     run_after: np.ndarray
     run_before: np.ndarray
+    long: np.ndarray
     runs: RunBoxes | None = None
     circle_bounds: np.ndarray | None = None
 
@@ -184,9 +188,10 @@ class Sequences:
             bent_xy32 = bent_xy.astype(np.float32).view(np.complex64).ravel()
         loops = _loops(sx, sy, twin, proven_at)
         run_after, run_before = straight_runs(sx, sy, table[:, _TURN], starts)
+        long = np.repeat(lengths > LONG_SEQUENCE, lengths)
         return cls(
             sx, sy, xy, twin, extent_x, extent_y, table, exact, starts, proven_at, bent,
-            bent_xy, bent_xy32, bent_rank, loops, run_after, run_before,
+            bent_xy, bent_xy32, bent_rank, loops, run_after, run_before, long,
         )  # fmt: skip
 
 
@@ -675,7 +680,8 @@ def _edges_across(
     seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, corners: np.ndarray
 ) -> np.ndarray:
     """Per candidate with two new sides (lo + 1 < c < hi - 1) in a sub-polygon of more than
-    ``_RUN_MIN`` positions: an edge crosses its side c -> a (a = s_hi). Edges looked at: those
+    ``_RUN_MIN`` positions (``_ACROSS_LONG`` in a long sequence): an edge crosses its side
+    c -> a (a = s_hi). Edges looked at: those
     of the islands (and bridges) in [lo, hi) whose box meets the triangle's, and the chain's
     ``_WINDOW`` edges on either side of c. Not every edge: a crossing missed still leaves a
     tree that does not complete (see :func:`_bent_in_triangle`); a crossing found is real.
@@ -684,7 +690,8 @@ def _edges_across(
     it from side to side, and no edge crosses the base (an edge or a correct side).
     """
     bad = np.zeros(len(lo), dtype=bool)
-    other = np.flatnonzero((c > lo + 1) & (c < hi - 1) & (hi - lo > _RUN_MIN))
+    least = np.where(seqs.long[lo], _ACROSS_LONG, _RUN_MIN)
+    other = np.flatnonzero((c > lo + 1) & (c < hi - 1) & (hi - lo > least))
     if not len(other):
         return bad
     low, high = corners.min(axis=0)[other], corners.max(axis=0)[other]
@@ -739,7 +746,12 @@ def _edges_across(
 
 
 # chain edges looked at on either side of a candidate by _edges_across
-_WINDOW = 8
+_WINDOW = 16
+# ... and in the sub-polygons of long sequences (``Sequences.long``), of more than this many
+# positions (more than _RUN_MIN in short ones): there a tree built twice costs the tables of
+# up to _REOPEN_LEVELS large ancestors and rounds of both kinds of tables, which in a short
+# polygon's shallow tree cost less than the test of every candidate
+_ACROSS_LONG = 16
 
 
 def _cross(

@@ -891,3 +891,25 @@ def test_crossing_edges_across_fans(monkeypatch: pytest.MonkeyPatch) -> None:
     log = RestartLog(monkeypatch)
     assert mismatches(polygons)[0] == []
     assert len(log.restarted) > 2 * with_checks
+
+
+def test_small_sub_polygons_of_long_sequences_are_checked_for_crossings(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """In a long sequence, candidates of sub-polygons from ``_ACROSS_LONG`` positions on
+    are checked for edges across them too (a tree built again costs more there): fewer
+    trees are built again than with the check from ``_RUN_MIN`` positions only, and all
+    results equal the engine's."""
+    from bsp_triangulate.tree import lockstep as batch_bsp
+
+    polygons = radial_polygons(random.Random(31), 12)
+    monkeypatch.setattr(batch_bsp, "_ONE_BY_ONE", 0)
+    monkeypatch.setattr(batch_bsp, "LONG_SEQUENCE", 64)  # these polygons count as long
+    log = RestartLog(monkeypatch)
+    assert mismatches(polygons)[0] == []
+    checked = len(log.restarted)
+
+    monkeypatch.setattr(batch_bsp, "_ACROSS_LONG", batch_bsp._RUN_MIN)
+    log = RestartLog(monkeypatch)
+    assert mismatches(polygons)[0] == []
+    assert len(log.restarted) > checked
