@@ -751,7 +751,7 @@ _WINDOW = 16
 # positions (more than _RUN_MIN in short ones): there a tree built twice costs the tables of
 # up to _REOPEN_LEVELS large ancestors and rounds of both kinds of tables, which in a short
 # polygon's shallow tree cost less than the test of every candidate
-_ACROSS_LONG = 16
+_ACROSS_LONG = 8
 
 
 def _cross(
