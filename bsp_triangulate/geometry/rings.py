@@ -147,6 +147,8 @@ def normalise_rings(
     (``plane``: one of :data:`PLANES`)."""
     if isinstance(rings, np.ndarray) and rings.ndim == 2:
         rings = [rings]
+    if not isinstance(rings, (Sequence, np.ndarray)):
+        rings = list(rings)  # an iterator of rings
     if len(rings) > _MANY_RINGS:
         many = _many_rings(rings, plane)
         if many is not None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bsp_triangulate import triangulate
 from bsp_triangulate.geometry import rings as rings_module
 from bsp_triangulate.geometry.bridges import remove_spikes
 from bsp_triangulate.geometry.rings import normalise_rings
@@ -84,3 +85,16 @@ def test_a_spike_across_the_sequence_end_is_still_cancelled() -> None:
     y = np.array([0.0, 0.0, 4.0, 4.0, 2.0])
     seq = np.array([4, 0, 1, 2, 3, 0])
     assert remove_spikes(x, y, seq).tolist() == [0, 1, 2, 3]
+
+
+@pytest.mark.parametrize("islands", [2, rings_module._MANY_RINGS + 1])
+def test_rings_given_as_an_iterator_are_read_once(islands: int) -> None:
+    shell = np.array([(0.0, 0.0), (100.0, 0.0), (100.0, 100.0), (0.0, 100.0)])
+    holes = [
+        np.array([(x, 10.0), (x, 12.0), (x + 2.0, 12.0), (x + 2.0, 10.0)])
+        for x in np.linspace(5.0, 90.0, islands)
+    ]
+    rings = [shell, *holes]
+    expected = triangulate(rings)
+    result = triangulate(ring for ring in rings)
+    assert np.array_equal(result.triangles, expected.triangles)
