@@ -187,7 +187,7 @@ def plan_targets(
     h = np.array([int(rings[slot][index]) for slot, index, _ in joins], dtype=np.int64)
     hx, hy = x[h], y[h]
     cell = max(grid.size_x, grid.size_y)
-    radius = np.full(count, 1.0 * cell)
+    radius = np.full(count, cell)
     # islands whose target lies farther take the one-by-one search (boxes stay small)
     reach_limit = min(_FARTHEST * cell, 2.0 * max(grid.size_x * grid.nx, grid.size_y * grid.ny))
     target = np.full(count, -1, dtype=np.int64)

@@ -420,6 +420,22 @@ class Shadows:
             return kind, 0.0, least, math.pi, math.pi
         return kind, least, 0.0, math.pi, math.pi
 
+    def _ruled_out(self, box: tuple[float, ...]) -> bool:
+        """Every point of the chain box fails: strictly right of the chord, or left of it in
+        a vertex's shadow, beyond a corner's half-plane or in a ray."""
+        kind, alpha, beta, top_alpha, top_beta = self._box(box)
+        if kind < 0 or (kind == 1 and self.shadowed(alpha, beta)):
+            return True
+        if kind == 2 and beta > self.corner_beta + _MARGIN:
+            return True
+        if kind == 3 and alpha > self.corner_alpha + _MARGIN:
+            return True
+        return (
+            kind > 0
+            and bool(self.rays_a or self.rays_b)
+            and self._box_in_ray(box, alpha, beta, top_alpha, top_beta)
+        )
+
     def candidates(self, top: int, bottom: int | None = None) -> Iterator[int]:
         """Candidate positions in ``[bottom, top]`` (``bottom`` lo + 1 if not given), from the
         last back, that no box or point test rules out; vertices met (and shadows added by
@@ -438,26 +454,10 @@ class Shadows:
             last = min(first + sizes[level], m)
             if first > top or last < low_end:
                 continue
-            if level and (first <= lo <= last or first <= hi <= last):
-                # a box that holds a base end straddles the chord's line between the ends
-                # (kind 0): entered untested
-                stack.append((level - 1, 2 * k))
-                if 2 * k + 1 < len(levels[level - 1]):
-                    stack.append((level - 1, 2 * k + 1))
-                continue
-            box = levels[level][k]
-            kind, alpha, beta, top_alpha, top_beta = self._box(box)
-            if kind < 0 or (kind == 1 and self.shadowed(alpha, beta)):
-                continue
-            if kind == 2 and beta > self.corner_beta + _MARGIN:
-                continue
-            if kind == 3 and alpha > self.corner_alpha + _MARGIN:
-                continue
-            if (
-                kind > 0
-                and (self.rays_a or self.rays_b)
-                and self._box_in_ray(box, alpha, beta, top_alpha, top_beta)
-            ):
+            # a box that holds a base end straddles the chord's line between the ends (kind
+            # 0, which no test rules out): entered untested
+            holds_end = level and (first <= lo <= last or first <= hi <= last)
+            if not holds_end and self._ruled_out(levels[level][k]):
                 continue
             if level:
                 stack.append((level - 1, 2 * k))
