@@ -7,7 +7,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ..geometry.predicates import orient, orient_float, strictly_between_one
+from ..geometry.predicates import (
+    CCW_ERRBOUND,
+    UNDERFLOW_SLACK,
+    orient,
+    orient_float,
+    strictly_between_one,
+)
 
 
 def facing_one(xs: list[float], ys: list[float], lo: int, hi: int, c: int) -> bool:
@@ -45,6 +51,18 @@ def pair_fails(
     (base a -> b, apex c, counter-clockwise) and one edge p-q: the edge breaks condition 2
     or 3. ``sign`` is :func:`orient`, or :func:`orient_float` for grid-exact coordinates."""
     ax, ay, bx, by, cx, cy = corners
+    # most edges tested against a correct triangle start at one of its corners (the edges of
+    # the sub-polygon next to them): decided by the other end alone where that is off the
+    # corner's two sides
+    if (px == ax and py == ay) or (px == bx and py == by) or (px == cx and py == cy):
+        if not ((qx == ax and qy == ay) or (qx == bx and qy == by) or (qx == cx and qy == cy)):
+            inside = _from_corner(corners, px, py, qx, qy, sign)
+            if inside is not None:
+                return inside
+    elif (qx == ax and qy == ay) or (qx == bx and qy == by) or (qx == cx and qy == cy):
+        inside = _from_corner(corners, qx, qy, px, py, sign)
+        if inside is not None:
+            return inside
     fp1, fq1 = sign(bx, by, cx, cy, px, py), sign(bx, by, cx, cy, qx, qy)
     # both ends strictly outside side b-c: neither on a new side nor inside (T is ccw)
     if fp1 < 0 and fq1 < 0:
@@ -73,6 +91,40 @@ def pair_fails(
     return min(g) < 0 < max(g)
 
 
+def _from_corner(
+    corners: tuple[float, float, float, float, float, float],
+    ux: float,
+    uy: float,
+    vx: float,
+    vy: float,
+    sign: Callable[[float, float, float, float, float, float], int],
+) -> bool | None:
+    """:func:`pair_fails` of an edge from the corner u of the counter-clockwise triangle
+    ``corners`` to a point v at no corner: it breaks condition 2 or 3 exactly when v lies
+    strictly inside the corner's angle (strictly left of both sides at u: the edge then
+    enters the open triangle), and neither where v lies strictly right of one of them (no
+    point of the edge but u is then in the closed triangle). None where v lies on the line
+    of one of those sides, or u is at two corners (a degenerate triangle)."""
+    ax, ay, bx, by, cx, cy = corners
+    at_a = ux == ax and uy == ay
+    at_b = ux == bx and uy == by
+    if at_a and not at_b:
+        if ux == cx and uy == cy:
+            return None
+        first, second = sign(ax, ay, bx, by, vx, vy), sign(cx, cy, ax, ay, vx, vy)
+    elif at_b and not at_a:
+        if ux == cx and uy == cy:
+            return None
+        first, second = sign(ax, ay, bx, by, vx, vy), sign(bx, by, cx, cy, vx, vy)
+    elif not at_a:
+        first, second = sign(bx, by, cx, cy, vx, vy), sign(cx, cy, ax, ay, vx, vy)
+    else:
+        return None
+    if first == 0 or second == 0:
+        return None
+    return first > 0 and second > 0
+
+
 def edge_blocks(
     corners: tuple[float, float, float, float, float, float],
     xmin: float,
@@ -91,6 +143,14 @@ def edge_blocks(
         return False
     if (py < ymin and qy < ymin) or (py > ymax and qy > ymax):
         return False
+    # both ends surely strictly right of the side b -> c (float orientations beyond
+    # orient's static bound, the exact sign): pair_fails' first test, without its calls
+    _, _, bx, by, cx, cy = corners
+    left, right = (bx - px) * (cy - py), (by - py) * (cx - px)
+    if left - right < -(CCW_ERRBOUND * (abs(left) + abs(right)) + UNDERFLOW_SLACK):
+        left, right = (bx - qx) * (cy - qy), (by - qy) * (cx - qx)
+        if left - right < -(CCW_ERRBOUND * (abs(left) + abs(right)) + UNDERFLOW_SLACK):
+            return False
     return pair_fails(corners, px, py, qx, qy, sign)
 
 

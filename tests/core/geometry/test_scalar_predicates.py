@@ -92,6 +92,41 @@ def test_scalar_candidate_tests_equal_vectorised(seed: int, scale: float) -> Non
     assert facing.any() and scalar and len(scalar) < len(ccw)
 
 
+@pytest.mark.parametrize("scale", SCALES)
+def test_edges_from_a_corner_equal_vectorised(scale: float) -> None:
+    # most edges a correct triangle is tested against start at one of its corners; their other
+    # end on every point of a small grid (on the lines of the corner's sides, on the corners,
+    # beyond them) against counter-clockwise triangles of the same grid
+    grid = np.arange(-3, 4, dtype=np.float64) * scale
+    gx, gy = (v.ravel() for v in np.meshgrid(grid, grid))
+    rng = np.random.default_rng(5)
+    tested = 0
+    for _ in range(40):
+        a, b, c = (rng.integers(0, len(gx), 3)).tolist()
+        ax, ay, bx, by, cx, cy = gx[a], gy[a], gx[b], gy[b], gx[c], gy[c]
+        if orient(ax, ay, bx, by, cx, cy) <= 0:
+            continue
+        corners = (ax, ay, bx, by, cx, cy)
+        for ux, uy in ((ax, ay), (bx, by), (cx, cy)):
+            # positions b (lo), c, a (hi), then the edges (corner, v) for every grid point v
+            sx = np.concatenate([[bx, cx, ax], np.column_stack([np.full_like(gx, ux), gx]).ravel()])
+            sy = np.concatenate([[by, cy, ay], np.column_stack([np.full_like(gy, uy), gy]).ravel()])
+            edges = 3 + 2 * np.arange(len(gx))
+            rows = np.zeros(len(edges), dtype=np.int64)
+            failing = set()
+            for e in edges.tolist():
+                if len(pairs_failing(sx, sy, 0, 2, np.array([1]), rows[:1], np.array([e]))[0]):
+                    failing.add(e)
+            for forward in (True, False):
+                for e in edges.tolist():
+                    p, q = (sx[e], sy[e]), (sx[e + 1], sy[e + 1])
+                    if not forward:
+                        p, q = q, p
+                    assert pair_fails(corners, *p, *q) == (e in failing), (corners, p, q)
+                    tested += 1
+    assert tested > 3000
+
+
 @pytest.mark.parametrize("exponent", [-600, -540, -538, 486, 500, 700])
 def test_grid_exact_only_where_the_determinants_stay_in_range(exponent: int) -> None:
     # an integer grid scaled by 2**exponent: its determinants are multiples of
