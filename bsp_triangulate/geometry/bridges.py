@@ -130,19 +130,14 @@ def _order_along(x: np.ndarray, y: np.ndarray, a: int, b: int, inside: list[int]
     return kept
 
 
-# spacing of the order labels of the sequence's occurrences (room for later insertions): at
-# least this, and as much as int64 labels leave for the sequence's longest length
-_LABEL_GAP = 1 << 32
-_LABEL_ROOM = 1 << 62
-
-
 class _Bridger:
     """Joins islands one by one into the sequence (outer ring first).
 
     The sequence is a cyclic linked list of occurrences (nodes), so that a splice costs the
     island's length, not the sequence's: ``vid[node]`` is the vertex, ``nxt``/``prv`` link the
-    nodes, node 0 is the sequence's first element. ``label`` grows along the sequence: comparing
-    labels compares positions.
+    nodes, node 0 is the sequence's first element (the last one links back to it). The order
+    of two nodes, rarely needed (which of a vertex's occurrences comes first), is found by
+    walking the list (:meth:`earliest`).
     """
 
     def __init__(
@@ -173,11 +168,9 @@ class _Bridger:
         self.point_of = point_numbers(x, y)
         self.point_in_seq = np.zeros(len(x), dtype=bool)
         capacity = len(starts) + 2 * len(rings)
-        self.gap = max(_LABEL_GAP, _LABEL_ROOM // max(capacity, 1))
         self.vid = np.empty(capacity, dtype=np.int64)
         self.nxt = np.empty(capacity, dtype=np.int64)
         self.prv = np.empty(capacity, dtype=np.int64)
-        self.label = np.empty(capacity, dtype=np.int64)
         self.count = 0
         # first occurrence of each vertex (-1: not in the sequence) and any further ones
         self.first = np.full(len(x), -1, dtype=np.int64)
@@ -186,7 +179,6 @@ class _Bridger:
         nodes = self._new_nodes(outer)
         self.nxt[nodes] = np.roll(nodes, -1)
         self.prv[nodes] = np.roll(nodes, 1)
-        self.label[nodes] = np.arange(len(nodes), dtype=np.int64) * self.gap
         self._add_points(outer)
 
     def _new_nodes(self, vids: np.ndarray) -> np.ndarray:
@@ -207,17 +199,6 @@ class _Bridger:
         """Insert the vertices ``vids`` into the sequence right after ``node``."""
         nodes = self._new_nodes(vids)
         after = int(self.nxt[node])
-        low = int(self.label[node])
-        if after == 0:  # at the end of the sequence
-            steps = np.arange(1, len(nodes) + 1, dtype=np.int64) * self.gap
-        else:
-            gap = (int(self.label[after]) - low) // (len(nodes) + 1)
-            if gap < 1:
-                self._relabel()
-                low = int(self.label[node])
-                gap = (int(self.label[after]) - low) // (len(nodes) + 1)
-            steps = np.arange(1, len(nodes) + 1, dtype=np.int64) * gap
-        self.label[nodes] = low + steps
         self.nxt[nodes[:-1]] = nodes[1:]
         self.prv[nodes[1:]] = nodes[:-1]
         self.nxt[node], self.prv[nodes[0]] = nodes[0], node
@@ -226,20 +207,11 @@ class _Bridger:
     def _insert_few_after(self, node: int, vids: list[int]) -> None:
         """:meth:`_insert_after` of a few vertices, element by element (no numpy calls on tiny
         arrays); the same occurrences and the same order."""
-        label, nxt, prv = self.label, self.nxt, self.prv
+        nxt, prv = self.nxt, self.prv
         after = int(nxt[node])
-        low = int(label[node])
-        if after == 0:  # at the end of the sequence
-            gap = self.gap
-        else:
-            gap = (int(label[after]) - low) // (len(vids) + 1)
-            if gap < 1:
-                self._relabel()
-                low = int(label[node])
-                gap = (int(label[after]) - low) // (len(vids) + 1)
         first, more, vid, in_seq = self.first, self.more, self.vid, self.in_seq
         previous = node
-        for step, v in enumerate(vids, 1):
+        for v in vids:
             new = self.count
             self.count += 1
             vid[new] = v
@@ -248,19 +220,43 @@ class _Bridger:
                 first[v] = new
             else:
                 more.setdefault(v, []).append(new)
-            label[new] = low + step * gap
             nxt[previous], prv[new] = new, previous
             previous = new
         nxt[previous], prv[after] = after, previous
 
-    def _relabel(self) -> None:
-        """Evenly spaced labels again (when some gap has run out)."""
-        order = self._order()
-        self.label[order] = np.arange(len(order), dtype=np.int64) * self.gap
-
     def _order(self) -> np.ndarray:
         """The sequence's nodes in order."""
-        return np.argsort(self.label[: self.count], kind="stable")
+        nxt = self.nxt[: self.count].tolist()
+        order = [0] * self.count
+        node = 0
+        for index in range(1, self.count):
+            node = nxt[node]
+            order[index] = node
+        return np.array(order, dtype=np.int64)
+
+    def _before(self, a: int, b: int) -> bool:
+        """Node ``a`` comes before node ``b`` (another one) in the sequence: walks from both
+        go forward in turn until one meets the other or passes the sequence's end, so the
+        cost is about twice the shorter of the two."""
+        if a == 0 or b == 0:
+            return a == 0
+        nxt = self.nxt
+        p, q = a, b
+        while True:
+            p = int(nxt[p])
+            if p == b or p == 0:
+                return p == b
+            q = int(nxt[q])
+            if q == a or q == 0:
+                return q == 0
+
+    def earliest(self, nodes: list[int]) -> int:
+        """The node of ``nodes`` (distinct) that comes first in the sequence."""
+        best = nodes[0]
+        for node in nodes[1:]:
+            if self._before(node, best):
+                best = node
+        return best
 
     @property
     def seq(self) -> np.ndarray:
@@ -355,7 +351,7 @@ class _Bridger:
         ks = [k for k in self.occurrences(vid) if self._inside_angle(k, hx, hy)]
         if not ks:
             return None
-        return min(ks, key=lambda k: int(self.label[k])), vid
+        return self.earliest(ks), vid
 
     def linked(self, vid: int, island: np.ndarray, h_index: int) -> tuple[int, int] | None:
         """(node, vertex id) of the bridge along a link (:mod:`.delaunay_links`: a Gabriel
@@ -545,10 +541,12 @@ class _Bridger:
             dist = float((x[vid] - x[h]) ** 2 + (y[vid] - y[h]) ** 2)
             if dist <= best * (1 + _DISTANCE_MARGIN):
                 exact = exact_sq_distance(x[vid], y[vid], x[h], y[h])
-                options.extend((exact, int(self.label[k]), k, vid) for k in ks)
+                options.extend((exact, k, vid) for k in ks)
         # ties go to the first occurrence in the sequence
-        _, _, k, vid = min(options)
-        return k, vid
+        least = min(exact for exact, _, _ in options)
+        nearest = {k: vid for exact, k, vid in options if exact == least}
+        k = self.earliest(list(nearest))
+        return k, nearest[k]
 
     def diametral_disk_empty(self, h: int, v: int) -> bool:
         """No vertex (of any ring) lies strictly inside the circle with diameter h-v.

@@ -118,7 +118,8 @@ class Bridging(Protocol):
     edges: SegmentGrid  # the ring edges
     edge_a: np.ndarray
     edge_b: np.ndarray
-    label: np.ndarray
+
+    def earliest(self, nodes: list[int]) -> int: ...
 
     def _valid_occurrences(self, vid: int, island: np.ndarray, h_index: int) -> list[int]: ...
 
@@ -166,7 +167,7 @@ def delaunay_point_bridge(bridger: Bridging, h: int, more: int = 8) -> tuple[int
             if not ks:
                 continue
             if _disk_hidden(bridger, h, vid):
-                return min(ks, key=lambda k: int(bridger.label[k])), vid
+                return bridger.earliest(ks), vid
             if budget is None:
                 budget = more
         if radius >= full:
@@ -573,4 +574,4 @@ def nearest_point_bridge(bridger: Bridging, h: int, v: int) -> tuple[int, int] |
         return None
     if len(ks) == 1:
         return ks[0], v
-    return min(ks, key=lambda k: int(bridger.label[k])), v
+    return bridger.earliest(ks), v

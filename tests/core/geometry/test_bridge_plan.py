@@ -156,3 +156,27 @@ def test_islands_touching_the_shell_and_each_other_get_the_same_bridges(
     used = count_found(monkeypatch, "planned")
     assert np.array_equal(bridged(rings, True, monkeypatch), expected)
     assert sum(used) > 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_earliest_occurrence_is_the_first_in_the_sequence(seed: int) -> None:
+    # islands spliced in at random nodes, often right after one just spliced in (nested, as
+    # a river's islands chain up): every pair of nodes compares as their sequence positions
+    rng = np.random.default_rng(seed)
+    shell = np.array([(0.0, 0.0), (100.0, 0.0), (100.0, 100.0), (0.0, 100.0)])
+    islands = [square(x, y, 0.5) for x, y in rng.uniform(1.0, 98.0, (40, 2))]
+    rings = [np.arange(4)] + [np.arange(4 + 4 * k, 8 + 4 * k) for k in range(len(islands))]
+    x, y = np.concatenate([shell, *islands]).T
+    bridger = bridges._Bridger(x, y, rings)
+    for k, island in enumerate(rings[1:]):
+        node = bridger.count - 1 if k % 3 else int(rng.integers(0, bridger.count))
+        bridger.splice(node, island, 0)
+    order = bridger._order()
+    # the order walks every node once along the links, from node 0
+    assert order[0] == 0 and sorted(order.tolist()) == list(range(bridger.count))
+    assert np.array_equal(bridger.nxt[order[:-1]], order[1:]) and bridger.nxt[order[-1]] == 0
+    position = np.empty(bridger.count, dtype=np.int64)
+    position[order] = np.arange(bridger.count)
+    for _ in range(300):
+        nodes = rng.choice(bridger.count, size=int(rng.integers(1, 5)), replace=False).tolist()
+        assert bridger.earliest(nodes) == min(nodes, key=lambda k: position[k])
