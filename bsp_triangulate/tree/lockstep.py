@@ -771,7 +771,8 @@ def _all_tables(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_tables` over every position of the sub-polygons.
 
-    Items go in passes of bounded size, each in tables of a few padded widths.
+    Items go in passes of bounded size: run by run (:func:`_bad_runs`) where a pass holds a
+    sub-polygon of more than ``_RUN_MIN`` positions, else in tables of a few padded widths.
     """
     n = len(c)
     bad = np.zeros(n, dtype=bool)
@@ -785,13 +786,11 @@ def _all_tables(
     for first, stop in zip(bounds[:-1], bounds[1:]):
         idx = np.arange(first, stop)
         part = size[first:stop]
-        wide = part > _RUN_MIN
-        if wide.any():
-            rows = idx[wide]
-            bad[rows], inside[rows] = _bad_runs(seqs, lo[rows], hi[rows], c[rows])
-            idx, part = idx[~wide], part[~wide]
-            if not len(idx):
-                continue
+        if (part > _RUN_MIN).any():
+            # the small ones too run by run: one table call, not two (in the rounds of few
+            # items, a large polygon's subtrees, the calls are most of the cost)
+            bad[idx], inside[idx] = _bad_runs(seqs, lo[idx], hi[idx], c[idx])
+            continue
         widths = np.minimum(np.searchsorted(_WIDTHS, part), len(_WIDTHS) - 1)
         if len(idx) * int(part.max()) <= _ONE_TABLE:
             widths[:] = widths.max()  # few items: one table, fewer numpy calls
@@ -805,7 +804,8 @@ def _all_tables(
     return bad, inside
 
 
-# sub-polygons of more than this many vertices are tested run by run (``_bad_runs``)
+# sub-polygons of more than this many vertices are tested run by run (``_bad_runs``), and
+# so are the others of the same pass of ``_all_tables``
 _RUN_MIN = 64
 # positions per run: a run's table column holds its _RUN + 1 vertices, the edges between them
 _RUN = 8

@@ -184,6 +184,38 @@ def test_runs_decide_like_the_whole_table(grid: bool) -> None:
         assert (orient_many(sx[u], sy[u], sx[v], sy[v], sx[p], sy[p]) > 0).all()
 
 
+@pytest.mark.parametrize("grid", [True, False])
+def test_runs_decide_like_the_whole_table_on_small_sub_polygons(grid: bool) -> None:
+    # a pass of the tables that holds one large sub-polygon takes every item run by run, so
+    # the runs must also decide the smallest ones: 4 to 65 vertices, within one run or across
+    # run ends; candidates anywhere, often the ear hi - 1 or the last one, lo + 1
+    from bsp_triangulate.geometry.predicates import orient_many
+    from bsp_triangulate.tree import lockstep as batch_bsp
+
+    rng = np.random.default_rng(43)
+    parts = [bridged_star(rng, int(rng.integers(70, 200)), grid) for _ in range(30)]
+    starts, seqs = laid_out(parts, grid)
+    sx, sy, twin = seqs.sx, seqs.sy, seqs.twin
+    owner = rng.integers(0, len(parts), 20_000)
+    length = np.array([len(p[0]) for p in parts])[owner]
+    span = rng.integers(3, 65, len(owner))
+    lo = starts[owner] + 1 + (rng.random(len(owner)) * (length - span - 2)).astype(np.int64)
+    hi = lo + span
+    c = lo + 1 + (rng.random(len(lo)) * (span - 1)).astype(np.int64)
+    pick = rng.random(len(lo))
+    c[pick < 0.3] = hi[pick < 0.3] - 1  # the ear
+    c[pick > 0.9] = lo[pick > 0.9] + 1
+    ccw = orient_many(sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]) > 0
+    lo, hi, c = lo[ccw], hi[ccw], c[ccw]
+    bad, inside = batch_bsp._bad_rows(
+        sx, sy, lo, hi, c, seqs.extent_x[c], seqs.extent_y[c], twin, 66, grid
+    )
+    run_bad, run_inside = batch_bsp._bad_runs(seqs, lo, hi, c)
+    assert len(lo) > 5_000 and 0.05 < bad.mean() < 0.95
+    assert np.array_equal(run_bad, bad)
+    assert np.array_equal(run_inside >= 0, inside >= 0)
+
+
 def combs_and_stars(rng: np.random.Generator, combs: int, stars: int, wobble: float) -> tuple:
     """Near-collinear combs (5-24 vertices) and bridged stars (6-29 points) laid out as the
     batch path lays out sequences: (parts as (points, twin), starts, ``Sequences``)."""
