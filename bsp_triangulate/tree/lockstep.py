@@ -844,7 +844,9 @@ def _bad_runs(
     if seqs.exact:
         keep = (det >= 0).all(axis=0)
     else:
-        keep = (det >= -row_bound(dx, dy, extent_x, extent_y)).all(axis=0)
+        # a run leaves only where it is surely outside a side: a product that overflows
+        # (nan) keeps it for the tables, which decide such signs exactly
+        keep = ~(det < -row_bound(dx, dy, extent_x, extent_y)).any(axis=0)
     bad = np.zeros(n, dtype=bool)
     inside = np.full(n, -1, dtype=np.int64)
     tested = np.flatnonzero(keep)

@@ -393,3 +393,22 @@ def test_rule_delaunay_float_guess_equals_exact_tries_on_stars_of_many_sizes(
     # a padded copy of a guess at lo + 1 decides as that guess (else about 18 % are tried)
     assert counts["tried"] < 0.05 * counts["nodes"]
     assert counts["padded"] > 100
+
+
+def test_a_run_whose_box_test_overflows_is_tested() -> None:
+    # coordinates of 1e154: the box test's products overflow (nan), which surely-outside must
+    # not read as outside; the full table finds the triangle blocked, so must the runs
+    from bsp_triangulate.tree import lockstep as batch_bsp
+
+    points = [(-2, -4), (-2, -1), (3, 0), (-4, -1), (1, 3), (2, 4), (-3, 3), (-4, 1), (-2, -3)]
+    points += [(1, -2), (1, -2), (-3, 2), (-2, -4)]
+    xy = np.array(points, dtype=np.float64) * 1e154
+    sx, sy = xy[:, 0].copy(), xy[:, 1].copy()
+    lo, hi, c = np.array([2]), np.array([12]), np.array([8])
+    with np.errstate(all="ignore"):
+        seqs = batch_bsp.Sequences.of(sx, sy, np.full(len(xy), -1), np.array([0]), False)
+        bad, _ = batch_bsp._bad_rows(
+            sx, sy, lo, hi, c, seqs.extent_x[c], seqs.extent_y[c], seqs.twin, 11, False
+        )
+        run_bad, _ = batch_bsp._bad_runs(seqs, lo, hi, c)
+    assert bad.tolist() == run_bad.tolist() == [True]
