@@ -966,8 +966,8 @@ class _Tree:
         ux, uy = xs[high] - ox, ys[high] - oy
         wx, wy = xs[high - count] - ox, ys[high - count] - oy
         det = ux * wy - uy * wx
-        if not det < 0:
-            return None
+        if not -math.inf < det < 0:
+            return None  # also where the products overflow: no trusted triangle
         start = math.atan2(uy, ux)
         reach = 0.0
         angles = []
@@ -976,7 +976,10 @@ class _Tree:
             vx, vy = xs[p] - ox, ys[p] - oy
             if abs(vx) <= near and abs(vy) <= near:
                 return None  # its angle is not trusted
-            reach = max(reach, ((vx * wy - vy * wx) + (ux * vy - uy * vx)) / det)
+            share = ((vx * wy - vy * wx) + (ux * vy - uy * vx)) / det
+            if share != share:
+                return None  # nan: an overflow (max would pass it over)
+            reach = max(reach, share)
             turned = max(turned, (start - math.atan2(vy, vx)) % _TWO_PI)
             angles.append(turned)
         if not reach < _FAN_REACH or turned > math.pi - _FAN_MARGIN:

@@ -106,6 +106,24 @@ def test_far_or_tiny_comb_polygon_is_tiled_exactly(offset: float, scale: float, 
     assert sum(areas) == exact_area2(points)
 
 
+@pytest.mark.parametrize("scale", [1.0, 1e153, 1e155, 1e300])
+def test_long_star_with_overflowing_products_is_tiled_exactly(scale: float) -> None:
+    # 160 vertices: the one-polygon path decides runs of ears (fans) in batches; with
+    # coordinates past 1e153 the float triangle holding a batch overflowed (nan), which the
+    # reach's max() passed over, and a batch of ears crossing the boundary was taken
+    rng = np.random.default_rng(14)
+    n = 160
+    angle = np.linspace(0, 2 * np.pi, n, endpoint=False) + rng.uniform(0, 0.3 * 2 * np.pi / n, n)
+    radius = np.where(np.arange(n) % 2 == 0, 1000.0, rng.uniform(300, 900, n))
+    ring = np.round(np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])) * scale
+    with np.errstate(all="ignore"):
+        result = triangulate([ring], rule="first", invalid="fail")
+    assert len(result) == n - 2
+    areas = triangle_areas2(result)
+    assert all(area > 0 for area in areas)
+    assert sum(areas) == exact_area2(ring)
+
+
 def test_vertical_wall_is_triangulated_in_its_own_plane() -> None:
     wall = [(0, 0, 0), (5, 0, 0), (5, 0, 3), (2, 0, 4), (0, 0, 3)]
     result = triangulate([wall])
