@@ -151,37 +151,45 @@ def every_candidate(parts: list, starts: np.ndarray, smallest: int) -> tuple:
     return np.array(lo, dtype=np.int64), np.array(hi, dtype=np.int64), np.array(c, dtype=np.int64)
 
 
-@pytest.mark.parametrize("grid", [True, False])
-def test_runs_decide_like_the_whole_table(grid: bool) -> None:
+def runs_against_the_whole_table(seqs, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> tuple:
+    """The counter-clockwise ones of the items (sub-polygon [lo, hi], candidate c), decided by
+    ``_bad_runs`` and by one full-width ``_bad_rows`` table: both find the same failures and
+    a vertex inside for the same items, and every vertex reported inside is strictly inside
+    its triangle. Returns (lo, hi, c, bad) of those items."""
     from bsp_triangulate.geometry.predicates import orient_many
     from bsp_triangulate.tree import lockstep as batch_bsp
 
+    sx, sy = seqs.sx, seqs.sy
+    ccw = orient_many(sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]) > 0
+    lo, hi, c = lo[ccw], hi[ccw], c[ccw]
+    width = int((hi - lo).max()) + 1
+    bad, inside = batch_bsp._bad_rows(
+        sx, sy, lo, hi, c, seqs.extent_x[c], seqs.extent_y[c], seqs.twin, width, seqs.exact
+    )
+    run_bad, run_inside = batch_bsp._bad_runs(seqs, lo, hi, c)
+    assert np.array_equal(run_bad, bad)
+    assert np.array_equal(run_inside >= 0, inside >= 0)
+    found = np.flatnonzero(run_inside >= 0)
+    p = run_inside[found]
+    a, b, q = hi[found], lo[found], c[found]
+    for u, v in ((a, b), (b, q), (q, a)):
+        assert (orient_many(sx[u], sy[u], sx[v], sy[v], sx[p], sy[p]) > 0).all()
+    return lo, hi, c, bad
+
+
+@pytest.mark.parametrize("grid", [True, False])
+def test_runs_decide_like_the_whole_table(grid: bool) -> None:
     rng = np.random.default_rng(41)
     parts = [bridged_star(rng, int(rng.integers(70, 200)), grid) for _ in range(30)]
     starts, seqs = laid_out(parts, grid)
-    sx, sy, twin = seqs.sx, seqs.sy, seqs.twin
     # random sub-polygons [lo, hi] of more than 64 vertices and counter-clockwise candidates
     owner = rng.integers(0, len(parts), 20_000)
     length = np.array([len(p[0]) for p in parts])[owner]
     lo = starts[owner] + rng.integers(1, length - 66)
     hi = np.minimum(lo + 65 + rng.integers(0, length), starts[owner] + length - 1)
     c = lo + 1 + (rng.random(len(lo)) * (hi - lo - 1)).astype(np.int64)
-    ccw = orient_many(sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]) > 0
-    lo, hi, c = lo[ccw], hi[ccw], c[ccw]
-    width = int((hi - lo).max()) + 1
-    bad, inside = batch_bsp._bad_rows(
-        sx, sy, lo, hi, c, seqs.extent_x[c], seqs.extent_y[c], twin, width, grid
-    )
-    run_bad, run_inside = batch_bsp._bad_runs(seqs, lo, hi, c)
+    lo, _, _, bad = runs_against_the_whole_table(seqs, lo, hi, c)
     assert len(lo) > 5_000 and 0.05 < bad.mean() < 0.95
-    assert np.array_equal(run_bad, bad)
-    assert np.array_equal(run_inside >= 0, inside >= 0)
-    # a position reported inside is strictly inside its triangle
-    found = np.flatnonzero(run_inside >= 0)
-    p = run_inside[found]
-    a, b, q = hi[found], lo[found], c[found]
-    for u, v in ((a, b), (b, q), (q, a)):
-        assert (orient_many(sx[u], sy[u], sx[v], sy[v], sx[p], sy[p]) > 0).all()
 
 
 @pytest.mark.parametrize("grid", [True, False])
@@ -189,13 +197,9 @@ def test_runs_decide_like_the_whole_table_on_small_sub_polygons(grid: bool) -> N
     # a pass of the tables that holds one large sub-polygon takes every item run by run, so
     # the runs must also decide the smallest ones: 4 to 65 vertices, within one run or across
     # run ends; candidates anywhere, often the ear hi - 1 or the last one, lo + 1
-    from bsp_triangulate.geometry.predicates import orient_many
-    from bsp_triangulate.tree import lockstep as batch_bsp
-
     rng = np.random.default_rng(43)
     parts = [bridged_star(rng, int(rng.integers(70, 200)), grid) for _ in range(30)]
     starts, seqs = laid_out(parts, grid)
-    sx, sy, twin = seqs.sx, seqs.sy, seqs.twin
     owner = rng.integers(0, len(parts), 20_000)
     length = np.array([len(p[0]) for p in parts])[owner]
     span = rng.integers(3, 65, len(owner))
@@ -205,15 +209,8 @@ def test_runs_decide_like_the_whole_table_on_small_sub_polygons(grid: bool) -> N
     pick = rng.random(len(lo))
     c[pick < 0.3] = hi[pick < 0.3] - 1  # the ear
     c[pick > 0.9] = lo[pick > 0.9] + 1
-    ccw = orient_many(sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]) > 0
-    lo, hi, c = lo[ccw], hi[ccw], c[ccw]
-    bad, inside = batch_bsp._bad_rows(
-        sx, sy, lo, hi, c, seqs.extent_x[c], seqs.extent_y[c], twin, 66, grid
-    )
-    run_bad, run_inside = batch_bsp._bad_runs(seqs, lo, hi, c)
+    lo, _, _, bad = runs_against_the_whole_table(seqs, lo, hi, c)
     assert len(lo) > 5_000 and 0.05 < bad.mean() < 0.95
-    assert np.array_equal(run_bad, bad)
-    assert np.array_equal(run_inside >= 0, inside >= 0)
 
 
 def combs_and_stars(rng: np.random.Generator, combs: int, stars: int, wobble: float) -> tuple:
@@ -404,11 +401,9 @@ def test_a_run_whose_box_test_overflows_is_tested() -> None:
     points += [(1, -2), (1, -2), (-3, 2), (-2, -4)]
     xy = np.array(points, dtype=np.float64) * 1e154
     sx, sy = xy[:, 0].copy(), xy[:, 1].copy()
-    lo, hi, c = np.array([2]), np.array([12]), np.array([8])
     with np.errstate(all="ignore"):
         seqs = batch_bsp.Sequences.of(sx, sy, np.full(len(xy), -1), np.array([0]), False)
-        bad, _ = batch_bsp._bad_rows(
-            sx, sy, lo, hi, c, seqs.extent_x[c], seqs.extent_y[c], seqs.twin, 11, False
+        lo, _, _, bad = runs_against_the_whole_table(
+            seqs, np.array([2]), np.array([12]), np.array([8])
         )
-        run_bad, _ = batch_bsp._bad_runs(seqs, lo, hi, c)
-    assert bad.tolist() == run_bad.tolist() == [True]
+    assert len(lo) == 1 and bad.tolist() == [True]
