@@ -41,7 +41,6 @@ from ..geometry.predicates_batch import (
     orient_items,
     orient_rows,
     row_bound,
-    sure_signs,
 )
 from ..geometry.rings_batch import ragged_index
 from .one_by_one import first_subtree
@@ -720,29 +719,62 @@ def _edges_across(
     first, count, owner = (np.concatenate(v) for v in (firsts, counts, owners))
     count = np.maximum(count, 0)
     # each range's points once: an edge can cross the segment c -> a only where its two
-    # ends are not surely on one side of the line (float signs beyond their error bound;
-    # within it, 0) and its box meets the segment's; only those get the exact test
-    sx, sy = seqs.sx, seqs.sy
+    # ends are not surely on one side of the line (float signs beyond the sequence's error
+    # bound; within it, 0) and its box meets the segment's; only those get exact tests
     points = ragged_index(first, count + 1)
     item = np.repeat(owner, count + 1)
-    ux, uy, vx, vy = sx[c_o], sy[c_o], sx[hi_o], sy[hi_o]
-    side = sure_signs(ux[item], uy[item], vx[item], vy[item], sx[points], sy[points])
+    ux, uy, vx, vy = seqs.sx[c_o], seqs.sy[c_o], seqs.sx[hi_o], seqs.sy[hi_o]
+    dx, dy = vx - ux, vy - uy
+    bound = row_bound(dx, dy, seqs.extent_x[c_o], seqs.extent_y[c_o])
+    pxy = np.take(seqs.xy, points, axis=0)
+    px, py = pxy[:, 0], pxy[:, 1]
+    det = np.take(dx, item) * (py - np.take(uy, item))
+    det -= np.take(dy, item) * (px - np.take(ux, item))
+    b = np.take(bound, item)
+    side = (det > b).view(np.int8) - (det < -b).view(np.int8)
     # edge k runs from entry k to entry k + 1 of the same range (not from a range's last)
-    last = np.cumsum(count + 1) - 1
-    apart = np.ones(len(points), dtype=bool)
-    apart[last] = False
-    k = np.flatnonzero(apart[:-1] & (side[:-1] * side[1:] <= 0))
+    apart = side[:-1] * side[1:] <= 0
+    apart[np.cumsum(count + 1)[:-1] - 1] = False
+    k = np.flatnonzero(apart)
     item, e = item[k], points[k]
-    ex0, ex1 = np.minimum(sx[e], sx[e + 1]), np.maximum(sx[e], sx[e + 1])
-    ey0, ey1 = np.minimum(sy[e], sy[e + 1]), np.maximum(sy[e], sy[e + 1])
+    x0, x1, y0, y1 = px[k], px[k + 1], py[k], py[k + 1]
     ax, ay, cx, cy = vx[item], vy[item], ux[item], uy[item]
-    keep = (ex1 >= np.minimum(ax, cx)) & (ex0 <= np.maximum(ax, cx))
-    keep &= (ey1 >= np.minimum(ay, cy)) & (ey0 <= np.maximum(ay, cy))
+    keep = (np.maximum(x0, x1) >= np.minimum(ax, cx)) & (np.minimum(x0, x1) <= np.maximum(ax, cx))
+    keep &= (np.maximum(y0, y1) >= np.minimum(ay, cy)) & (np.minimum(y0, y1) <= np.maximum(ay, cy))
     keep &= (e != c_o[item]) & (e + 1 != c_o[item])
-    item, e = item[keep], e[keep]
-    if len(item):
-        bad[other[item[_cross(seqs, c_o[item], hi_o[item], e, e + 1)]]] = True
+    keep = np.flatnonzero(keep)
+    if len(keep):
+        k = k[keep]
+        hit = _crossing_signs(
+            seqs.exact, side[k], side[k + 1], px[k], py[k], px[k + 1], py[k + 1],
+            cx[keep], cy[keep], ax[keep], ay[keep],
+        )  # fmt: skip
+        bad[other[item[keep[hit]]]] = True
     return bad
+
+
+def _crossing_signs(
+    exact: bool,
+    o1: np.ndarray,
+    o2: np.ndarray,
+    px: np.ndarray,
+    py: np.ndarray,
+    qx: np.ndarray,
+    qy: np.ndarray,
+    ux: np.ndarray,
+    uy: np.ndarray,
+    vx: np.ndarray,
+    vy: np.ndarray,
+) -> np.ndarray:
+    """Per item: the segments pq and uv cross at a point inside both, given sure signs
+    ``o1`` and ``o2`` of p and q against the line u -> v (0 where not sure: taken exactly)."""
+    for o, x, y in ((o1, px, py), (o2, qx, qy)):
+        unsure = np.flatnonzero(o == 0)
+        if len(unsure):
+            o[unsure] = orient_items(
+                ux[unsure], uy[unsure], vx[unsure], vy[unsure], x[unsure], y[unsure], exact
+            )
+    return crossing(o1, o2, px, py, qx, qy, ux, uy, vx, vy, exact)
 
 
 # chain edges looked at on either side of a candidate by _edges_across
