@@ -381,8 +381,12 @@ class ChainBoxes:
                 if norm > 0 and norm < math.inf:
                     nx, ny = nx / norm, ny / norm
                     sides.append((nx, ny, nx * px + ny * py + pad))
-        top = len(levels) - 1
-        stack = [(top, k) for k in range(len(levels[top]) - 1, -1, -1)]
+        if disc is not None:
+            top = len(levels) - 1
+            stack = [(top, k) for k in range(len(levels[top]) - 1, -1, -1)]
+        else:
+            # the boxes above the cover of [lo, hi) hold lo or hi: entered untested
+            stack = self._cover(lo, hi)
         while stack:
             level, k = stack.pop()
             size = sizes[level]
@@ -430,6 +434,26 @@ class ChainBoxes:
                 stack.append((level - 1, child))
                 continue
             yield max(start, lo), min(end, hi)
+
+    def _cover(self, lo: int, hi: int) -> list[tuple[int, int]]:
+        """The largest boxes (level, k) whose leaves lie within those of the segment
+        positions [lo, hi), last first (a stack that pops them in order)."""
+        left: list[tuple[int, int]] = []
+        right: list[tuple[int, int]] = []
+        first, last = lo // self.leaf, (hi - 1) // self.leaf
+        level = 0
+        while first <= last:
+            if first & 1:
+                left.append((level, first))
+                first += 1
+            if not last & 1:
+                right.append((level, last))
+                last -= 1
+            first >>= 1
+            last >>= 1
+            level += 1
+        left.reverse()
+        return right + left
 
     def _boxes(
         self,
