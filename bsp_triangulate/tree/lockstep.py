@@ -940,7 +940,7 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
         going = np.flatnonzero(~passed & (apex > lo))
         large = hi[going] - lo[going] > _RUN_MIN
         span = np.minimum(apex[going] - lo[going], np.where(large, _SPAN_LARGE, _SPAN))
-        hit, found = _span_passing(seqs, lo, hi, block, going, apex[going], span, large)
+        hit, found = _span_passing(seqs, lo, hi, block, going, apex[going], span)
         passed[going] = hit
         apex[going] = np.where(hit, found, apex[going] - span)
     else:
@@ -989,19 +989,15 @@ def _span_passing(
     nodes: np.ndarray,
     top: np.ndarray,
     count: np.ndarray,
-    large: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_first_passing` of the ``nodes`` (nodes trying again) in two passes: a
-    small sub-polygon's next candidate alone, then the rest of its span where that fails (the
-    next candidate passes for over half of them); a ``large`` sub-polygon's (tested run by
-    run) whole span at once."""
-    ahead = np.where(large, count, 1)
-    passed, apex = _first_passing(seqs, lo, hi, block, nodes, top, ahead)
-    more = np.flatnonzero(~passed & (count > ahead))
+    """:func:`_first_passing` of the ``nodes`` (nodes trying again) in two passes: the next
+    candidate alone, then the rest of the span where that fails (the next candidate passes
+    for over half of them, in small and large sub-polygons alike)."""
+    passed, apex = _first_passing(seqs, lo, hi, block, nodes, top, np.ones_like(count))
+    more = np.flatnonzero(~passed & (count > 1))
     if len(more):
-        skip = ahead[more]
         hit, found = _first_passing(
-            seqs, lo, hi, block, nodes[more], top[more] - skip, count[more] - skip
+            seqs, lo, hi, block, nodes[more], top[more] - 1, count[more] - 1
         )
         passed[more[hit]] = True
         apex[more[hit]] = found[hit]
