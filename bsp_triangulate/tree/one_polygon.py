@@ -931,13 +931,19 @@ class _Tree:
             hy0, hy1 = min(hull[1::2]), max(hull[1::2])
             buckets: list[list[int]] = [[] for _ in range(count)]
             for begin, end in self.boxes.leaves_meeting(lo, last, last, hull):
+                # the angle of each edge's end (see _end_angle), kept for the next edge
+                known, known_angle = -1, None
                 for e in range(begin, end):
                     px, py, qx, qy = xs[e], ys[e], xs[e + 1], ys[e + 1]
                     if (px < hx0 and qx < hx0) or (px > hx1 and qx > hx1):
                         continue
                     if (py < hy0 and qy < hy0) or (py > hy1 and qy > hy1):
                         continue
-                    first, final = self._sectors_of(e, ox, oy, ray, angles, near)
+                    if known != e:
+                        known_angle = _end_angle(px - ox, py - oy, ray, near)
+                    angle = _end_angle(qx - ox, qy - oy, ray, near)
+                    first, final = _sectors_of(known_angle, angle, angles)
+                    known, known_angle = e + 1, angle
                     for k in range(first, final + 1):
                         buckets[k].append(e)
             for j, edges in enumerate(buckets):
@@ -988,35 +994,6 @@ class _Tree:
         reach *= 1.0 + 1e-6
         hull = (ox + reach * ux, oy + reach * uy, ox, oy, ox + reach * wx, oy + reach * wy)
         return hull, start, angles
-
-    def _sectors_of(
-        self, e: int, ox: float, oy: float, start: float, angles: list[float], near: float
-    ) -> tuple[int, int]:
-        """(first, last) fan nodes whose sectors (between the rays at ``angles``, clockwise
-        from the first ray, at angle ``start``, around (ox, oy)) the edge (e, e + 1) may meet,
-        by its ends' angles with a margin: every node where an end is within ``near`` of the
-        centre (its angle not trusted) or the edge spans nearly a half-turn; an end at the
-        centre itself puts the edge on the ray to its other end."""
-        xs, ys = self.xs, self.ys
-        count = len(angles) - 1
-        ends = []
-        for p in (e, e + 1):
-            vx, vy = xs[p] - ox, ys[p] - oy
-            if vx == 0 and vy == 0:
-                continue
-            if abs(vx) <= near and abs(vy) <= near:
-                return 0, count - 1
-            ends.append((start - math.atan2(vy, vx)) % _TWO_PI)
-        if not ends:
-            return 0, -1
-        low, high = min(ends), max(ends)
-        if high - low > math.pi:
-            low, high = high - _TWO_PI, low
-        if high - low > math.pi - _FAN_MARGIN:
-            return 0, count - 1
-        first = max(bisect_left(angles, low - _FAN_MARGIN) - 1, 0)
-        last = min(bisect_right(angles, high + _FAN_MARGIN) - 1, count - 1)
-        return first, last
 
     def _carried(self, lo: int, hi: int) -> list[int]:
         """The last long base's blockers that are edges of sub-polygon [lo, hi]: tried
@@ -1430,6 +1407,42 @@ class _Tree:
     def _label(self, position: int) -> str:
         vid = int(self.ids[position])
         return ring_label(int(self.prepared.ring_of[vid]))
+
+
+def _end_angle(vx: float, vy: float, start: float, near: float) -> float | None:
+    """The clockwise angle from the fan's first ray (at angle ``start``) of an edge's end at
+    (vx, vy) from the fan's centre; None at the centre itself, -1 within ``near`` of it in
+    both axes (its angle not trusted)."""
+    if vx == 0 and vy == 0:
+        return None
+    if abs(vx) <= near and abs(vy) <= near:
+        return -1.0
+    return (start - math.atan2(vy, vx)) % _TWO_PI
+
+
+def _sectors_of(first: float | None, second: float | None, angles: list[float]) -> tuple[int, int]:
+    """(first, last) fan nodes whose sectors (between the rays at ``angles``, clockwise from
+    the first ray) an edge may meet, by its ends' angles (:func:`_end_angle`) with a margin:
+    every node where an end's angle is not trusted or the edge spans nearly a half-turn; an
+    end at the centre puts the edge on the ray to its other end."""
+    count = len(angles) - 1
+    if first == -1.0 or second == -1.0:
+        return 0, count - 1
+    if first is None:
+        if second is None:
+            return 0, -1
+        first = second
+    elif second is None:
+        second = first
+    low, high = (first, second) if first <= second else (second, first)
+    if high - low > math.pi:
+        low, high = high - _TWO_PI, low
+    if high - low > math.pi - _FAN_MARGIN:
+        return 0, count - 1
+    return (
+        max(bisect_left(angles, low - _FAN_MARGIN) - 1, 0),
+        min(bisect_right(angles, high + _FAN_MARGIN) - 1, count - 1),
+    )
 
 
 def _spread(rows: _Rows, at: np.ndarray, sizes: np.ndarray) -> tuple[_Rows, np.ndarray, np.ndarray]:
