@@ -448,6 +448,8 @@ class Shadows:
         levels, sizes, m = self.boxes.levels, self.boxes.sizes, self.boxes.m
         top_level = len(levels) - 1
         stack = [(top_level, k) for k in range(len(levels[top_level]))]
+        # the position visited last (the next one back is its edge's other end), its angles
+        after, after_x, after_y, after_alpha, after_beta = -2, 0.0, 0.0, 0.0, 0.0
         while stack:
             level, k = stack.pop()
             first = k * sizes[level]
@@ -469,6 +471,17 @@ class Shadows:
             for position in range(high, max(first, low_end) - 1, -1):
                 x, y = xs[position], ys[position]
                 alpha, beta = self.angles(x, y)
+                if (
+                    position == after
+                    and (alpha < math.pi) != (after_alpha < math.pi)
+                    and lo <= position < hi
+                ):
+                    # the edge to the position met before crosses the chord's line: beyond a
+                    # base end it rules out the candidates behind it along the line, which
+                    # no vertex shadows
+                    self._ray(x, y, after_x, after_y, (alpha, beta), (after_alpha, after_beta))
+                after, after_x, after_y = position - 1, x, y
+                after_alpha, after_beta = alpha, beta
                 if not self.shadowed(alpha, beta):
                     self._add(alpha, beta)
                     if not (self.rays_a or self.rays_b) or not self._in_ray(alpha, beta, x, y):
