@@ -27,10 +27,11 @@ An edge whose ends lie at the angles a < b seen from A (less than a half-turn ap
 every ray from A at an angle strictly between a and b, within the distance r of its farther
 end: every candidate at such an angle farther from A than r has the edge across its side from
 A (condition 2); an edge that crosses the chord's line beyond A covers every angle from a on.
-Likewise from B with ``beta``. Such *rays* come from the edges that blocked candidates, kept
-as the least r per angle (:class:`Horizon`); they rule out the slivers along the chord's line,
-which a vertex's shadow covers only near the line's crossing, and along a long straight river
-the thin triangles reaching far downstream.
+Likewise from B with ``beta``. Such *rays* come from the edges that blocked candidates and
+from the edges the walk meets (two positions in a row) that cross the chord's line, kept as the
+least r per angle (:class:`Horizon`); they rule out the slivers along the chord's line, which a
+vertex's shadow covers only near the line's crossing, and along a long straight river the thin
+triangles reaching far downstream.
 """
 
 from __future__ import annotations

@@ -112,8 +112,9 @@ def _corner_edge_inside(exact: list, lo: int, hi: int, c: int) -> bool:
 def test_skipped_candidates_fail_exactly(seed: int) -> None:
     """On random chains (lattice points: vertices on the chord and on the shadows' edges),
     each candidate not yielded lies on or right of the chord, or some vertex of the
-    sub-polygon lies strictly inside its triangle, or an edge at a corner of the base meets
-    its open interior (exact rational tests)."""
+    sub-polygon lies strictly inside its triangle, or an edge at a corner of the base or
+    another edge of the sub-polygon (a ray of an edge met on the walk across the chord's
+    line) meets its open interior (exact rational tests)."""
     rng, xs, ys, shadows = _lattice_chain(seed, 12, 700)
     lo, hi = shadows.lo, shadows.hi
     for position in [*rng.integers(1, hi, 5).tolist(), *range(lo + 1, lo + 17)]:
@@ -129,11 +130,20 @@ def test_skipped_candidates_fail_exactly(seed: int) -> None:
     for c in skipped:
         facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
         if facing > 0:
-            assert any(
-                _strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)
-            ) or _corner_edge_inside(exact, lo, hi, c), c
+            assert (
+                any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi))
+                or _corner_edge_inside(exact, lo, hi, c)
+                or _edge_inside(exact, lo, hi, c)
+            ), c
             shadowed += 1
     assert shadowed > 10
+
+
+def _edge_inside(exact: list, lo: int, hi: int, c: int) -> bool:
+    """Some edge (e, e + 1) of the sub-polygon [lo, hi] meets the open interior of the
+    triangle on the base with apex ``c``."""
+    a, b = exact[hi], exact[lo]
+    return any(_meets_inside(a, b, exact[c], exact[e], exact[e + 1]) for e in range(lo, hi))
 
 
 def _meets_inside(a: tuple, b: tuple, c: tuple, p: tuple, q: tuple) -> bool:
@@ -174,6 +184,7 @@ def test_candidates_skipped_behind_an_edge_fail_exactly(seed: int) -> None:
                 any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi))
                 or any(_meets_inside(a, b, exact[c], exact[e], exact[e + 1]) for e in edges)
                 or _corner_edge_inside(exact, lo, hi, c)
+                or _edge_inside(exact, lo, hi, c)
             ), c
             shadowed += 1
     assert shadowed > 10
