@@ -790,12 +790,11 @@ def _cross(
     seqs: Sequences, u: np.ndarray, v: np.ndarray, p: np.ndarray, q: np.ndarray
 ) -> np.ndarray:
     """Per item: the segments s_u s_v and s_p s_q cross at a point inside both (exact)."""
-    exact = seqs.exact
     points = np.take(seqs.xy, np.stack([u, v, p, q]), axis=0)
     (ux, vx, px, qx), (uy, vy, py, qy) = points[..., 0], points[..., 1]
-    o1 = orient_items(ux, uy, vx, vy, px, py, exact)
-    o2 = orient_items(ux, uy, vx, vy, qx, qy, exact)
-    return crossing(o1, o2, px, py, qx, qy, ux, uy, vx, vy, exact)
+    # no sign known yet: all taken exactly
+    o1, o2 = np.zeros(len(u), dtype=np.int8), np.zeros(len(u), dtype=np.int8)
+    return _crossing_signs(seqs.exact, o1, o2, px, py, qx, qy, ux, uy, vx, vy)
 
 
 def _all_tables(

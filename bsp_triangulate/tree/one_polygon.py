@@ -980,13 +980,14 @@ class _Tree:
         turned = 0.0
         for p in range(high, high - count - 1, -1):
             vx, vy = xs[p] - ox, ys[p] - oy
-            if abs(vx) <= near and abs(vy) <= near:
-                return None  # its angle is not trusted
+            angle = _end_angle(vx, vy, start, near)
+            if angle is None or angle < 0:
+                return None  # at the centre or within near of it: its angle is not trusted
             share = ((vx * wy - vy * wx) + (ux * vy - uy * vx)) / det
             if share != share:
                 return None  # nan: an overflow (max would pass it over)
             reach = max(reach, share)
-            turned = max(turned, (start - math.atan2(vy, vx)) % _TWO_PI)
+            turned = max(turned, angle)
             angles.append(turned)
         if not reach < _FAN_REACH or turned > math.pi - _FAN_MARGIN:
             return None
@@ -1410,9 +1411,9 @@ class _Tree:
 
 
 def _end_angle(vx: float, vy: float, start: float, near: float) -> float | None:
-    """The clockwise angle from the fan's first ray (at angle ``start``) of an edge's end at
-    (vx, vy) from the fan's centre; None at the centre itself, -1 within ``near`` of it in
-    both axes (its angle not trusted)."""
+    """The clockwise angle from the fan's first ray (at angle ``start``) of the point at
+    (vx, vy) from the fan's centre (a position of the fan, or an edge's end); None at the
+    centre itself, -1 within ``near`` of it in both axes (its angle not trusted)."""
     if vx == 0 and vy == 0:
         return None
     if abs(vx) <= near and abs(vy) <= near:
