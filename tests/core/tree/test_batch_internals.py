@@ -177,16 +177,23 @@ def runs_against_the_whole_table(seqs, lo: np.ndarray, hi: np.ndarray, c: np.nda
     return lo, hi, c, bad
 
 
-@pytest.mark.parametrize("grid", [True, False])
-def test_runs_decide_like_the_whole_table(grid: bool) -> None:
-    rng = np.random.default_rng(41)
+def star_items(seed: int, grid: bool) -> tuple:
+    """30 laid-out bridged stars of 70-200 points, and 20,000 items each picking one of them:
+    (random generator, ``Sequences``, the item's star start and length)."""
+    rng = np.random.default_rng(seed)
     parts = [bridged_star(rng, int(rng.integers(70, 200)), grid) for _ in range(30)]
     starts, seqs = laid_out(parts, grid)
-    # random sub-polygons [lo, hi] of more than 64 vertices and counter-clockwise candidates
     owner = rng.integers(0, len(parts), 20_000)
     length = np.array([len(p[0]) for p in parts])[owner]
-    lo = starts[owner] + rng.integers(1, length - 66)
-    hi = np.minimum(lo + 65 + rng.integers(0, length), starts[owner] + length - 1)
+    return rng, seqs, starts[owner], length
+
+
+@pytest.mark.parametrize("grid", [True, False])
+def test_runs_decide_like_the_whole_table(grid: bool) -> None:
+    rng, seqs, start, length = star_items(41, grid)
+    # random sub-polygons [lo, hi] of more than 64 vertices and counter-clockwise candidates
+    lo = start + rng.integers(1, length - 66)
+    hi = np.minimum(lo + 65 + rng.integers(0, length), start + length - 1)
     c = lo + 1 + (rng.random(len(lo)) * (hi - lo - 1)).astype(np.int64)
     lo, _, _, bad = runs_against_the_whole_table(seqs, lo, hi, c)
     assert len(lo) > 5_000 and 0.05 < bad.mean() < 0.95
@@ -197,13 +204,9 @@ def test_runs_decide_like_the_whole_table_on_small_sub_polygons(grid: bool) -> N
     # a pass of the tables that holds one large sub-polygon takes every item run by run, so
     # the runs must also decide the smallest ones: 4 to 65 vertices, within one run or across
     # run ends; candidates anywhere, often the ear hi - 1 or the last one, lo + 1
-    rng = np.random.default_rng(43)
-    parts = [bridged_star(rng, int(rng.integers(70, 200)), grid) for _ in range(30)]
-    starts, seqs = laid_out(parts, grid)
-    owner = rng.integers(0, len(parts), 20_000)
-    length = np.array([len(p[0]) for p in parts])[owner]
-    span = rng.integers(3, 65, len(owner))
-    lo = starts[owner] + 1 + (rng.random(len(owner)) * (length - span - 2)).astype(np.int64)
+    rng, seqs, start, length = star_items(43, grid)
+    span = rng.integers(3, 65, len(start))
+    lo = start + 1 + (rng.random(len(start)) * (length - span - 2)).astype(np.int64)
     hi = lo + span
     c = lo + 1 + (rng.random(len(lo)) * (span - 1)).astype(np.int64)
     pick = rng.random(len(lo))
