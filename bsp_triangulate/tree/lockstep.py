@@ -41,6 +41,7 @@ from ..geometry.predicates_batch import (
     orient_items,
     orient_rows,
     row_bound,
+    sure_signs,
 )
 from ..geometry.rings_batch import ragged_index
 from .one_by_one import first_subtree
@@ -1212,12 +1213,43 @@ def _elevation_apex(
         # one step down: the float difference may round up
         floor[wide] = np.nextafter(threshold[wide] - bound, -np.inf)
     owner, c = _facing_candidates(seqs, lo, hi, (owner, c))
+    inside = _within_corners(seqs, lo, hi, owner, c)
+    owner, c = owner[inside], c[inside]
     found, apex, undecided = _closest_correct(seqs, sz, lo, hi, owner, c, floor, v1, v2)
     redo = np.flatnonzero(undecided)
     if len(redo):
         redone = _elevation_apex(seqs, sz, state[:, redo], top_z, near_first=False)
         found[redo], apex[redo] = redone
     return found, apex
+
+
+def _within_corners(
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, owner: np.ndarray, c: np.ndarray
+) -> np.ndarray:
+    """Per candidate ``c`` of node ``owner`` (strictly left of its chord): not surely outside
+    the sub-polygon's angle at a convex corner of the base. Where lo + 1 lies strictly left
+    of the chord s_hi -> s_lo, a candidate strictly right of the edge lo -> lo + 1 has that
+    edge strictly inside its triangle's angle at s_lo, so the edge meets the open triangle
+    (condition 2); likewise the edge hi - 1 -> hi at s_hi (``shadows``' corner shadows, as
+    sure float signs: a doubtful candidate is kept for the tables)."""
+    keep = np.ones(len(c), dtype=bool)
+    big = hi - lo > 2
+    if not len(c) or not big.any():
+        return keep
+    x, y = seqs.sx, seqs.sy
+    ax, ay, bx, by = x[hi], y[hi], x[lo], y[lo]
+    for at_lo, nx, ny in ((True, x[lo + 1], y[lo + 1]), (False, x[hi - 1], y[hi - 1])):
+        convex = big & (sure_signs(ax, ay, bx, by, nx, ny) > 0)
+        at = np.flatnonzero(convex[owner])
+        if not len(at):
+            continue
+        o, cx, cy = owner[at], x[c[at]], y[c[at]]
+        if at_lo:  # the edge lo -> lo + 1
+            signs = sure_signs(bx[o], by[o], nx[o], ny[o], cx, cy)
+        else:  # the edge hi - 1 -> hi
+            signs = sure_signs(nx[o], ny[o], ax[o], ay[o], cx, cy)
+        keep[at[signs < 0]] = False
+    return keep
 
 
 def _closest_correct(
@@ -1507,6 +1539,8 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
     found = np.zeros(n, dtype=bool)
     apex = np.full(n, -1, dtype=np.int64)
     owner, c = _facing_candidates(seqs, lo, hi)
+    inside = _within_corners(seqs, lo, hi, owner, c)
+    owner, c = owner[inside], c[inside]
     if not len(c):
         return found, apex
     sx, sy = seqs.sx, seqs.sy

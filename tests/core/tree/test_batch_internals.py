@@ -200,6 +200,31 @@ def test_runs_decide_like_the_whole_table(grid: bool) -> None:
 
 
 @pytest.mark.parametrize("grid", [True, False])
+def test_candidates_outside_a_base_corner_fail_the_whole_table(grid: bool) -> None:
+    # a candidate right of the edge lo -> lo + 1 (or hi - 1 -> hi) at a convex base corner
+    # has that edge inside its triangle's angle there: the tables reject it too
+    from bsp_triangulate.geometry.predicates import orient_many
+    from bsp_triangulate.tree import lockstep as batch_bsp
+
+    rng, seqs, start, length = star_items(47, grid)
+    lo = start + 1 + (rng.random(len(start)) * (length - 6)).astype(np.int64)
+    hi = np.minimum(lo + 3 + rng.integers(0, length), start + length - 1)
+    c = lo + 1 + (rng.random(len(lo)) * (hi - lo - 1)).astype(np.int64)
+    sx, sy = seqs.sx, seqs.sy
+    left = orient_many(sx[hi], sy[hi], sx[lo], sy[lo], sx[c], sy[c]) > 0
+    lo, hi, c = lo[left], hi[left], c[left]
+    node = np.arange(len(lo))
+    outside = ~batch_bsp._within_corners(seqs, lo, hi, node, c)
+    assert outside.sum() > 1_000
+    lo, hi, c = lo[outside], hi[outside], c[outside]
+    width = int((hi - lo).max()) + 1
+    bad, _ = batch_bsp._bad_rows(
+        sx, sy, lo, hi, c, seqs.extent_x[c], seqs.extent_y[c], seqs.twin, width, seqs.exact
+    )
+    assert bad.all()
+
+
+@pytest.mark.parametrize("grid", [True, False])
 def test_runs_decide_like_the_whole_table_on_small_sub_polygons(grid: bool) -> None:
     # a pass of the tables that holds one large sub-polygon takes every item run by run, so
     # the runs must also decide the smallest ones: 4 to 65 vertices, within one run or across
