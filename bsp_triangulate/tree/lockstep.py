@@ -469,17 +469,54 @@ def _pass_tables(
     [lo, hi]: it passes conditions 2 and 3 too, so that its triangle is correct. Sub-polygons
     of more than ``every_above`` positions are tested against every position, also in proven
     polygons."""
+    return _table_results(seqs, lo, hi, c, every_above)[0]
+
+
+def _table_results(
+    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, every_above: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_pass_tables`, and per candidate a position found strictly inside its triangle
+    or -1."""
     ok = np.ones(len(c), dtype=bool)
+    inside = np.full(len(c), -1, dtype=np.int64)
     # a 3-vertex sub-polygon has only its corners and its own sides: conditions 2 and 3 hold
     idx = np.flatnonzero(hi - lo > 2)
     if not len(idx):
-        return ok
+        return ok, inside
     every = np.zeros(len(idx), dtype=bool)
     if every_above is not None:
         every = hi[idx] - lo[idx] > every_above
     for part, tables in ((idx[every], _all_tables), (idx[~every], _tables)):
         if len(part):
-            ok[part[tables(seqs, lo[part], hi[part], c[part])[0]]] = False
+            bad, inside[part] = tables(seqs, lo[part], hi[part], c[part])
+            ok[part[bad]] = False
+    return ok, inside
+
+
+def _known_then_tables(
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    owner: np.ndarray,
+    c: np.ndarray,
+    known: np.ndarray,
+    every_above: int,
+) -> np.ndarray:
+    """:func:`_pass_tables` of candidates ``c`` of nodes ``owner``, those holding their
+    node's ``known`` position (found inside an earlier candidate's triangle, -1: none)
+    strictly inside failing without the tables; positions the tables find inside become
+    their nodes' known ones."""
+    ok = np.ones(len(c), dtype=bool)
+    b = known[owner]
+    some = np.flatnonzero((b >= 0) & (hi[owner] - lo[owner] > every_above))
+    if len(some):
+        o = owner[some]
+        ok[some] = ~_strictly_inside(seqs, hi[o], lo[o], c[some], b[some])
+    rest = np.flatnonzero(ok)
+    o = owner[rest]
+    ok[rest], inside = _table_results(seqs, lo[o], hi[o], c[rest], every_above)
+    found = inside >= 0
+    known[o[found]] = inside[found]
     return ok
 
 
@@ -1284,6 +1321,7 @@ def _closest_correct(
     owner, c, zc, approx, error = owner[order], c[order], zc[order], approx[order], error[order]
     alive = np.ones(len(c), dtype=bool)
     trying = np.ones(len(c), dtype=bool)
+    known = np.full(n, -1, dtype=np.int64)  # per node a position inside a failed triangle
     take = 1
     for _ in range(_ELEVATION_ROUNDS):
         left = np.flatnonzero(alive & trying)
@@ -1296,7 +1334,7 @@ def _closest_correct(
         rank = np.arange(len(o)) - starts[group]
         taken = np.flatnonzero(rank < take)
         t = left[taken]
-        ok = _pass_tables(seqs, lo[owner[t]], hi[owner[t]], c[t], _ELEVATION_EVERY)
+        ok = _known_then_tables(seqs, lo, hi, owner[t], c[t], known, _ELEVATION_EVERY)
         # per node the first correct one among those taken (its rank), or take
         first = np.full(len(starts), take, dtype=np.int64)
         np.minimum.at(first, group[taken[ok]], rank[taken[ok]])
@@ -1330,7 +1368,7 @@ def _closest_correct(
     rest = np.flatnonzero(alive & ~found[owner] & ~undecided[owner])
     rest = rest[np.argsort(order[rest])]
     owner, c = owner[rest], c[rest]
-    good = _pass_tables(seqs, lo[owner], hi[owner], c, _ELEVATION_EVERY)
+    good = _known_then_tables(seqs, lo, hi, owner, c, known, _ELEVATION_EVERY)
     if good.any():
         chosen = np.bincount(owner[good], minlength=n) > 0
         found[chosen] = True
