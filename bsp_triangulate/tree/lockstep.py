@@ -1591,6 +1591,7 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
     alive = np.ones(len(c), dtype=bool)
     known = np.zeros(len(c), dtype=bool)
     best = np.full(n, -1, dtype=np.int64)
+    known_inside = np.full(n, -1, dtype=np.int64)  # per node a position inside a failed triangle
     tries = 0
     while True:
         live = np.flatnonzero(alive)
@@ -1598,7 +1599,9 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
             untested = live[~known[live]]
             if len(untested):
                 t = owner[untested]
-                good = _pass_tables(seqs, lo[t], hi[t], c[untested], _DELAUNAY_EVERY)
+                good = _known_then_tables(
+                    seqs, lo, hi, t, c[untested], known_inside, _DELAUNAY_EVERY
+                )
                 known[untested] = True
                 alive[untested[~good]] = False
                 live = live[alive[live]]
@@ -1610,7 +1613,7 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
         test = head[~known[head]]
         if len(test):
             t = owner[test]
-            good = _pass_tables(seqs, lo[t], hi[t], c[test], _DELAUNAY_EVERY)
+            good = _known_then_tables(seqs, lo, hi, t, c[test], known_inside, _DELAUNAY_EVERY)
             known[test] = True
             alive[test[~good]] = False
         better = head[alive[head]]
