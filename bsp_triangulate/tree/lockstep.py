@@ -299,12 +299,18 @@ def _facing_candidates(
     lo: np.ndarray,
     hi: np.ndarray,
     pairs: tuple[np.ndarray, np.ndarray] | None = None,
+    corners: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The (node, candidate position) ``pairs`` (default: every candidate of every node
-    (lo, hi), :func:`_candidates`) that face their base, in their order."""
+    (lo, hi), :func:`_candidates`) that face their base, in their order; with ``corners``,
+    those :func:`_within_corners` keeps."""
     owner, c = _candidates(lo, hi) if pairs is None else pairs
     facing = _facing(seqs, lo[owner], hi[owner], c)
-    return owner[facing], c[facing]
+    owner, c = owner[facing], c[facing]
+    if corners:
+        inside = _within_corners(seqs, lo, hi, owner, c)
+        owner, c = owner[inside], c[inside]
+    return owner, c
 
 
 def _facing(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -1249,9 +1255,7 @@ def _elevation_apex(
         _, bound = _elevation_distance(top_z, z1[wide], z2[wide])
         # one step down: the float difference may round up
         floor[wide] = np.nextafter(threshold[wide] - bound, -np.inf)
-    owner, c = _facing_candidates(seqs, lo, hi, (owner, c))
-    inside = _within_corners(seqs, lo, hi, owner, c)
-    owner, c = owner[inside], c[inside]
+    owner, c = _facing_candidates(seqs, lo, hi, (owner, c), corners=True)
     found, apex, undecided = _closest_correct(seqs, sz, lo, hi, owner, c, floor, v1, v2)
     redo = np.flatnonzero(undecided)
     if len(redo):
@@ -1576,9 +1580,7 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
     n = len(lo)
     found = np.zeros(n, dtype=bool)
     apex = np.full(n, -1, dtype=np.int64)
-    owner, c = _facing_candidates(seqs, lo, hi)
-    inside = _within_corners(seqs, lo, hi, owner, c)
-    owner, c = owner[inside], c[inside]
+    owner, c = _facing_candidates(seqs, lo, hi, corners=True)
     if not len(c):
         return found, apex
     sx, sy = seqs.sx, seqs.sy
