@@ -76,26 +76,6 @@ class SegmentGrid:
         order = np.argsort(cell, kind="stable")
         self.items = seg[order]
         self.starts = np.searchsorted(cell[order], np.arange(self.nx * self.ny + 1))
-        self._items_list: list[int] | None = None
-        self._starts_list: list[int] = []
-
-    def query_box_list(
-        self, xmin: float, ymin: float, xmax: float, ymax: float, max_cells: int
-    ) -> list[int] | None:
-        """:meth:`query_box` as a Python list, or None if the box spans more than
-        ``max_cells`` cells (then the numpy queries are cheaper)."""
-        c0, c1 = self._cell_x(xmin - self.pad), self._cell_x(xmax + self.pad)
-        r0, r1 = self._cell_y(ymin - self.pad), self._cell_y(ymax + self.pad)
-        if (c1 - c0 + 1) * (r1 - r0 + 1) > max_cells:
-            return None
-        if self._items_list is None:
-            self._items_list = self.items.tolist()
-            self._starts_list = self.starts.tolist()
-        items, starts, nx = self._items_list, self._starts_list, self.nx
-        found: list[int] = []
-        for r in range(r0 * nx, r1 * nx + 1, nx):  # the cells of a row are contiguous
-            found += items[starts[r + c0] : starts[r + c1 + 1]]
-        return found
 
     def _col(self, x: np.ndarray | float, pad: float = 0.0) -> np.ndarray:
         return np.clip(
