@@ -811,7 +811,8 @@ def _crossing_signs(
     vy: np.ndarray,
 ) -> np.ndarray:
     """Per item: the segments pq and uv cross at a point inside both, given sure signs
-    ``o1`` and ``o2`` of p and q against the line u -> v (0 where not sure: taken exactly)."""
+    ``o1`` and ``o2`` of p and q against the line u -> v (0 where not sure: taken exactly,
+    and written into ``o1`` and ``o2`` in place)."""
     for o, x, y in ((o1, px, py), (o2, qx, qy)):
         unsure = np.flatnonzero(o == 0)
         if len(unsure):
@@ -1591,20 +1592,18 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
     order = np.lexsort((key, owner))
     owner, c = owner[order], c[order]
     alive = np.ones(len(c), dtype=bool)
-    known = np.zeros(len(c), dtype=bool)
+    tested = np.zeros(len(c), dtype=bool)
     best = np.full(n, -1, dtype=np.int64)
-    known_inside = np.full(n, -1, dtype=np.int64)  # per node a position inside a failed triangle
+    blocker = np.full(n, -1, dtype=np.int64)  # per node a position inside a failed triangle
     tries = 0
     while True:
         live = np.flatnonzero(alive)
         if tries >= _DELAUNAY_TRIES and len(live):
-            untested = live[~known[live]]
+            untested = live[~tested[live]]
             if len(untested):
                 t = owner[untested]
-                good = _known_then_tables(
-                    seqs, lo, hi, t, c[untested], known_inside, _DELAUNAY_EVERY
-                )
-                known[untested] = True
+                good = _known_then_tables(seqs, lo, hi, t, c[untested], blocker, _DELAUNAY_EVERY)
+                tested[untested] = True
                 alive[untested[~good]] = False
                 live = live[alive[live]]
         if not len(live):
@@ -1612,11 +1611,11 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
         tries += 1
         live_owner = owner[live]
         head = live[np.r_[True, live_owner[1:] != live_owner[:-1]]]
-        test = head[~known[head]]
+        test = head[~tested[head]]
         if len(test):
             t = owner[test]
-            good = _known_then_tables(seqs, lo, hi, t, c[test], known_inside, _DELAUNAY_EVERY)
-            known[test] = True
+            good = _known_then_tables(seqs, lo, hi, t, c[test], blocker, _DELAUNAY_EVERY)
+            tested[test] = True
             alive[test[~good]] = False
         better = head[alive[head]]
         if not len(better):
