@@ -62,6 +62,8 @@ _WINDOWED = 256
 _LAZY_BAND = 256
 # Positions next to either end of a base whose shadows rule "elevation" casts at once.
 _NEAR_SHADOWS = 64
+# rule "elevation": sub-polygons longer than this bound their apexes in a box first
+_REGION_SPAN = 4096
 # The rule "elevation" error bound's factor (rules.ElevationRule).
 _EPS8 = 8.0 * 2.0**-53
 # Largest chunk of candidates filtered at once by rule "first" on long runs.
@@ -544,13 +546,23 @@ class _Tree:
         # the rule's error bound for any candidate of the window
         widest = _EPS8 * (2.0 * windows.widest_z(lo, hi) + abs(z1) + abs(z2)) + 1e-300
         blockers = self._carried(lo, hi)
+        shadows: Shadows | None = None
+        area = None
+        if hi - lo > _REGION_SPAN:
+            # the near vertices' shadows often bound the correct apexes in a small box: the
+            # candidates outside it leave each band first
+            shadows = self._near_shadows(lo, hi, blockers)
+            area = shadows.region_box()
         found: list[int] = []
         best = math.inf
         ties = _Ties(z1, z2, self._ties_in_order)
-        shadows: Shadows | None = None
         looked = 0  # candidates given the facing test one by one
         ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
         for band, floor in windows.bands(lo, hi, z1 + z2):
+            if area is not None:
+                xmin, ymin, xmax, ymax = area
+                x, y = self.sx[band], self.sy[band]
+                band = band[(x >= xmin) & (x <= xmax) & (y >= ymin) & (y <= ymax)]
             lazy = len(band) <= _LAZY_BAND
             if not lazy or looked >= _SCALAR_CANDIDATES:
                 # wide bands (elevations close or equal), and the later bands of a node that

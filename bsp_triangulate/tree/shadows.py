@@ -57,6 +57,11 @@ _BEYOND = 4.0
 # cuts a range query of a Horizon walks at most (a longer one rules nothing out)
 _WALK = 32
 _REACH_SLACK = 1.0 + 1e-6
+# radians added to a staircase step's angles for its corner Q (region_box), far above the
+# margin and the rounding of the angles
+_WIDEN = 1e-7
+# a step whose angles leave less than this to a half-turn leaves the region unbounded
+_OPEN = 1e-3
 
 
 def _square(dx: float, dy: float) -> float:
@@ -357,6 +362,34 @@ class Shadows:
         at = np.searchsorted(np.array(self.alphas), alpha - _MARGIN, side="left")
         stair = np.array([math.inf, *self.betas])
         return sure & (stair[at] < beta - _MARGIN)
+
+    def region_box(self) -> tuple[float, float, float, float] | None:
+        """An axis-aligned box (xmin, ymin, xmax, ymax) holding every apex of a correct
+        triangle on the base, or None where the staircase does not bound one.
+
+        With both corners' half-planes in the staircase (alpha 0 first, beta 0 last), a
+        correct apex has, for some step j, alpha at most ``alphas[j + 1]`` and beta at most
+        ``betas[j]`` (no vertex of the staircase strictly inside its triangle): it lies in the
+        triangle of the base and the point Q_j where the rays from A and B at those angles
+        meet. The box holds A, B and every Q_j, found with both angles widened far beyond
+        their rounding; None where a step's rays meet only far away or not at all."""
+        alphas, betas = self.alphas, self.betas
+        if self.side is None or len(alphas) < 2 or alphas[0] != 0.0 or betas[-1] != 0.0:
+            return None
+        ax, ay, bx, by = self.ax, self.ay, self.bx, self.by
+        xs, ys = [ax, bx], [ay, by]
+        length = math.hypot(bx - ax, by - ay)
+        for j in range(len(alphas) - 1):
+            alpha, beta = alphas[j + 1] + _WIDEN, betas[j] + _WIDEN
+            if not alpha + beta < math.pi - _OPEN:
+                return None
+            # |AQ| = |AB| sin(beta) / sin(alpha + beta) (the angle at Q is pi - alpha - beta)
+            reach = length * math.sin(beta) / math.sin(alpha + beta)
+            turn = self.to_b + alpha
+            xs.append(ax + reach * math.cos(turn))
+            ys.append(ay + reach * math.sin(turn))
+        pad = self.boxes.pad + 1e-9 * (max(xs) - min(xs) + max(ys) - min(ys))
+        return min(xs) - pad, min(ys) - pad, max(xs) + pad, max(ys) + pad
 
     def _angles_many(
         self, sx: np.ndarray, sy: np.ndarray, positions: np.ndarray

@@ -190,6 +190,69 @@ def test_candidates_skipped_behind_an_edge_fail_exactly(seed: int) -> None:
     assert shadowed > 10
 
 
+def test_every_apex_the_near_shadows_leave_lies_in_their_region_box() -> None:
+    """``Shadows.region_box``: every candidate strictly left of the chord with no vertex of
+    the sub-polygon strictly inside its triangle and neither edge at a corner of the base
+    across it (a superset of the correct apexes) lies in the box, on random lattice chains
+    (exact rational tests); where the staircase does not close, no box."""
+    boxes = inside = outside = 0
+    for seed in range(40):
+        rng, xs, ys, _ = _lattice_chain(seed, 6 + seed % 5, 60 + 10 * (seed % 7))
+        # the positions next to the base's ends left of the chord (the side y < 0 of the
+        # base's line): both corners cast their half-planes
+        step = 1.0 if seed % 2 else 1e-3
+        ys[1] = ys[0] - step * int(rng.integers(1, 6))
+        ys[-2] = ys[-1] - step * int(rng.integers(1, 6))
+        x, y = np.array(xs), np.array(ys)
+        shadows = Shadows(xs, ys, ChainBoxes(x, y, leaf=4), 0, len(xs) - 1)
+        lo, hi = shadows.lo, shadows.hi
+        near = np.r_[lo + 1 : lo + 9, hi - 8 : hi, rng.integers(lo + 1, hi, 4)]
+        shadows.add_many(x, y, near)
+        area = shadows.region_box()
+        if area is None:
+            continue
+        boxes += 1
+        xmin, ymin, xmax, ymax = area
+        exact = [(Fraction(u), Fraction(v)) for u, v in zip(xs, ys)]
+        a, b = exact[hi], exact[lo]
+        for c in range(lo + 1, hi):
+            facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
+            if facing <= 0:
+                continue
+            if not (xmin <= xs[c] <= xmax and ymin <= ys[c] <= ymax):
+                outside += 1
+            if _corner_edge_inside(exact, lo, hi, c):
+                continue
+            if any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)):
+                continue
+            inside += 1
+            assert xmin <= xs[c] <= xmax and ymin <= ys[c] <= ymax, (seed, c)
+    assert boxes >= 20
+    assert inside >= 20
+    assert outside >= 100
+
+
+def test_rule_elevation_bounds_its_apexes_in_a_box_with_the_same_trees(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Long bases of rule elevation drop the candidates outside the box of the near
+    shadows' region (``Shadows.region_box``) before their tests; the trees are those of
+    testing every candidate."""
+    boxes: list[bool] = []
+    region_box = Shadows.region_box
+    monkeypatch.setattr(Shadows, "region_box", lambda self: boxes.append(1) or region_box(self))
+    monkeypatch.setattr(one_polygon, "_REGION_SPAN", 128)
+    rings = _river(900, 60, 6)
+    rings = [np.column_stack([r, np.cos(r[:, 0] / 53) * 25 + r[:, 1] / 7]) for r in rings]
+    fast = triangulate(rings, rule="elevation")
+    with monkeypatch.context() as patch:
+        _ignore_shadows(patch)
+        patch.setattr(Shadows, "region_box", lambda self: None)
+        patch.setattr(one_polygon, "_SCALAR_CANDIDATES", math.inf)
+        _same(fast, triangulate(rings, rule="elevation"))
+    assert len(boxes) > 20
+
+
 def _ignore_shadows(patch: pytest.MonkeyPatch) -> None:
     """No candidate is found in a shadow: each gets the exact tests."""
     patch.setattr(Shadows, "shadowed", lambda self, alpha, beta: False)
