@@ -62,6 +62,10 @@ _REACH_SLACK = 1.0 + 1e-6
 _WIDEN = 1e-7
 # a step whose angles leave less than this to a half-turn leaves the region unbounded
 _OPEN = 1e-3
+# positions walked from a reflex base corner for the edge that crosses back (region_box)
+_CROSSING_WALK = 32
+# share of near2 within which a vertex's angles at a base corner are not trusted
+_TRUSTED_VERTEX = 2.0**-80
 
 
 def _square(dx: float, dy: float) -> float:
@@ -367,20 +371,36 @@ class Shadows:
         """An axis-aligned box (xmin, ymin, xmax, ymax) holding every apex of a correct
         triangle on the base, or None where the staircase does not bound one.
 
-        With both corners' half-planes in the staircase (alpha 0 first, beta 0 last), a
-        correct apex has, for some step j, alpha at most ``alphas[j + 1]`` and beta at most
+        A correct apex has, for some step j, alpha at most ``alphas[j + 1]`` and beta at most
         ``betas[j]`` (no vertex of the staircase strictly inside its triangle): it lies in the
         triangle of the base and the point Q_j where the rays from A and B at those angles
-        meet. The box holds A, B and every Q_j, found with both angles widened far beyond
-        their rounding; None where a step's rays meet only far away or not at all."""
+        meet. The corners' half-planes close the staircase at both ends (alpha 0 first, beta
+        0 last). Where a corner is reflex, the edge by which the chain comes back across the
+        chord's line beyond it closes that end instead (:meth:`_crossing_back`): an apex
+        below the staircase's first alpha has beta at most that of the edge's left end, or
+        lies within the edge's reach of B (likewise at A). The box holds A, B, every Q_j,
+        found with both angles widened far beyond their rounding, and those reaches; None
+        where a step's rays meet only far away or not at all, or an end stays open."""
         alphas, betas = self.alphas, self.betas
-        if self.side is None or len(alphas) < 2 or alphas[0] != 0.0 or betas[-1] != 0.0:
+        if self.side is None or not alphas:
             return None
         ax, ay, bx, by = self.ax, self.ay, self.bx, self.by
         xs, ys = [ax, bx], [ay, by]
+        steps = list(zip(alphas[1:], betas[:-1]))
+        for at_b, corner in ((True, alphas[0]), (False, betas[-1])):
+            if corner == 0.0:
+                continue
+            crossing = self._crossing_back(at_b)
+            if crossing is None:
+                return None
+            angle, reach = crossing
+            steps.append((alphas[0], angle) if at_b else (angle, betas[-1]))
+            cx, cy = (bx, by) if at_b else (ax, ay)
+            xs += [cx - reach, cx + reach]
+            ys += [cy - reach, cy + reach]
         length = math.hypot(bx - ax, by - ay)
-        for j in range(len(alphas) - 1):
-            alpha, beta = alphas[j + 1] + _WIDEN, betas[j] + _WIDEN
+        for alpha, beta in steps:
+            alpha, beta = alpha + _WIDEN, beta + _WIDEN
             if not alpha + beta < math.pi - _OPEN:
                 return None
             # |AQ| = |AB| sin(beta) / sin(alpha + beta) (the angle at Q is pi - alpha - beta)
@@ -390,6 +410,43 @@ class Shadows:
             ys.append(ay + reach * math.sin(turn))
         pad = self.boxes.pad + 1e-9 * (max(xs) - min(xs) + max(ys) - min(ys))
         return min(xs) - pad, min(ys) - pad, max(xs) + pad, max(ys) + pad
+
+    def _crossing_back(self, at_b: bool) -> tuple[float, float] | None:
+        """Where the chain leaves the base's corner B (``at_b``, from lo on) or A (from hi
+        back) to the right of the chord's line: the edge by which it comes back to the
+        left, if it crosses the line beyond that corner within ``_CROSSING_WALK`` positions.
+        Returns its left end's angle at that corner (beta at B, alpha at A) and a distance
+        from the corner beyond which every candidate at a larger such angle has the edge
+        across its side from the corner (a ray, module docstring); None if none is found."""
+        xs, ys, lo, hi = self.xs, self.ys, self.lo, self.hi
+        which = 1 if at_b else 0
+        step = 1 if at_b else -1
+        cx, cy = (self.bx, self.by) if at_b else (self.ax, self.ay)
+        first = lo + 1 if at_b else hi - 1
+        previous = lo if at_b else hi
+        for position in range(first, first + step * _CROSSING_WALK, step):
+            if not lo < position < hi:
+                return None
+            x, y = xs[position], ys[position]
+            alpha, beta = self.angles(x, y)
+            if not (_MARGIN < alpha < math.pi - _MARGIN and _MARGIN < beta < math.pi - _MARGIN):
+                previous = position
+                continue
+            if previous in (lo, hi):
+                return None  # left of the chord at once: no crossing to find
+            px, py = xs[previous], ys[previous]
+            back = self.angles(px, py)[which]
+            angle = (alpha, beta)[which]
+            if not (back > math.pi + _MARGIN and back - angle < math.pi - _MARGIN):
+                return None  # not across the line beyond this corner
+            # both ends are vertices, whose differences from the corner round relatively:
+            # their angles are as good as atan2's unless an end (nearly) is the corner (the
+            # trusted distance near2 is for points computed along an edge)
+            to_p, to_q = _square(px - cx, py - cy), _square(x - cx, y - cy)
+            if not min(to_p, to_q) > self.near2 * _TRUSTED_VERTEX:
+                return None
+            return angle + _MARGIN, math.sqrt(max(to_p, to_q) * _REACH_SLACK)
+        return None
 
     def _angles_many(
         self, sx: np.ndarray, sy: np.ndarray, positions: np.ndarray

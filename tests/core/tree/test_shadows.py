@@ -190,23 +190,32 @@ def test_candidates_skipped_behind_an_edge_fail_exactly(seed: int) -> None:
     assert shadowed > 10
 
 
-def test_every_apex_the_near_shadows_leave_lies_in_their_region_box() -> None:
-    """``Shadows.region_box``: every candidate strictly left of the chord with no vertex of
-    the sub-polygon strictly inside its triangle and neither edge at a corner of the base
-    across it (a superset of the correct apexes) lies in the box, on random lattice chains
-    (exact rational tests); where the staircase does not close, no box."""
+@pytest.mark.parametrize("reflex", ["none", "at B", "at A", "both"])
+def test_every_apex_the_near_shadows_leave_lies_in_their_region_box(reflex: str) -> None:
+    """``Shadows.region_box``: every candidate strictly left of the chord that no vertex of
+    the sub-polygon lies strictly inside and no edge meets inside (a superset of the correct
+    apexes) lies in the box, on random lattice chains (exact rational tests). A convex base
+    corner's edge closes its end of the staircase; at a reflex corner (its neighbour right
+    of the chord's line), the edge by which the chain comes back across the line beyond it."""
     boxes = inside = outside = 0
-    for seed in range(40):
-        rng, xs, ys, _ = _lattice_chain(seed, 6 + seed % 5, 60 + 10 * (seed % 7))
-        # the positions next to the base's ends left of the chord (the side y < 0 of the
-        # base's line): both corners cast their half-planes
+    for seed in range(60):
+        rng, xs, ys, _ = _lattice_chain(seed, 6 + seed % 5, 14 + seed % 12)
         step = 1.0 if seed % 2 else 1e-3
-        ys[1] = ys[0] - step * int(rng.integers(1, 6))
-        ys[-2] = ys[-1] - step * int(rng.integers(1, 6))
+        count = len(xs)
+        # left of the chord is the side y < 0 of the base's line; beyond B (position 0),
+        # x below B's, beyond A (the last position) above A's
+        for corner, near, far, away in ((0, 1, 2, -1.0), (count - 1, count - 2, count - 3, 1.0)):
+            if reflex in ("both", "at B" if corner == 0 else "at A"):
+                xs[near] = xs[corner] + away * step * int(rng.integers(1, 4))
+                ys[near] = ys[corner] + step * int(rng.integers(1, 4))
+                xs[far] = xs[corner] + away * step * int(rng.integers(1, 4))
+                ys[far] = ys[corner] - step * int(rng.integers(1, 4))
+            else:
+                ys[near] = ys[corner] - step * int(rng.integers(1, 6))
         x, y = np.array(xs), np.array(ys)
-        shadows = Shadows(xs, ys, ChainBoxes(x, y, leaf=4), 0, len(xs) - 1)
+        shadows = Shadows(xs, ys, ChainBoxes(x, y, leaf=4), 0, count - 1)
         lo, hi = shadows.lo, shadows.hi
-        near = np.r_[lo + 1 : lo + 9, hi - 8 : hi, rng.integers(lo + 1, hi, 4)]
+        near = np.r_[lo + 1 : lo + 4, hi - 3 : hi, rng.integers(lo + 1, hi, 2)]
         shadows.add_many(x, y, near)
         area = shadows.region_box()
         if area is None:
@@ -219,17 +228,64 @@ def test_every_apex_the_near_shadows_leave_lies_in_their_region_box() -> None:
             facing = (b[0] - a[0]) * (exact[c][1] - a[1]) - (b[1] - a[1]) * (exact[c][0] - a[0])
             if facing <= 0:
                 continue
-            if not (xmin <= xs[c] <= xmax and ymin <= ys[c] <= ymax):
-                outside += 1
-            if _corner_edge_inside(exact, lo, hi, c):
+            in_box = xmin <= xs[c] <= xmax and ymin <= ys[c] <= ymax
+            if in_box:
+                inside += 1
                 continue
-            if any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi)):
+            outside += 1
+            assert (
+                any(_strictly_inside(a, b, exact[c], exact[p]) for p in range(lo + 1, hi))
+                or _corner_edge_inside(exact, lo, hi, c)
+                or _edge_inside(exact, lo, hi, c)
+            ), (seed, c)
+    assert boxes >= 2
+    assert inside >= 10
+    assert outside >= 2
+
+
+@pytest.mark.parametrize("at_b", [True, False], ids=["at B", "at A"])
+def test_the_edge_crossing_back_beyond_a_reflex_corner_blocks_what_lies_past_its_reach(
+    at_b: bool,
+) -> None:
+    """``Shadows._crossing_back``: where the chain leaves a base corner right of the chord's
+    line and comes back across it beyond the corner, every point strictly left of the chord
+    at a larger angle at that corner than the returned one, and farther from it than the
+    returned reach, has that edge across the open triangle (exact rational tests on random
+    lattice chains and lattice points)."""
+    checked = 0
+    for seed in range(40):
+        rng, xs, ys, _ = _lattice_chain(seed, 8, 40)
+        step = 1.0 if seed % 2 else 1e-3
+        count = len(xs)
+        corner, near = (0, 1) if at_b else (count - 1, count - 2)
+        away = -1.0 if at_b else 1.0  # beyond B: x below B's; beyond A: above A's
+        run = int(rng.integers(1, 4))  # positions right of the line before the crossing
+        for k in range(run + 1):
+            position = near + (k if at_b else -k)
+            xs[position] = xs[corner] + away * step * int(rng.integers(1, 5))
+            side = 1 if k < run else -1  # right of the line (y > 0), then back left
+            ys[position] = ys[corner] + side * step * int(rng.integers(1, 5))
+        x, y = np.array(xs), np.array(ys)
+        shadows = Shadows(xs, ys, ChainBoxes(x, y, leaf=4), 0, count - 1)
+        crossing = shadows._crossing_back(at_b)
+        if crossing is None:
+            continue
+        angle, reach = crossing
+        exact = [(Fraction(u), Fraction(v)) for u, v in zip(xs, ys)]
+        a, b = exact[count - 1], exact[0]
+        cx, cy = xs[corner], ys[corner]
+        edges = range(0, run + 1) if at_b else range(count - run - 2, count - 1)
+        for u, v in rng.integers(-40, 41, (300, 2)).tolist():
+            px, py = xs[corner] + u * step / 2, ys[corner] + v * step / 2 - 1e-3 * step
+            angles = shadows.angles(px, py)
+            if not 0 < angles[0] < math.pi or not 0 < angles[1] < math.pi:
                 continue
-            inside += 1
-            assert xmin <= xs[c] <= xmax and ymin <= ys[c] <= ymax, (seed, c)
-    assert boxes >= 20
-    assert inside >= 20
-    assert outside >= 100
+            if angles[1 if at_b else 0] <= angle or math.hypot(px - cx, py - cy) <= reach:
+                continue
+            c = (Fraction(px), Fraction(py))
+            assert any(_meets_inside(a, b, c, exact[e], exact[e + 1]) for e in edges), (seed, u, v)
+            checked += 1
+    assert checked > 200
 
 
 def test_rule_elevation_bounds_its_apexes_in_a_box_with_the_same_trees(
