@@ -479,10 +479,15 @@ def _pass_tables(
 
 
 def _table_results(
-    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, every_above: int | None = None
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    every_above: int | None = None,
+    crossings: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_pass_tables`, and per candidate a position found strictly inside its triangle
-    or -1."""
+    or -1; ``crossings``: see :func:`_tables`."""
     ok = np.ones(len(c), dtype=bool)
     inside = np.full(len(c), -1, dtype=np.int64)
     # a 3-vertex sub-polygon has only its corners and its own sides: conditions 2 and 3 hold
@@ -492,9 +497,12 @@ def _table_results(
     every = np.zeros(len(idx), dtype=bool)
     if every_above is not None:
         every = hi[idx] - lo[idx] > every_above
-    for part, tables in ((idx[every], _all_tables), (idx[~every], _tables)):
+    for part, every_table in ((idx[every], True), (idx[~every], False)):
         if len(part):
-            bad, inside[part] = tables(seqs, lo[part], hi[part], c[part])
+            if every_table:
+                bad, inside[part] = _all_tables(seqs, lo[part], hi[part], c[part])
+            else:
+                bad, inside[part] = _tables(seqs, lo[part], hi[part], c[part], crossings)
             ok[part[bad]] = False
     return ok, inside
 
@@ -506,21 +514,24 @@ def _known_then_tables(
     owner: np.ndarray,
     c: np.ndarray,
     known: np.ndarray,
-    every_above: int,
+    known_above: int,
+    every_above: int | None,
+    crossings: bool = False,
 ) -> np.ndarray:
-    """:func:`_pass_tables` of candidates ``c`` of nodes ``owner``, those holding their
-    node's ``known`` position (found inside an earlier candidate's triangle, -1: none)
-    strictly inside failing without the tables; positions the tables find inside become
-    their nodes' known ones."""
+    """:func:`_pass_tables` of candidates ``c`` of nodes ``owner``, those of sub-polygons of
+    more than ``known_above`` positions holding their node's ``known`` position (found
+    inside an earlier candidate's triangle, -1: none) strictly inside failing without the
+    tables; positions the tables find inside become their nodes' known ones.
+    ``every_above``: as for :func:`_pass_tables`; ``crossings``: see :func:`_tables`."""
     ok = np.ones(len(c), dtype=bool)
     b = known[owner]
-    some = np.flatnonzero((b >= 0) & (hi[owner] - lo[owner] > every_above))
+    some = np.flatnonzero((b >= 0) & (hi[owner] - lo[owner] > known_above))
     if len(some):
         o = owner[some]
         ok[some] = ~_strictly_inside(seqs, hi[o], lo[o], c[some], b[some])
     rest = np.flatnonzero(ok)
     o = owner[rest]
-    ok[rest], inside = _table_results(seqs, lo[o], hi[o], c[rest], every_above)
+    ok[rest], inside = _table_results(seqs, lo[o], hi[o], c[rest], every_above, crossings)
     found = inside >= 0
     known[o[found]] = inside[found]
     return ok
@@ -578,8 +589,9 @@ def _bent_in_triangle(
     side, and its vertex farthest from that side is bent (the part of the ear beyond it is
     interior). A triangle with two new sides can also be crossed by a notch of the exterior,
     an island or a bridge with no vertex inside. With ``crossings`` (rule first, whose fans
-    make many such triangles in large sub-polygons), :func:`_edges_across` looks for the
-    edges most likely to cross one, so that fewer trees are built twice.
+    make many such triangles in large sub-polygons, and rule elevation, whose closest
+    elevation often lies far across), :func:`_edges_across` looks for the edges most likely
+    to cross one, so that fewer trees are built twice.
     """
     n = len(lo)
     corners = np.take(seqs.xy, np.stack([hi, lo, c]), axis=0)
@@ -1218,9 +1230,10 @@ def _elevation_apex(
     that passes conditions 1 and 4 is surely farther or at the same elevation, it is the
     rule's choice; where it is not correct it drops out and the next closest is tried, up to
     in rounds of 1, 2, 4, ... closest candidates at once (``_ELEVATION_ROUNDS`` rounds).
-    Nodes where the choice is not sure test all their candidates. In sub-polygons of more
-    than ``_ELEVATION_EVERY`` positions a candidate is tested against every position, also
-    in proven polygons.
+    Nodes where the choice is not sure test all their candidates. In proven polygons a
+    candidate takes the bent positions' tables and, as rule first's fans do, the test of the
+    edges most likely to cross it (``_ELEVATION_CROSSINGS``): the closest elevation is often
+    far across the sub-polygon, a triangle with two new sides.
 
     ``near_first``: a node of many candidates first takes only those whose elevation lies
     within a share of its candidates' spread of the closest (about ``_NEAR_CANDIDATES`` of
@@ -1339,7 +1352,7 @@ def _closest_correct(
         rank = np.arange(len(o)) - starts[group]
         taken = np.flatnonzero(rank < take)
         t = left[taken]
-        ok = _known_then_tables(seqs, lo, hi, owner[t], c[t], known, _ELEVATION_EVERY)
+        ok = _elevation_tables(seqs, lo, hi, owner[t], c[t], known)
         # per node the first correct one among those taken (its rank), or take
         first = np.full(len(starts), take, dtype=np.int64)
         np.minimum.at(first, group[taken[ok]], rank[taken[ok]])
@@ -1373,12 +1386,26 @@ def _closest_correct(
     rest = np.flatnonzero(alive & ~found[owner] & ~undecided[owner])
     rest = rest[np.argsort(order[rest])]
     owner, c = owner[rest], c[rest]
-    good = _known_then_tables(seqs, lo, hi, owner, c, known, _ELEVATION_EVERY)
+    good = _elevation_tables(seqs, lo, hi, owner, c, known)
     if good.any():
         chosen = np.bincount(owner[good], minlength=n) > 0
         found[chosen] = True
         apex[chosen] = _choose_elevation(sz, owner[good], c[good], v1, v2)
     return found, apex, undecided
+
+
+def _elevation_tables(
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    owner: np.ndarray,
+    c: np.ndarray,
+    known: np.ndarray,
+) -> np.ndarray:
+    """:func:`_known_then_tables` for rule "elevation"."""
+    return _known_then_tables(
+        seqs, lo, hi, owner, c, known, _ELEVATION_KNOWN, _ELEVATION_EVERY, _ELEVATION_CROSSINGS
+    )
 
 
 def _mirrored(zd: np.ndarray, zc: np.ndarray, z1: np.ndarray, z2: np.ndarray) -> np.ndarray:
@@ -1478,7 +1505,13 @@ def _edge_across_sure(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.nda
 # mended 1,025 nodes, or built 948 of 1,000 trees twice), and whose many bent positions
 # cost those tables more than the run tables
 _DELAUNAY_EVERY = _RUN_MIN
-_ELEVATION_EVERY = _RUN_MIN
+# rule "elevation" in proven polygons: sub-polygons of more than this many positions test
+# every position (None: none; the bent positions' tables with ``_ELEVATION_CROSSINGS`` leave
+# few trees to mend), and those of more than _ELEVATION_KNOWN test a base's known position first
+_ELEVATION_EVERY: int | None = None
+_ELEVATION_KNOWN = _RUN_MIN
+# ... and its candidates are tested against the edges most likely to cross them (_tables)
+_ELEVATION_CROSSINGS = True
 # table entries per call of :func:`_delaunay_guess`
 _GUESS_CHUNK = 1 << 14
 
@@ -1602,7 +1635,9 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
             untested = live[~tested[live]]
             if len(untested):
                 t = owner[untested]
-                good = _known_then_tables(seqs, lo, hi, t, c[untested], blocker, _DELAUNAY_EVERY)
+                good = _known_then_tables(
+                    seqs, lo, hi, t, c[untested], blocker, _DELAUNAY_EVERY, _DELAUNAY_EVERY
+                )
                 tested[untested] = True
                 alive[untested[~good]] = False
                 live = live[alive[live]]
@@ -1614,7 +1649,9 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
         test = head[~tested[head]]
         if len(test):
             t = owner[test]
-            good = _known_then_tables(seqs, lo, hi, t, c[test], blocker, _DELAUNAY_EVERY)
+            good = _known_then_tables(
+                seqs, lo, hi, t, c[test], blocker, _DELAUNAY_EVERY, _DELAUNAY_EVERY
+            )
             tested[test] = True
             alive[test[~good]] = False
         better = head[alive[head]]
