@@ -64,6 +64,8 @@ _LAZY_BAND = 256
 _NEAR_SHADOWS = 64
 # rule "elevation": sub-polygons longer than this bound their apexes in a box first
 _REGION_SPAN = 4096
+# rule "elevation": bands of at most this many candidates are ordered in Python floats
+_PYTHON_BAND = 64
 # The rule "elevation" error bound's factor (rules.ElevationRule).
 _EPS8 = 8.0 * 2.0**-53
 # Largest chunk of candidates filtered at once by rule "first" on long runs.
@@ -389,6 +391,7 @@ class _Tree:
         self.sy = prepared.y[self.ids]
         self.sz = z[self.ids]
         self.xs, self.ys = self.sx.tolist(), self.sy.tolist()  # for the scalar tests
+        self._zs: list[float] | None = None  # see zs
         self.rule = rule
         self.m = len(sequence)
         self.exact = grid_exact(self.sx, self.sy)
@@ -402,6 +405,13 @@ class _Tree:
         self._recent: list[int] = []
         self._bends: tuple[list[int], list[int]] | None = None  # see _straight_runs
         self._z_steps: list[int] | None = None  # rule "elevation": see _level
+
+    @property
+    def zs(self) -> list[float]:
+        """The elevations per position as Python floats (rule "elevation"), made once."""
+        if self._zs is None:
+            self._zs = self.sz.tolist()
+        return self._zs
 
     @property
     def grid(self) -> SegmentGrid | None:
@@ -564,7 +574,8 @@ class _Tree:
                 x, y = self.sx[band], self.sy[band]
                 band = band[(x >= xmin) & (x <= xmax) & (y >= ymin) & (y <= ymax)]
             lazy = len(band) <= _LAZY_BAND
-            if not lazy or looked >= _SCALAR_CANDIDATES:
+            if (not lazy or looked >= _SCALAR_CANDIDATES) and len(band):
+                band = np.asarray(band, dtype=np.int64)
                 # wide bands (elevations close or equal), and the later bands of a node that
                 # did not find its apex among its first candidates: those surely right of the
                 # chord and those in the shadows leave at once
@@ -578,13 +589,26 @@ class _Tree:
                 band = band[facing_candidates(self.sx, self.sy, lo, hi, band, self.exact)]
                 if len(band) > _SCALAR_CANDIDATES and blockers:
                     band = self._not_blocked_by(lo, hi, band, blockers)
-            if len(band):
+            if len(band) > _PYTHON_BAND:
+                band = np.asarray(band, dtype=np.int64)
                 zc = z[band]
                 approx = np.abs(2.0 * zc - z1 - z2)
                 error = _EPS8 * (2.0 * np.abs(zc) + abs(z1) + abs(z2)) + 1e-300
                 approx_list, error_list = approx.tolist(), error.tolist()
                 band_list, z_list = band.tolist(), zc.tolist()
-                for index in np.argsort(approx, kind="stable").tolist():
+                order = np.argsort(approx, kind="stable").tolist()
+            elif len(band):
+                # the same values in Python floats (the same operations in the same order),
+                # cheaper than numpy calls on a few candidates
+                band_list = band if isinstance(band, list) else band.tolist()
+                zs = self.zs
+                z_list = [zs[p] for p in band_list]
+                approx_list = [abs(2.0 * value - z1 - z2) for value in z_list]
+                a1, a2 = abs(z1), abs(z2)
+                error_list = [_EPS8 * (2.0 * abs(value) + a1 + a2) + 1e-300 for value in z_list]
+                order = sorted(range(len(band_list)), key=approx_list.__getitem__)
+            if len(band):
+                for index in order:
                     if found and approx_list[index] - widest > best:
                         break  # this band's others too are surely farther than a correct one
                     c = band_list[index]
