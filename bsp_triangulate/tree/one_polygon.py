@@ -1192,11 +1192,10 @@ class _Tree:
                 self._restart_watch()
                 self._grow([(1, self.m, True, -1, 0, 0)], rows, deferred)
                 if deferred:
-                    built = None
                     if worth_lockstep([hi - lo for _, lo, hi, *_ in deferred], name):
-                        built = self._with_subtrees(rows, deferred, name)
-                    # else, or where the lock-step builder found no tree: one step at a time
-                    rows = built if built is not None else self._with_blocks(rows, deferred)
+                        rows = self._with_subtrees(rows, deferred, name)
+                    else:
+                        rows = self._with_blocks(rows, deferred)
             except TriangulationError:
                 rows = None
         if rows is None:  # one step at a time throughout (and the errors in pre-order)
@@ -1331,27 +1330,37 @@ class _Tree:
 
     def _with_subtrees(
         self, rows: _Rows, deferred: list[tuple[int, int, int, bool, int, int, int]], rule: str
-    ) -> _Rows | None:
-        """``rows`` with the subtrees of the ``deferred`` sub-polygons (built by the lock-step
-        builder) in their places; None if one of them has no tree."""
+    ) -> _Rows:
+        """``rows`` with the subtrees of the ``deferred`` sub-polygons in their places, built
+        by the lock-step builder; those it finds no tree for (invalid input as given) one
+        step at a time (:meth:`_one_step_blocks`)."""
         table = np.array(deferred, dtype=np.int64)
         at, spans, at_hi = table[:, 0], table[:, 1:3], table[:, 3].astype(bool)
         above, dep, sd = table[:, 4], table[:, 5], table[:, 6]
         sub = build_subtrees(
             self.ids, self.sx, self.sy, self.sz, spans, self.prepared.mirrored, rule
         )
-        if not sub.ok.all():
-            return None
-        sizes = sub.count
+        sizes = sub.count.copy()
+        failed = np.flatnonzero(~sub.ok)
+        blocks = None
+        if len(failed):
+            blocks, starts = self._one_step_blocks([deferred[k] for k in failed.tolist()])
+            sizes[failed] = np.diff(starts)
         out, moved_rows, block = _spread(rows, at, sizes)
-        owner = np.repeat(np.arange(len(table), dtype=np.int64), sizes)
-        local = np.arange(len(owner), dtype=np.int64) - np.repeat(sub.start, sizes)
+        if blocks is not None:
+            self._place_blocks(out, moved_rows, block[failed], table[failed], blocks, starts)
+        owner = np.repeat(np.arange(len(table), dtype=np.int64), sub.count)
+        local = np.arange(len(owner), dtype=np.int64) - np.repeat(sub.start, sub.count)
+        kept = np.flatnonzero(sub.ok[owner])
+        owner, local = owner[kept], local[kept]
+        triangles, parent = sub.triangles[kept], sub.parent[kept]
+        depth, side = sub.depth[kept], sub.side[kept]
         # the subtrees were built with V1 at s_hi (the upper sub-range the left child): where
         # V1 is at s_lo, the root's two children trade sides and their subtrees trade places
         swap = ~at_hi[owner]
         length = sizes[owner]
         second = sizes.copy()  # local row of the root's right child (its lower sub-range)
-        right = np.flatnonzero((sub.parent == 0) & (sub.side == 2))
+        right = np.flatnonzero((parent == 0) & (side == 2))
         second[owner[right]] = local[right]
         split = second[owner]
 
@@ -1360,36 +1369,45 @@ class _Tree:
             return np.where(swap & (index > 0), moved, index)
 
         place = block[owner] + reordered(local)
-        root = sub.parent < 0
+        root = parent < 0
         top = above[owner]
-        out.triangles[place] = sub.triangles
+        out.triangles[place] = triangles
         out.parent[place] = np.where(
             root,
             np.where(top < 0, -1, moved_rows[np.maximum(top, 0)]),
-            block[owner] + reordered(np.maximum(sub.parent, 0)),
+            block[owner] + reordered(np.maximum(parent, 0)),
         )
-        out.depth[place] = sub.depth + dep[owner]
-        flip = (sub.parent == 0) & swap
-        out.side[place] = np.where(root, sd[owner], np.where(flip, 3 - sub.side, sub.side))
+        out.depth[place] = depth + dep[owner]
+        flip = (parent == 0) & swap
+        out.side[place] = np.where(root, sd[owner], np.where(flip, 3 - side, side))
         return out
 
     def _with_blocks(
         self, rows: _Rows, deferred: list[tuple[int, int, int, bool, int, int, int]]
     ) -> _Rows:
         """``rows`` with the subtrees of the ``deferred`` sub-polygons built one step at a
-        time, each in its place in pre-order as one block. A sub-polygon that cuts off a loop
-        (a pinch of invalid input, whose loop the whole tree builds last, as a tree of its
-        own) raises :class:`TriangulationError`: the whole tree is then built one step at a
-        time."""
+        time (:meth:`_one_step_blocks`), each in its place in pre-order as one block."""
         table = np.array(deferred, dtype=np.int64)
-        at, above, dep, sd = table[:, 0], table[:, 4], table[:, 5], table[:, 6]
-        count = rows.count
-        blocks = _Rows(len(rows.triangles) - count)
+        blocks, starts = self._one_step_blocks(deferred)
+        out, moved_rows, block = _spread(rows, table[:, 0], np.diff(starts))
+        self._place_blocks(out, moved_rows, block, table, blocks, starts)
+        return out
+
+    def _one_step_blocks(
+        self, deferred: list[tuple[int, int, int, bool, int, int, int]]
+    ) -> tuple[_Rows, np.ndarray]:
+        """The subtrees of the ``deferred`` sub-polygons built one step at a time, one after
+        the other (local parents, -1 at each root), and where each starts (with the end). A
+        sub-polygon that cuts off a loop (a pinch of invalid input, whose loop the whole tree
+        builds last, as a tree of its own) raises :class:`TriangulationError`: the whole tree
+        is then built one step at a time."""
+        blocks = _Rows(sum(hi - lo - 1 for _, lo, hi, *_ in deferred))
         starts = []
         tick = self.tick
-        if tick is not None:  # the share of the whole tree
-            done, left = count / len(rows.triangles), 1.0 - count / len(rows.triangles)
-            self.tick = lambda share: tick(done + share * left)
+        total = len(blocks.triangles)
+        whole = max(self.m - 2, 1)
+        if tick is not None:  # the share of the whole tree, the rest of it built already
+            self.tick = lambda share: tick(1.0 - (1.0 - share) * total / whole)
         try:
             for _, lo, hi, v1_at_hi, *_ in deferred:
                 start = blocks.count
@@ -1399,11 +1417,24 @@ class _Tree:
                     raise TriangulationError(self._label(lo) + ": a loop is cut off")
         finally:
             self.tick = tick
-        local = np.array([*starts, blocks.count], dtype=np.int64)
-        sizes = np.diff(local)
-        out, moved_rows, block = _spread(rows, at, sizes)
+        return blocks, np.array([*starts, blocks.count], dtype=np.int64)
+
+    def _place_blocks(
+        self,
+        out: _Rows,
+        moved_rows: np.ndarray,
+        block: np.ndarray,
+        table: np.ndarray,
+        blocks: _Rows,
+        starts: np.ndarray,
+    ) -> None:
+        """Write the one-step ``blocks`` (from :meth:`_one_step_blocks`; block k at rows
+        ``starts[k]`` to ``starts[k + 1]``) into ``out`` at the rows from ``block[k]`` on, for
+        the deferred sub-polygons ``table`` (``_spread`` gave ``out``, ``moved_rows``)."""
+        above, dep, sd = table[:, 4], table[:, 5], table[:, 6]
+        sizes = np.diff(starts)
         owner = np.repeat(np.arange(len(table), dtype=np.int64), sizes)
-        place = np.arange(blocks.count, dtype=np.int64) + (block - local[:-1])[owner]
+        place = np.arange(blocks.count, dtype=np.int64) + (block - starts[:-1])[owner]
         parent = blocks.parent[: blocks.count]
         root = parent < 0
         top = above[owner]
@@ -1415,7 +1446,6 @@ class _Tree:
         )
         out.depth[place] = blocks.depth[: blocks.count] + dep[owner]
         out.side[place] = np.where(root, sd[owner], blocks.side[: blocks.count])
-        return out
 
     def _fallback_apex(self, lo: int, hi: int) -> int:
         """Apex for a base of an invalid polygon that has no correct triangle (``as_given``).

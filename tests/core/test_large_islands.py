@@ -357,3 +357,34 @@ def test_delaunay_far_from_unit_scale_matches_every_candidate(
         lambda self, lo, hi: self._delaunay_small(lo, hi, np.arange(hi - 1, lo, -1)),
     )
     _same(_one_step(monkeypatch, rings, rule="delaunay"), found)
+
+
+@pytest.mark.parametrize("rule", ["first", "elevation"])
+def test_lockstep_subtrees_kept_where_others_are_built_one_step(
+    monkeypatch: pytest.MonkeyPatch, rule: str
+) -> None:
+    """Invalid input as given (an island across another): the lock-step builder finds no
+    tree for the sub-polygons where the crossing is, and only those are built one step at a
+    time; the others keep their lock-step subtrees, and the fields are those of building the
+    whole tree one step at a time."""
+    rings = _wavy(12000, 100, 4)
+    crossing = rings[5] + (rings[5][0] - rings[5][2]) * 0.3  # a copy moved across it
+    rings = [*rings, crossing]
+    rings = _lifted(rings) if rule == "elevation" else rings
+    plain = _one_step(monkeypatch, rings, rule=rule, invalid="as_given")
+    deferred, one_step = [], []
+    with_subtrees, blocks = one_polygon._Tree._with_subtrees, one_polygon._Tree._one_step_blocks
+    monkeypatch.setattr(
+        one_polygon._Tree,
+        "_with_subtrees",
+        lambda self, rows, later, name: (
+            deferred.append(len(later)) or with_subtrees(self, rows, later, name)
+        ),
+    )
+    monkeypatch.setattr(
+        one_polygon._Tree,
+        "_one_step_blocks",
+        lambda self, later: one_step.append(len(later)) or blocks(self, later),
+    )
+    _same(plain, triangulate(rings, rule=rule, invalid="as_given"))
+    assert 0 < sum(one_step) < sum(deferred)
