@@ -549,7 +549,10 @@ class _Tree:
         closest elevation first, from a window sorted once for many nodes
         (:class:`.elevation_order.ElevationWindows`), each facing one tested with the scalar
         exact test (:meth:`_blocked`), until every untested one is surely farther than a
-        correct one found; the rule then chooses among the correct ones found."""
+        correct one found; the rule then chooses among the correct ones found. Bases of more
+        than ``_REGION_SPAN`` positions cast the near vertices' shadows first; where these
+        bound the correct apexes in a box (:meth:`.shadows.Shadows.region_box`), each band
+        drops the candidates outside it before any test."""
         windows, z = self._windows, self.sz
         xs, ys = self.xs, self.ys
         z1, z2 = float(z[v1]), float(z[v2])
