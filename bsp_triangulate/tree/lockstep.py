@@ -1352,7 +1352,10 @@ def _closest_correct(
         rank = np.arange(len(o)) - starts[group]
         taken = np.flatnonzero(rank < take)
         t = left[taken]
-        ok = _elevation_tables(seqs, lo, hi, owner[t], c[t], known)
+        ok = _known_then_tables(
+            seqs, lo, hi, owner[t], c[t], known,
+            _ELEVATION_KNOWN, _ELEVATION_EVERY, _ELEVATION_CROSSINGS,
+        )  # fmt: skip
         # per node the first correct one among those taken (its rank), or take
         first = np.full(len(starts), take, dtype=np.int64)
         np.minimum.at(first, group[taken[ok]], rank[taken[ok]])
@@ -1386,26 +1389,14 @@ def _closest_correct(
     rest = np.flatnonzero(alive & ~found[owner] & ~undecided[owner])
     rest = rest[np.argsort(order[rest])]
     owner, c = owner[rest], c[rest]
-    good = _elevation_tables(seqs, lo, hi, owner, c, known)
+    good = _known_then_tables(
+        seqs, lo, hi, owner, c, known, _ELEVATION_KNOWN, _ELEVATION_EVERY, _ELEVATION_CROSSINGS
+    )
     if good.any():
         chosen = np.bincount(owner[good], minlength=n) > 0
         found[chosen] = True
         apex[chosen] = _choose_elevation(sz, owner[good], c[good], v1, v2)
     return found, apex, undecided
-
-
-def _elevation_tables(
-    seqs: Sequences,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    owner: np.ndarray,
-    c: np.ndarray,
-    known: np.ndarray,
-) -> np.ndarray:
-    """:func:`_known_then_tables` for rule "elevation"."""
-    return _known_then_tables(
-        seqs, lo, hi, owner, c, known, _ELEVATION_KNOWN, _ELEVATION_EVERY, _ELEVATION_CROSSINGS
-    )
 
 
 def _mirrored(zd: np.ndarray, zc: np.ndarray, z1: np.ndarray, z2: np.ndarray) -> np.ndarray:

@@ -577,8 +577,7 @@ class _Tree:
                 x, y = self.sx[band], self.sy[band]
                 band = band[(x >= xmin) & (x <= xmax) & (y >= ymin) & (y <= ymax)]
             lazy = len(band) <= _LAZY_BAND
-            if (not lazy or looked >= _SCALAR_CANDIDATES) and len(band):
-                band = np.asarray(band, dtype=np.int64)
+            if not lazy or looked >= _SCALAR_CANDIDATES:
                 # wide bands (elevations close or equal), and the later bands of a node that
                 # did not find its apex among its first candidates: those surely right of the
                 # chord and those in the shadows leave at once
@@ -593,7 +592,6 @@ class _Tree:
                 if len(band) > _SCALAR_CANDIDATES and blockers:
                     band = self._not_blocked_by(lo, hi, band, blockers)
             if len(band) > _PYTHON_BAND:
-                band = np.asarray(band, dtype=np.int64)
                 zc = z[band]
                 approx = np.abs(2.0 * zc - z1 - z2)
                 error = _EPS8 * (2.0 * np.abs(zc) + abs(z1) + abs(z2)) + 1e-300
@@ -603,7 +601,7 @@ class _Tree:
             elif len(band):
                 # the same values in Python floats (the same operations in the same order),
                 # cheaper than numpy calls on a few candidates
-                band_list = band if isinstance(band, list) else band.tolist()
+                band_list = band.tolist()
                 zs = self.zs
                 z_list = [zs[p] for p in band_list]
                 approx_list = [abs(2.0 * value - z1 - z2) for value in z_list]
