@@ -1352,34 +1352,40 @@ class _Tree:
             self._place_blocks(out, moved_rows, block[failed], table[failed], blocks, starts)
         owner = np.repeat(np.arange(len(table), dtype=np.int64), sub.count)
         local = np.arange(len(owner), dtype=np.int64) - np.repeat(sub.start, sub.count)
-        kept = np.flatnonzero(sub.ok[owner])
-        owner, local = owner[kept], local[kept]
-        triangles, parent = sub.triangles[kept], sub.parent[kept]
-        depth, side = sub.depth[kept], sub.side[kept]
+        triangles, parent, depth, side = sub.triangles, sub.parent, sub.depth, sub.side
+        if len(failed):
+            kept = np.flatnonzero(sub.ok[owner])
+            owner, local = owner[kept], local[kept]
+            triangles, parent = triangles[kept], parent[kept]
+            depth, side = depth[kept], side[kept]
+        del sub
         # the subtrees were built with V1 at s_hi (the upper sub-range the left child): where
         # V1 is at s_lo, the root's two children trade sides and their subtrees trade places
         swap = ~at_hi[owner]
-        length = sizes[owner]
         second = sizes.copy()  # local row of the root's right child (its lower sub-range)
         right = np.flatnonzero((parent == 0) & (side == 2))
         second[owner[right]] = local[right]
         split = second[owner]
-
-        def reordered(index: np.ndarray) -> np.ndarray:
-            moved = np.where(index < split, index + length - split, index - split + 1)
-            return np.where(swap & (index > 0), moved, index)
-
-        place = block[owner] + reordered(local)
-        root = parent < 0
-        top = above[owner]
+        del second, right
+        # (the temporaries go as soon as they are used: these arrays hold a row per
+        # triangle of the whole polygon)
+        size = sizes[owner]
+        start = block[owner]
+        place = start + _reordered(local, split, size, swap)
+        del local
         out.triangles[place] = triangles
-        out.parent[place] = np.where(
-            root,
-            np.where(top < 0, -1, moved_rows[np.maximum(top, 0)]),
-            block[owner] + reordered(np.maximum(parent, 0)),
-        )
+        del triangles
         out.depth[place] = depth + dep[owner]
+        del depth
+        root = parent < 0
         flip = (parent == 0) & swap
+        linked = start + _reordered(np.maximum(parent, 0), split, size, swap)
+        del parent, start, size, split
+        roots = np.flatnonzero(root)
+        top = above[owner[roots]]
+        linked[roots] = np.where(top < 0, -1, moved_rows[np.maximum(top, 0)])
+        out.parent[place] = linked
+        del linked
         out.side[place] = np.where(root, sd[owner], np.where(flip, 3 - side, side))
         return out
 
@@ -1511,6 +1517,16 @@ def _sectors_of(first: float | None, second: float | None, angles: list[float]) 
         max(bisect_left(angles, low - _FAN_MARGIN) - 1, 0),
         min(bisect_right(angles, high + _FAN_MARGIN) - 1, count - 1),
     )
+
+
+def _reordered(
+    index: np.ndarray, split: np.ndarray, size: np.ndarray, swap: np.ndarray
+) -> np.ndarray:
+    """Local rows ``index`` of subtrees of ``size`` rows built with V1 at s_hi, in the
+    order of their trees where ``swap`` (V1 at s_lo): the root stays first, the rows from
+    ``split`` (the root's right child on) come next, then the rest."""
+    moved = np.where(index < split, index + size - split, index - split + 1)
+    return np.where(swap & (index > 0), moved, index)
 
 
 def _spread(rows: _Rows, at: np.ndarray, sizes: np.ndarray) -> tuple[_Rows, np.ndarray, np.ndarray]:
