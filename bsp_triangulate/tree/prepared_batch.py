@@ -30,6 +30,8 @@ def triangulate_prepared(
         return {}
     found = []
     for index, rings in enumerate(polygons):
+        if _surely_long(rings):
+            continue  # the engine's (a large polygon's bridges are not searched twice)
         prepared = bridged_sequence(rings, rule=rule, invalid=invalid, plane=plane)
         if prepared is not None and len(prepared[1]) < MAX_POSITIONS:
             found.append((index, *prepared))
@@ -58,6 +60,17 @@ def triangulate_prepared(
                 continue  # the engine reports it
         results[index] = result
     return results
+
+
+def _surely_long(rings: Sequence[object]) -> bool:
+    """The rings' sequence surely has too many positions to be built here: every point of
+    a ring but its closing repeat becomes a position (a bridge adds its two ends again).
+    Only where the preparation drops many repeated points is the sequence shorter; the
+    engine then builds it, with the same result."""
+    try:
+        return sum(len(ring) - 1 for ring in rings) >= MAX_POSITIONS
+    except TypeError:
+        return False
 
 
 def _trees(sequences: list[np.ndarray], prepared: list, rule: str) -> object:

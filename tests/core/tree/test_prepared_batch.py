@@ -91,3 +91,27 @@ def test_few_polygons_left_to_the_engine_are_not_batched(monkeypatch: pytest.Mon
     assert built == []
     for rings, got in zip(polygons, results):
         assert _same(got, triangulate(rings))
+
+
+def test_large_polygons_are_bridged_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Large polygons (sequences over ``MAX_POSITIONS``) go to the engine without being
+    prepared and bridged here first, and come out as ``triangulate`` gives them."""
+    angles = np.linspace(0.0, 2.0 * np.pi, 400, endpoint=False)
+    radius = 10.0 + np.where(np.arange(400) % 2, 2.0, 0.0)
+    outer = np.column_stack([radius * np.cos(angles), radius * np.sin(angles)])
+    island = [(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)]
+    shift = [np.array([30.0 * k, 0.0]) for k in range(3)]
+    polygons = [[outer + d, [(x + d[0], y) for x, y in island]] for d in shift]
+    small = _touching_set(5, 2, "first")[:2]
+    bridged = []
+    original = prepared_batch.bridged_sequence
+
+    def counted(rings: object, **options: object) -> object:
+        bridged.append(len(rings))
+        return original(rings, **options)
+
+    monkeypatch.setattr(prepared_batch, "bridged_sequence", counted)
+    results = triangulate_many(polygons + small, on_error="return")
+    assert len(bridged) == 2  # the small ones alone
+    for rings, got in zip(polygons + small, results):
+        assert _same(got, _expected(rings, "first", "fail"))
