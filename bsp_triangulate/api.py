@@ -15,6 +15,7 @@ import numpy as np
 from .geometry.rings import PLANES, normalise_rings
 from .packed import PackedPolygons, PackedTriangulations, Piece, assemble
 from .rules import get_rule
+from .tree.engine_many import engine_results, runs_alone
 from .tree.one_polygon import _as_given, _triangulate
 from .tree.points_batch import InsertedMesh, insert_points
 from .tree.points_trees import trees_of_inserted, trees_of_known
@@ -177,11 +178,42 @@ def triangulate_many(
         prepared = _prepared_at_once(left, polygons.__getitem__, rule, invalid, plane)
         for index, done in prepared.items():
             results[index] = done
+    left = [
+        index
+        for index, done in enumerate(results)
+        if not (isinstance(done, Triangulation) or (done is not None and invalid == "fail"))
+    ]
+    # the polygons the one-polygon builder takes alone (points, meshes) and the others,
+    # whose trees run side by side
+    alone = {
+        index
+        for index in left
+        if (points is not None and _point_count(points[index]))
+        or (meshes is not None and _mesh_given(meshes[index]))
+        or ring_meshes.get(index) is not None
+        or inserted.get(index) is not None
+    }
+    options = {"rule": rule, "planar_tolerance": planar_tolerance, "invalid": invalid}
+    side_by_side = engine_results(
+        [index for index in left if index not in alone],
+        polygons.__getitem__,
+        {**options, "plane": plane},
+    )
+    ready: dict[int, Triangulation | TriangulationError] = {}
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
             if isinstance(done, TriangulationError) and on_error == "raise":
                 raise done
+            continue
+        if index not in alone:
+            while index not in ready:
+                number, result = next(side_by_side)
+                ready[number] = result
+            done = ready.pop(index)
+            if isinstance(done, TriangulationError) and on_error == "raise":
+                raise done
+            results[index] = done
             continue
         results[index] = _engine_result(
             rings,
@@ -460,7 +492,39 @@ def triangulate_packed(
         for index, tree in prepared.items():
             decided[index] = True
             pieces.append(Piece.of(index, tree))
-    for index in np.flatnonzero(~decided).tolist():
+    left = np.flatnonzero(~decided).tolist()
+    # the polygons the one-polygon builder takes alone (points, meshes, or large enough for
+    # their progress to be reported as they go) and the others, whose trees run side by side
+    alone = {
+        index
+        for index in left
+        if (counts is not None and counts[index])
+        or (mesh_starts is not None and index < len(mesh_counts) and mesh_counts[index])
+        or ring_meshes.get(index) is not None
+        or inserted.get(index) is not None
+        or runs_alone(polygons.rings(index))
+    }
+    options = {"rule": rule, "planar_tolerance": planar_tolerance, "invalid": invalid}
+    side_by_side = engine_results(
+        [index for index in left if index not in alone],
+        polygons.rings,
+        {**options, "plane": plane},
+        report.one_more,
+    )
+    ready: dict[int, Triangulation | TriangulationError] = {}
+    for index in left:
+        if index not in alone:
+            while index not in ready:
+                number, result = next(side_by_side)
+                ready[number] = result
+            result = ready.pop(index)
+            if isinstance(result, TriangulationError):
+                if on_error == "raise":
+                    raise result
+                errors[index] = result
+            else:
+                pieces.append(Piece.of(index, result))
+            continue
         report.one_more()
         rings = polygons.rings(index)
         given = None

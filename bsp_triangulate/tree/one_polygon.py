@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left, bisect_right
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Generator, Iterable, Sequence
 
 import numpy as np
 
@@ -40,9 +40,18 @@ from .lockstep import straight_runs
 from .one_by_one import edge_blocks, facing_one, run_bounds
 from .points_batch import InsertedMesh
 from .shadows import Shadows
-from .subtrees import DELAUNAY_POSITIONS, MAX_POSITIONS, build_subtrees, worth_lockstep
+from .subtrees import (
+    DELAUNAY_POSITIONS,
+    MAX_POSITIONS,
+    SubtreeRequest,
+    Subtrees,
+    build_subtrees,
+    worth_lockstep,
+)
 
 INVALID_MODES = ("fail", "as_given")
+# a tree built in steps: it yields its lock-step sub-polygons and gets their subtrees back
+Steps = Generator[SubtreeRequest, Subtrees, Triangulation]
 _FIRST = FirstRule()
 # Sub-polygons up to this many vertices test their candidates against all their edges at once;
 # larger sequences use a grid over the edges.
@@ -1184,6 +1193,13 @@ class _Tree:
         return correct if exhaustive else correct[:1]
 
     def build(self) -> Triangulation:
+        return drive(self.build_steps())
+
+    def build_steps(self) -> Steps:
+        """:meth:`build` as steps: the small sub-polygons are yielded as one
+        :data:`SubtreeRequest`; their :class:`.subtrees.Subtrees` come back from the
+        lock-step builder (so that the caller may build those of many polygons at once), or
+        None, where the rounds are not worth it, to build them one step at a time."""
         name = self._lockstep_rule()
         rows = None
         if name is not None:
@@ -1193,10 +1209,13 @@ class _Tree:
                 self._restart_watch()
                 self._grow([(1, self.m, True, -1, 0, 0)], rows, deferred)
                 if deferred:
-                    if worth_lockstep([hi - lo for _, lo, hi, *_ in deferred], name):
-                        rows = self._with_subtrees(rows, deferred, name)
-                    else:
+                    spans = np.array([(lo, hi) for _, lo, hi, *_ in deferred], dtype=np.int64)
+                    request = (self.ids, self.sx, self.sy, self.sz, spans)
+                    sub = yield (*request, self.prepared.mirrored, name)
+                    if sub is None:  # not worth the lock-step rounds: one step at a time
                         rows = self._with_blocks(rows, deferred)
+                    else:
+                        rows = self._with_subtrees(rows, deferred, sub)
             except TriangulationError:
                 rows = None
         if rows is None:  # one step at a time throughout (and the errors in pre-order)
@@ -1330,17 +1349,14 @@ class _Tree:
         rows.count = count
 
     def _with_subtrees(
-        self, rows: _Rows, deferred: list[tuple[int, int, int, bool, int, int, int]], rule: str
+        self, rows: _Rows, deferred: list[tuple[int, int, int, bool, int, int, int]], sub: Subtrees
     ) -> _Rows:
-        """``rows`` with the subtrees of the ``deferred`` sub-polygons in their places, built
-        by the lock-step builder; those it finds no tree for (invalid input as given) one
-        step at a time (:meth:`_one_step_blocks`)."""
+        """``rows`` with the subtrees ``sub`` of the ``deferred`` sub-polygons in their
+        places, built by the lock-step builder; those it finds no tree for (invalid input as
+        given) one step at a time (:meth:`_one_step_blocks`)."""
         table = np.array(deferred, dtype=np.int64)
-        at, spans, at_hi = table[:, 0], table[:, 1:3], table[:, 3].astype(bool)
+        at, at_hi = table[:, 0], table[:, 3].astype(bool)
         above, dep, sd = table[:, 4], table[:, 5], table[:, 6]
-        sub = build_subtrees(
-            self.ids, self.sx, self.sy, self.sz, spans, self.prepared.mirrored, rule
-        )
         sizes = sub.count.copy()
         failed = np.flatnonzero(~sub.ok)
         blocks = None
@@ -1604,7 +1620,26 @@ def _snap(clean: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
     return [np.asarray(r, dtype=np.float64) for r in snap_to_plane(clean, tolerance)]
 
 
-def _triangulate(
+def drive(steps: Steps) -> Triangulation:
+    """The result of ``steps``, each lock-step request built as it comes where its
+    sub-polygons are worth the rounds (``subtrees.worth_lockstep``)."""
+    try:
+        request = next(steps)
+        while True:
+            spans, rule = request[4], request[6]
+            worth = worth_lockstep((spans[:, 1] - spans[:, 0]).tolist(), rule)
+            request = steps.send(build_subtrees(*request) if worth else None)
+    except StopIteration as done:
+        return done.value
+
+
+def _triangulate(rings: Sequence[object], **options: object) -> Triangulation:
+    """:func:`~bsp_triangulate.api.triangulate` of one polygon (:func:`triangulate_steps`
+    run through)."""
+    return drive(triangulate_steps(rings, **options))
+
+
+def triangulate_steps(
     rings: Sequence[object],
     *,
     rule: str,
@@ -1617,15 +1652,16 @@ def _triangulate(
     mesh: object = None,
     ring_mesh: Triangulation | None = None,
     inserted_mesh: InsertedMesh | None = None,
-) -> Triangulation:
-    """:func:`~bsp_triangulate.api.triangulate` of one polygon; ``repair``: a polygon whose
-    rings cross may be repaired (False inside the repair itself); ``tick``: called every 64
-    triangles with the share of the tree built (it may raise to stop); ``points``: interior
-    points, each joined as a one-point island; ``mesh``: under rule delaunay with points, the
-    constrained Delaunay triangulation if known (see :func:`_known_mesh`); ``ring_mesh``:
-    the rings' own triangulation without the points, if known (the points go into it);
-    ``inserted_mesh``: the points already inserted into it (``points_batch``), used where its
-    points are the rows this polygon gives them."""
+) -> Steps:
+    """:func:`~bsp_triangulate.api.triangulate` of one polygon, as steps (:data:`Steps`:
+    the tree's lock-step sub-polygons are yielded, their subtrees sent back); ``repair``: a
+    polygon whose rings cross may be repaired (False inside the repair itself); ``tick``:
+    called every 64 triangles with the share of the tree built (it may raise to stop);
+    ``points``: interior points, each joined as a one-point island; ``mesh``: under rule
+    delaunay with points, the constrained Delaunay triangulation if known (see
+    :func:`_known_mesh`); ``ring_mesh``: the rings' own triangulation without the points, if
+    known (the points go into it); ``inserted_mesh``: the points already inserted into it
+    (``points_batch``), used where its points are the rows this polygon gives them."""
     apex_rule = get_rule(rule)
     as_given = _as_given(invalid)
     clean, axes = normalise_rings(rings, plane)
@@ -1707,11 +1743,11 @@ def _triangulate(
     if inserted is None and as_given and repair:
         tree.loss_watch = _LossWatch(prepared, axes, repair_now)
         try:
-            result = tree.build()
+            result = yield from tree.build_steps()
         except _RepairWinsError:
             return repaired[0]
     else:
-        result = tree.build()
+        result = yield from tree.build_steps()
     result.point_ids = point_ids
     if tree.used_fallback and repair:
         lost = _area_loss(prepared, result, axes)

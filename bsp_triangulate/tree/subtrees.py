@@ -29,6 +29,11 @@ GROUP_POSITIONS = 200_000
 LOCKSTEP_BREADTH = {"first": 16, "elevation": 8, "delaunay": 8}
 
 
+# what a polygon's tree asks the lock-step builder for: the arguments of build_subtrees
+# (its sequence's ids, x, y, z, the spans, whether mirrored, the rule)
+SubtreeRequest = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool, str]
+
+
 def worth_lockstep(sizes: list[int], rule: str) -> bool:
     """Sequences of these ``sizes`` are many enough beside the largest of them (whose depth
     bounds the lock-step rounds) to be built in lock-step under ``rule`` rather than one step
@@ -69,26 +74,72 @@ def _twins(ext: np.ndarray, owner: np.ndarray, ext_start: np.ndarray) -> np.ndar
     return twin
 
 
+def build_subtrees_many(requests: list[SubtreeRequest]) -> list[Subtrees]:
+    """:func:`build_subtrees` of each request (of one rule), in shared lock-step calls: the
+    sequences laid end to end (their vertex ids apart), each request's spans moved with its
+    sequence. A sub-polygon's tree depends on its positions alone, so each request gets the
+    subtrees it would get alone; the rounds, whose fixed cost is most of a polygon's
+    subtrees', are shared."""
+    if len(requests) < 2:
+        return [build_subtrees(*request) for request in requests]
+    rule = requests[0][6]
+    lengths = [len(request[1]) for request in requests]
+    offsets = np.cumsum([0, *lengths[:-1]])
+    id_span = [int(request[0].max(initial=-1)) + 1 for request in requests]
+    id_offsets = np.cumsum([0, *id_span[:-1]])
+    spans = [request[4] + offset for request, offset in zip(requests, offsets)]
+    counts = np.array([len(span) for span in spans], dtype=np.int64)
+    joined = build_subtrees(
+        np.concatenate([request[0] + shift for request, shift in zip(requests, id_offsets)]),
+        np.concatenate([request[1] for request in requests]),
+        np.concatenate([request[2] for request in requests]),
+        np.concatenate([request[3] for request in requests]),
+        np.concatenate(spans),
+        np.repeat([request[5] for request in requests], counts),
+        rule,
+    )
+    found = []
+    first = 0
+    for count, shift in zip(counts.tolist(), id_offsets.tolist()):
+        start, number = joined.start[first : first + count], joined.count[first : first + count]
+        rows = slice(int(start[0]), int(start[-1] + number[-1])) if count else slice(0, 0)
+        found.append(
+            Subtrees(
+                joined.triangles[rows] - shift,
+                joined.parent[rows],
+                joined.depth[rows],
+                joined.side[rows],
+                start - rows.start,
+                number,
+                joined.ok[first : first + count],
+            )
+        )
+        first += count
+    return found
+
+
 def build_subtrees(
     ids: np.ndarray,
     sx: np.ndarray,
     sy: np.ndarray,
     sz: np.ndarray,
     spans: np.ndarray,
-    mirrored: bool,
+    mirrored: bool | np.ndarray,
     rule: str,
 ) -> Subtrees:
     """The subtrees of the sub-polygons ``spans`` (rows (lo, hi) of positions) of one bridged
     sequence: ``ids`` its output vertex ids per position, ``sx``, ``sy``, ``sz`` its working
     coordinates and elevations (position m repeating position 0), the root of each subtree
-    with V1 at s_hi; ``rule`` "first" or "elevation". Built in groups of about
+    with V1 at s_hi; ``mirrored``: for all spans or per span; ``rule`` "first",
+    "elevation" or "delaunay". Built in groups of about
     ``GROUP_POSITIONS`` positions, which bounds the lock-step builder's memory."""
     length = spans[:, 1] - spans[:, 0] + 1
     group = np.cumsum(length) // GROUP_POSITIONS
     cuts = np.flatnonzero(np.diff(group)) + 1
+    flags = np.broadcast_to(np.asarray(mirrored, dtype=bool), (len(spans),))
     parts = [
-        _build_group(ids, sx, sy, sz, part, mirrored, rule)
-        for part in np.split(spans, cuts)
+        _build_group(ids, sx, sy, sz, part, flag, rule)
+        for part, flag in zip(np.split(spans, cuts), np.split(flags, cuts))
         if len(part)
     ]
     count = np.concatenate([part.count for part in parts])
@@ -109,10 +160,11 @@ def _build_group(
     sy: np.ndarray,
     sz: np.ndarray,
     spans: np.ndarray,
-    mirrored: bool,
+    mirrored: np.ndarray,
     rule: str,
 ) -> Subtrees:
-    """:func:`build_subtrees` of one group of spans, in one lock-step call."""
+    """:func:`build_subtrees` of one group of spans (``mirrored`` per span), in one
+    lock-step call."""
     lo, hi = spans[:, 0], spans[:, 1]
     length = hi - lo + 1  # positions of the sub-polygon
     ext_len = length + 1  # with the closing repeat of s_hi
@@ -132,7 +184,7 @@ def _build_group(
         sz[position],
         ext_start,
         length,
-        np.full(len(spans), mirrored),
+        mirrored,
         rule,
         None,
     )
