@@ -3,8 +3,10 @@ mapbox_earcut, in the same run.
 
 Cases: earcut's water fixtures, the mid-size bench set (concave stars of 260-600 vertices
 with an island), random radial polygons of 260-600 vertices (every radius +-45 %), one wavy
-polygon of 100,000 vertices with 1,000 square islands, and a long thin "river" shell with
-3,000 islands of varied size packed close to each other and to the shell; plus the growth from
+polygon of 100,000 vertices with 1,000 square islands, a long thin "river" shell with
+3,000 islands of varied size packed close to each other and to the shell, and a layer of 40
+wavy polygons of 2,000 vertices with 20 square islands each (too large for the batch path,
+their trees run side by side); plus the growth from
 the wavy polygon of 10,000 vertices and 100 islands to the one of 100,000 and 1,000.
 
 Ours is ``triangulate_many`` on lists of rings (``invalid="as_given"``, as earcut; z from the
@@ -81,6 +83,13 @@ def cases(quick: bool) -> list[tuple[str, list[Rings]]]:
     islands = 600 if quick else 3_000
     found.append(
         (f"river, {islands:,} islands of varied size", [river_polygon(8 * islands, islands)])
+    )
+    layer = 10 if quick else 40
+    found.append(
+        (
+            f"a layer of {layer} wavy polygons, 2,000 vertices, 20 squares each",
+            [wavy_polygon(2_000, 20, seed=seed) for seed in range(layer)],
+        )
     )
     return found
 
