@@ -377,8 +377,8 @@ def test_lockstep_subtrees_kept_where_others_are_built_one_step(
     monkeypatch.setattr(
         one_polygon._Tree,
         "_with_subtrees",
-        lambda self, rows, later, name: (
-            deferred.append(len(later)) or with_subtrees(self, rows, later, name)
+        lambda self, rows, later, sub: (
+            deferred.append(len(later)) or with_subtrees(self, rows, later, sub)
         ),
     )
     monkeypatch.setattr(

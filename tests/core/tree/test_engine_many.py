@@ -11,14 +11,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bsp_triangulate import PackedPolygons, TriangulationError, triangulate
+from bsp_triangulate import PackedPolygons, TriangulationError
 from bsp_triangulate.api import triangulate_many, triangulate_packed
 from bsp_triangulate.tree import engine_many, subtrees
 from bsp_triangulate.tree.one_polygon import _Tree
 
+from ..engine_equal import engine_or_error, same_result
 from ..test_large_islands import CASES, _lifted, _wavy
 
-FIELDS = ("vertices", "triangles", "parent", "depth", "side", "point_ids")
 EARCUT = Path(__file__).resolve().parents[4] / "shared" / "data" / "earcut" / "fixtures"
 
 
@@ -43,23 +43,6 @@ def _polygons(rule: str) -> list[list[np.ndarray]]:
     return [_lifted(rings) for rings in polygons] if rule == "elevation" else polygons
 
 
-def _expected(rings: list, rule: str, invalid: str) -> object:
-    try:
-        return triangulate(rings, rule=rule, invalid=invalid)
-    except TriangulationError as exc:
-        return exc
-
-
-def _same(got: object, want: object) -> bool:
-    if isinstance(want, TriangulationError):
-        return isinstance(got, TriangulationError) and str(got) == str(want)
-    return all(
-        getattr(got, name).dtype == getattr(want, name).dtype
-        and np.array_equal(getattr(got, name), getattr(want, name))
-        for name in FIELDS
-    )
-
-
 @pytest.mark.parametrize("invalid", ["fail", "as_given"])
 @pytest.mark.parametrize("rule", ["first", "elevation", "delaunay"])
 def test_polygons_side_by_side_equal_each_alone(
@@ -81,16 +64,16 @@ def test_polygons_side_by_side_equal_each_alone(
     )
     listed = packed.to_list()
     for number, rings in enumerate(polygons):
-        want = _expected(rings, rule, invalid)
-        assert _same(many[number], want), number
-        assert _same(packed.errors.get(number, listed[number]), want), number
+        want = engine_or_error(rings, rule, invalid)
+        assert same_result(many[number], want), number
+        assert same_result(packed.errors.get(number, listed[number]), want), number
     if invalid == "fail":
         assert isinstance(many[len(CASES)], TriangulationError)  # the crossed shell
 
 
 def test_the_first_error_in_input_order_is_raised() -> None:
     polygons = [_wavy(800, 10, 7), _crossed(_wavy(900, 12, 5)), _crossed(_wavy(1000, 12, 6))]
-    want = _expected(polygons[1], "first", "fail")
+    want = engine_or_error(polygons[1], "first", "fail")
     with pytest.raises(TriangulationError) as raised:
         triangulate_many(polygons)
     assert str(raised.value) == str(want)

@@ -11,14 +11,13 @@ import random
 import numpy as np
 import pytest
 
-from bsp_triangulate import PackedPolygons, TriangulationError, triangulate
+from bsp_triangulate import PackedPolygons, triangulate
 from bsp_triangulate.api import triangulate_many, triangulate_packed
 from bsp_triangulate.tree import prepared_batch
 from bsp_triangulate.tree.batch import triangulate_batch
 
+from ..engine_equal import engine_or_error, same_result
 from ..random_polygons import random_polygon, rings_are_disjoint, with_z
-
-FIELDS = ("vertices", "triangles", "parent", "depth", "side", "point_ids")
 
 
 def _touching_set(seed: int, count: int, rule: str) -> list:
@@ -30,23 +29,6 @@ def _touching_set(seed: int, count: int, rule: str) -> list:
     if rule == "elevation":
         polygons = [with_z(rnd, rings) for rings in polygons]
     return polygons
-
-
-def _expected(rings: list, rule: str, invalid: str) -> object:
-    try:
-        return triangulate(rings, rule=rule, invalid=invalid)
-    except TriangulationError as exc:
-        return exc
-
-
-def _same(got: object, want: object) -> bool:
-    if isinstance(want, TriangulationError):
-        return isinstance(got, TriangulationError) and str(got) == str(want)
-    return all(
-        getattr(got, name).dtype == getattr(want, name).dtype
-        and np.array_equal(getattr(got, name), getattr(want, name))
-        for name in FIELDS
-    )
 
 
 @pytest.mark.parametrize("invalid", ["fail", "as_given"])
@@ -76,10 +58,10 @@ def test_touching_polygons_in_lockstep_equal_the_engine(
     )
     listed = packed.to_list()
     for number, rings in enumerate(polygons):
-        want = _expected(rings, rule, invalid)
-        assert _same(many[number], want), number
+        want = engine_or_error(rings, rule, invalid)
+        assert same_result(many[number], want), number
         got = packed.errors.get(number, listed[number])
-        assert _same(got, want), number
+        assert same_result(got, want), number
 
 
 def test_few_polygons_left_to_the_engine_are_not_batched(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -90,7 +72,7 @@ def test_few_polygons_left_to_the_engine_are_not_batched(monkeypatch: pytest.Mon
     results = triangulate_many(polygons)
     assert built == []
     for rings, got in zip(polygons, results):
-        assert _same(got, triangulate(rings))
+        assert same_result(got, triangulate(rings))
 
 
 def test_large_polygons_are_bridged_once(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -114,4 +96,4 @@ def test_large_polygons_are_bridged_once(monkeypatch: pytest.MonkeyPatch) -> Non
     results = triangulate_many(polygons + small, on_error="return")
     assert len(bridged) == 2  # the small ones alone
     for rings, got in zip(polygons + small, results):
-        assert _same(got, _expected(rings, "first", "fail"))
+        assert same_result(got, engine_or_error(rings, "first", "fail"))
