@@ -193,13 +193,16 @@ def triangulate_many(
         or ring_meshes.get(index) is not None
         or inserted.get(index) is not None
     }
-    options = {"rule": rule, "planar_tolerance": planar_tolerance, "invalid": invalid}
+    options = {
+        "rule": rule,
+        "planar_tolerance": planar_tolerance,
+        "invalid": invalid,
+        "plane": plane,
+    }
+    # in the order of ``left``, as the loop below takes them
     side_by_side = engine_results(
-        [index for index in left if index not in alone],
-        polygons.__getitem__,
-        {**options, "plane": plane},
+        [index for index in left if index not in alone], polygons.__getitem__, options
     )
-    ready: dict[int, Triangulation | TriangulationError] = {}
     for index, rings in enumerate(polygons):
         done = results[index]
         if isinstance(done, Triangulation) or (done is not None and invalid == "fail"):
@@ -207,10 +210,7 @@ def triangulate_many(
                 raise done
             continue
         if index not in alone:
-            while index not in ready:
-                number, result = next(side_by_side)
-                ready[number] = result
-            done = ready.pop(index)
+            _, done = next(side_by_side)
             if isinstance(done, TriangulationError) and on_error == "raise":
                 raise done
             results[index] = done
@@ -504,20 +504,19 @@ def triangulate_packed(
         or inserted.get(index) is not None
         or runs_alone(polygons.rings(index))
     }
-    options = {"rule": rule, "planar_tolerance": planar_tolerance, "invalid": invalid}
+    options = {
+        "rule": rule,
+        "planar_tolerance": planar_tolerance,
+        "invalid": invalid,
+        "plane": plane,
+    }
+    # in the order of ``left``, as the loop below takes them
     side_by_side = engine_results(
-        [index for index in left if index not in alone],
-        polygons.rings,
-        {**options, "plane": plane},
-        report.one_more,
+        [index for index in left if index not in alone], polygons.rings, options, report.one_more
     )
-    ready: dict[int, Triangulation | TriangulationError] = {}
     for index in left:
         if index not in alone:
-            while index not in ready:
-                number, result = next(side_by_side)
-                ready[number] = result
-            result = ready.pop(index)
+            _, result = next(side_by_side)
             if isinstance(result, TriangulationError):
                 if on_error == "raise":
                     raise result

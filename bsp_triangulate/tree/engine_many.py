@@ -2,7 +2,7 @@
 
 Each polygon's tree runs as steps (``one_polygon.triangulate_steps``) up to the sub-polygons
 it hands to the lock-step builder; those of a chunk of polygons are then built in shared
-lock-step calls (``subtrees.build_subtrees_many``), whose rounds cost about as much for many
+lock-step calls (``subtrees.built_if_worth``), whose rounds cost about as much for many
 polygons as for one, and each tree finishes with its own. Every result is the one the polygon
 gets alone.
 """
@@ -15,7 +15,7 @@ import numpy as np
 
 from ..triangulation import Triangulation, TriangulationError
 from .one_polygon import Steps, triangulate_steps
-from .subtrees import SubtreeRequest, Subtrees, build_subtrees_many, worth_lockstep
+from .subtrees import SubtreeRequest, Subtrees, built_if_worth
 
 # points per chunk of polygons run side by side (every tree of a chunk is held until its
 # subtrees are built), and polygons per chunk
@@ -85,11 +85,8 @@ def drive_many(all_steps: list[Steps], started: Callable[[], None] | None = None
         asked, waiting = waiting, []
         for rule in dict.fromkeys(request[6] for _, request in asked):
             group = [(k, request) for k, request in asked if request[6] == rule]
-            spans = np.concatenate([request[4] for _, request in group])
-            built: list[Subtrees | None] = [None] * len(group)
             # the rounds are shared: worth it for all the sub-polygons together
-            if worth_lockstep((spans[:, 1] - spans[:, 0]).tolist(), rule):
-                built = build_subtrees_many([request for _, request in group])
+            built = built_if_worth([request for _, request in group])
             for (k, _), subtrees in zip(group, built):
                 advance(k, subtrees)
     return results  # type: ignore[return-value]

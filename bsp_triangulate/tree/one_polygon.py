@@ -45,8 +45,7 @@ from .subtrees import (
     MAX_POSITIONS,
     SubtreeRequest,
     Subtrees,
-    build_subtrees,
-    worth_lockstep,
+    built_if_worth,
 )
 
 INVALID_MODES = ("fail", "as_given")
@@ -1622,13 +1621,11 @@ def _snap(clean: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
 
 def drive(steps: Steps) -> Triangulation:
     """The result of ``steps``, each lock-step request built as it comes where its
-    sub-polygons are worth the rounds (``subtrees.worth_lockstep``)."""
+    sub-polygons are worth the rounds (``subtrees.built_if_worth``)."""
     try:
         request = next(steps)
         while True:
-            spans, rule = request[4], request[6]
-            worth = worth_lockstep((spans[:, 1] - spans[:, 0]).tolist(), rule)
-            request = steps.send(build_subtrees(*request) if worth else None)
+            request = steps.send(built_if_worth([request])[0])
     except StopIteration as done:
         return done.value
 

@@ -74,6 +74,16 @@ def _twins(ext: np.ndarray, owner: np.ndarray, ext_start: np.ndarray) -> np.ndar
     return twin
 
 
+def built_if_worth(requests: list[SubtreeRequest]) -> list[Subtrees | None]:
+    """The subtrees of each request (of one rule), built in shared lock-step calls
+    (:func:`build_subtrees_many`) where all their sub-polygons together are worth the rounds
+    (:func:`worth_lockstep`); else None for each (to be built one step at a time)."""
+    spans = np.concatenate([request[4] for request in requests])
+    if worth_lockstep((spans[:, 1] - spans[:, 0]).tolist(), requests[0][6]):
+        return build_subtrees_many(requests)
+    return [None] * len(requests)
+
+
 def build_subtrees_many(requests: list[SubtreeRequest]) -> list[Subtrees]:
     """:func:`build_subtrees` of each request (of one rule), in shared lock-step calls: the
     sequences laid end to end (their vertex ids apart), each request's spans moved with its

@@ -147,7 +147,7 @@ def test_small_sub_polygons_built_one_step_in_place_match_one_step(
     for invalid in ("fail", "as_given"):
         plain = _one_step(monkeypatch, rings, rule=rule, invalid=invalid)
         with monkeypatch.context() as patch:
-            patch.setattr(one_polygon, "worth_lockstep", lambda sizes, rule: False)
+            patch.setattr(subtrees, "worth_lockstep", lambda sizes, rule: False)
             _same(plain, triangulate(rings, rule=rule, invalid=invalid))
         with monkeypatch.context() as patch:
             patch.setattr(one_polygon._Tree, "_with_subtrees", lambda self, *args: None)
@@ -180,9 +180,9 @@ def test_lockstep_subtrees_only_where_many_advance_together(
     from .tree.test_batch_internals import near_collinear_polygon
 
     calls: list[int] = []
-    build = one_polygon.build_subtrees
+    build = subtrees.build_subtrees
     monkeypatch.setattr(
-        one_polygon, "build_subtrees", lambda *a, **k: calls.append(1) or build(*a, **k)
+        subtrees, "build_subtrees", lambda *a, **k: calls.append(1) or build(*a, **k)
     )
     triangulate(_wavy(8000, 200, 1))
     assert calls
@@ -202,9 +202,9 @@ def test_delaunay_subtrees_of_the_lockstep_builder_match_one_step(
     """Rule delaunay's small sub-polygons of a long sequence go to the lock-step builder
     too: the same tree, field by field, as one step at a time."""
     calls: list[str] = []
-    build = one_polygon.build_subtrees
+    build = subtrees.build_subtrees
     monkeypatch.setattr(
-        one_polygon, "build_subtrees", lambda *a, **k: calls.append(a[-1]) or build(*a, **k)
+        subtrees, "build_subtrees", lambda *a, **k: calls.append(a[-1]) or build(*a, **k)
     )
     # sub-polygons of up to 256 positions, as under rule first: many subtrees on these sizes
     monkeypatch.setattr(one_polygon, "DELAUNAY_POSITIONS", 256)

@@ -13,7 +13,7 @@ import pytest
 
 from bsp_triangulate import PackedPolygons, TriangulationError
 from bsp_triangulate.api import triangulate_many, triangulate_packed
-from bsp_triangulate.tree import engine_many, subtrees
+from bsp_triangulate.tree import subtrees
 from bsp_triangulate.tree.one_polygon import _Tree
 
 from ..engine_equal import engine_or_error, same_result
@@ -50,13 +50,13 @@ def test_polygons_side_by_side_equal_each_alone(
 ) -> None:
     polygons = _polygons(rule)
     shared = []
-    original = engine_many.build_subtrees_many
+    original = subtrees.build_subtrees_many
 
     def counted(requests: list) -> list:
         shared.append(len(requests))
         return original(requests)
 
-    monkeypatch.setattr(engine_many, "build_subtrees_many", counted)
+    monkeypatch.setattr(subtrees, "build_subtrees_many", counted)
     many = triangulate_many(polygons, rule=rule, invalid=invalid, on_error="return")
     assert max(shared) >= 3  # several polygons' subtrees in one call
     packed = triangulate_packed(
