@@ -734,9 +734,11 @@ def _bridge_at_corner(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.nda
 def _edges_across(
     seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, corners: np.ndarray
 ) -> np.ndarray:
-    """Per candidate with two new sides (lo + 1 < c < hi - 1) in a sub-polygon of more than
-    ``_RUN_MIN`` positions (``_ACROSS_LONG`` in a long sequence): an edge crosses its side
-    c -> a (a = s_hi). Edges looked at: those
+    """Per candidate at least ``_ACROSS_CORNER`` positions from either base corner, in a
+    sub-polygon of more than ``_RUN_MIN`` positions (``_ACROSS_LONG`` in a long sequence): an
+    edge crosses its side c -> a (a = s_hi). Nearer a corner, a side that spans a couple of
+    chain edges is hardly ever crossed without a bent position inside, and the search would
+    cost more than the rare tree it mends. Edges looked at: those
     of the islands (and bridges) in [lo, hi) whose box meets the triangle's, and the chain's
     ``_WINDOW`` edges on either side of c. Not every edge: a crossing missed still leaves a
     tree that does not complete (see :func:`_bent_in_triangle`); a crossing found is real.
@@ -746,7 +748,9 @@ def _edges_across(
     """
     bad = np.zeros(len(lo), dtype=bool)
     least = np.where(seqs.long[lo], _ACROSS_LONG, _RUN_MIN)
-    other = np.flatnonzero((c > lo + 1) & (c < hi - 1) & (hi - lo > least))
+    other = np.flatnonzero(
+        (c >= lo + _ACROSS_CORNER) & (c <= hi - _ACROSS_CORNER) & (hi - lo > least)
+    )
     if not len(other):
         return bad
     low, high = corners.min(axis=0)[other], corners.max(axis=0)[other]
@@ -834,6 +838,8 @@ def _crossing_signs(
     return crossing(o1, o2, px, py, qx, qy, ux, uy, vx, vy, exact)
 
 
+# _edges_across looks at candidates at least this many positions from either base corner
+_ACROSS_CORNER = 3
 # chain edges looked at on either side of a candidate by _edges_across
 _WINDOW = 16
 # ... and in the sub-polygons of long sequences (``Sequences.long``), of more than this many
