@@ -1260,7 +1260,13 @@ def _elevation_apex(
     floor = np.full(n, np.inf)
     wide = np.flatnonzero(span > 2 * _NEAR_CANDIDATES) if near_first else np.zeros(0, np.int64)
     if len(wide):
-        approx, _ = _elevation_distance(sz[c], z1[owner], z2[owner])
+        # _elevation_distance's values, without the error bounds (in place: every
+        # candidate of every node)
+        approx = np.take(sz, c)
+        approx *= 2.0
+        approx -= np.take(z1, owner)
+        approx -= np.take(z2, owner)
+        np.abs(approx, out=approx)
         first = (np.cumsum(span) - span)[wide]
         # each wide node's extremes: reductions over its own range, the gaps dropped
         cuts = np.column_stack([first, first + span[wide]]).ravel()
