@@ -28,3 +28,15 @@ def same_result(got: object, want: object) -> bool:
         and np.array_equal(getattr(got, name), getattr(want, name))
         for name in FIELDS
     )
+
+
+def assert_each_as_engine(
+    polygons: list, many: list, packed: object, rule: str, invalid: str
+) -> None:
+    """Each polygon's result from ``triangulate_many`` (``many``) and from
+    ``triangulate_packed`` (``packed``, its errors included) is ``triangulate``'s."""
+    listed = packed.to_list()
+    for number, rings in enumerate(polygons):
+        want = engine_or_error(rings, rule, invalid)
+        assert same_result(many[number], want), number
+        assert same_result(packed.errors.get(number, listed[number]), want), number

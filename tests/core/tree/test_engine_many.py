@@ -16,7 +16,7 @@ from bsp_triangulate.api import triangulate_many, triangulate_packed
 from bsp_triangulate.tree import subtrees
 from bsp_triangulate.tree.one_polygon import _Tree
 
-from ..engine_equal import engine_or_error, same_result
+from ..engine_equal import assert_each_as_engine, engine_or_error
 from ..test_large_islands import CASES, _lifted, _wavy
 
 EARCUT = Path(__file__).resolve().parents[4] / "shared" / "data" / "earcut" / "fixtures"
@@ -62,11 +62,7 @@ def test_polygons_side_by_side_equal_each_alone(
     packed = triangulate_packed(
         PackedPolygons.of(polygons), rule=rule, invalid=invalid, on_error="return"
     )
-    listed = packed.to_list()
-    for number, rings in enumerate(polygons):
-        want = engine_or_error(rings, rule, invalid)
-        assert same_result(many[number], want), number
-        assert same_result(packed.errors.get(number, listed[number]), want), number
+    assert_each_as_engine(polygons, many, packed, rule, invalid)
     if invalid == "fail":
         assert isinstance(many[len(CASES)], TriangulationError)  # the crossed shell
 

@@ -16,7 +16,7 @@ from bsp_triangulate.api import triangulate_many, triangulate_packed
 from bsp_triangulate.tree import prepared_batch
 from bsp_triangulate.tree.batch import triangulate_batch
 
-from ..engine_equal import engine_or_error, same_result
+from ..engine_equal import assert_each_as_engine, engine_or_error, same_result
 from ..random_polygons import random_polygon, rings_are_disjoint, with_z
 
 
@@ -56,12 +56,7 @@ def test_touching_polygons_in_lockstep_equal_the_engine(
     packed = triangulate_packed(
         PackedPolygons.of(polygons), rule=rule, invalid=invalid, on_error="return"
     )
-    listed = packed.to_list()
-    for number, rings in enumerate(polygons):
-        want = engine_or_error(rings, rule, invalid)
-        assert same_result(many[number], want), number
-        got = packed.errors.get(number, listed[number])
-        assert same_result(got, want), number
+    assert_each_as_engine(polygons, many, packed, rule, invalid)
 
 
 def test_few_polygons_left_to_the_engine_are_not_batched(monkeypatch: pytest.MonkeyPatch) -> None:
