@@ -1260,13 +1260,7 @@ def _elevation_apex(
     floor = np.full(n, np.inf)
     wide = np.flatnonzero(span > 2 * _NEAR_CANDIDATES) if near_first else np.zeros(0, np.int64)
     if len(wide):
-        # _elevation_distance's values, without the error bounds (in place: every
-        # candidate of every node)
-        approx = np.take(sz, c)
-        approx *= 2.0
-        approx -= np.take(z1, owner)
-        approx -= np.take(z2, owner)
-        np.abs(approx, out=approx)
+        approx = _elevation_approx(np.take(sz, c), np.take(z1, owner), np.take(z2, owner))
         first = (np.cumsum(span) - span)[wide]
         # each wide node's extremes: reductions over its own range, the gaps dropped
         cuts = np.column_stack([first, first + span[wide]]).ravel()
@@ -1278,7 +1272,7 @@ def _elevation_apex(
         near = approx <= threshold[owner]
         owner, c = owner[near], c[near]
         # the error bound of a candidate at the largest |z|: at least any candidate's
-        _, bound = _elevation_distance(top_z, z1[wide], z2[wide])
+        bound = _elevation_error(top_z, z1[wide], z2[wide])
         # one step down: the float difference may round up
         floor[wide] = np.nextafter(threshold[wide] - bound, -np.inf)
     owner, c = _facing_candidates(seqs, lo, hi, (owner, c), corners=True)
@@ -1698,10 +1692,23 @@ def _elevation_distance(
     zc: np.ndarray, z1: np.ndarray, z2: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Twice the elevation rule's distance of an apex at ``zc`` from the mean of ``z1`` and
-    ``z2``, in floats, and a bound on its rounding error."""
-    approx = np.abs(2.0 * zc - z1 - z2)
-    error = 8.0 * 2.0**-53 * (2.0 * np.abs(zc) + np.abs(z1) + np.abs(z2)) + 1e-300
-    return approx, error
+    ``z2``, in floats (:func:`_elevation_approx`), and a bound on its rounding error."""
+    return _elevation_approx(zc, z1, z2), _elevation_error(zc, z1, z2)
+
+
+def _elevation_approx(zc: np.ndarray, z1: np.ndarray, z2: np.ndarray) -> np.ndarray:
+    """|2 zc - z1 - z2| in floats, in that order of operations, in one new array of
+    ``zc``'s shape (the near-first filter takes it for every candidate of every node,
+    without the error bound)."""
+    approx = zc * 2.0
+    approx -= z1
+    approx -= z2
+    return np.abs(approx, out=approx)
+
+
+def _elevation_error(zc: np.ndarray | float, z1: np.ndarray, z2: np.ndarray) -> np.ndarray:
+    """A bound on the rounding error of :func:`_elevation_approx`."""
+    return 8.0 * 2.0**-53 * (2.0 * np.abs(zc) + np.abs(z1) + np.abs(z2)) + 1e-300
 
 
 def _choose_elevation(
