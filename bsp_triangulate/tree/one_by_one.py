@@ -238,16 +238,36 @@ def first_subtree(
     nodes reject many candidates each is left to the vectorised tables). ``exact``: every
     float orientation of the coordinates is exact (grid coordinates); ``runs``: see
     :func:`first_correct`."""
+    nodes, pending = first_nodes(xs, ys, lo, hi, top, at_hi, exact, budget, runs)
+    return None if pending else nodes
+
+
+def first_nodes(
+    xs: list[float],
+    ys: list[float],
+    lo: int,
+    hi: int,
+    top: int,
+    at_hi: bool,
+    exact: bool,
+    budget: int,
+    runs: tuple[list[int], list[int]] | None = None,
+) -> tuple[list[tuple[int, int, int, int, int, int]], list[Work]]:
+    """:func:`first_subtree`, and where it stops (a node with no correct candidate, or the
+    ``budget`` spent) the nodes found so far in pre-order with the work left: the open nodes
+    (lo, hi, top, at_hi, parent, depth, side), the next one to build last, whose pre-order
+    continues the nodes'. No work left where the subtree is complete."""
     sign = orient_float if exact else orient
     nodes: list[tuple[int, int, int, int, int, int]] = []
     blockers: list[int] = []
     remaining = [budget]
-    work = [(lo, hi, top, at_hi, -1, 0, 0)]
+    work: list[Work] = [(lo, hi, top, at_hi, -1, 0, 0)]
     while work:
-        lo, hi, top, at_hi, parent, depth, side = work.pop()
+        lo, hi, top, at_hi, parent, depth, side = item = work.pop()
         apex = first_correct(xs, ys, lo, hi, top, sign, blockers, remaining, runs)
         if apex < 0:
-            return None
+            work.append(item)
+            return nodes, work
         here = len(nodes)
         nodes.append((lo, hi, apex, parent, depth, side))
         # the left child (base V1 V3) comes first in pre-order: pushed last
@@ -256,4 +276,8 @@ def first_subtree(
         for (clo, chi, flag), child_side in ((right, 2), (left, 1)):
             if chi - clo > 1:
                 work.append((clo, chi, chi - 1, flag, here, depth + 1, child_side))
-    return nodes
+    return nodes, work
+
+
+# an open node: (lo, hi, top, at_hi, parent, depth, side)
+Work = tuple[int, int, int, bool, int, int, int]

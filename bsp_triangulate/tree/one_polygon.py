@@ -37,7 +37,7 @@ from ..triangulation import Triangulation, TriangulationError
 from .delaunay_points import points_mesh, tree_of_cdt
 from .elevation_order import ElevationWindows
 from .lockstep import straight_runs
-from .one_by_one import edge_blocks, facing_one, run_bounds
+from .one_by_one import edge_blocks, facing_one, first_nodes, run_bounds
 from .points_batch import InsertedMesh
 from .shadows import Shadows
 from .subtrees import (
@@ -80,6 +80,8 @@ _EPS8 = 8.0 * 2.0**-53
 _MAX_FIRST_CHUNK = 1024
 # Candidates left after the scalar ones beyond which rule "first" skips shadowed chain boxes.
 _SHADOWED = 64
+# edge tests per position of a sub-polygon built by _first_block before it is left to _grow
+_FIRST_BLOCK_TESTS = 256
 # Nodes of a fan (rule "first", long sub-polygons) decided in the first batch, and at most in
 # one batch (the batches double in size while every node passes).
 _FAN_BATCH = 16
@@ -1220,7 +1222,7 @@ class _Tree:
         if rows is None:  # one step at a time throughout (and the errors in pre-order)
             rows = _Rows(max(self.m - 2, 0))
             self._restart_watch()
-            self._grow([(1, self.m, True, -1, 0, 0)], rows, None)
+            self._first_block(1, self.m, True, rows)
         count = rows.count
         return Triangulation(
             vertices=self.prepared.vertices,
@@ -1434,12 +1436,56 @@ class _Tree:
             for _, lo, hi, v1_at_hi, *_ in deferred:
                 start = blocks.count
                 starts.append(start)
-                self._grow([(lo, hi, v1_at_hi, -1, 0, 0)], blocks, None)
+                self._first_block(lo, hi, v1_at_hi, blocks)
                 if np.count_nonzero(blocks.parent[start + 1 : blocks.count] < 0):
                     raise TriangulationError(self._label(lo) + ": a loop is cut off")
         finally:
             self.tick = tick
         return blocks, np.array([*starts, blocks.count], dtype=np.int64)
+
+    def _first_block(self, lo: int, hi: int, v1_at_hi: bool, rows: _Rows) -> None:
+        """The subtree of sub-polygon [lo, hi] (V1 at hi where ``v1_at_hi``), written to
+        ``rows`` from ``rows.count`` on, in pre-order. Under rule "first" its nodes are
+        built with the scalar tests of ``one_by_one.first_nodes`` (the same conditions, with
+        less work per node) as far as they find correct candidates; :meth:`_grow` builds
+        the rest (invalid input: its fallbacks, and its errors)."""
+        if type(self.rule) is not FirstRule:
+            self._grow([(lo, hi, v1_at_hi, -1, 0, 0)], rows, None)
+            return
+        runs = None
+        if self.boxes is not None:
+            self._straight_runs(lo, hi)
+            runs = self._bends
+        budget = _FIRST_BLOCK_TESTS * (hi - lo)
+        nodes, pending = first_nodes(
+            self.xs, self.ys, lo, hi, hi - 1, v1_at_hi, self.exact, budget, runs
+        )
+        start = rows.count
+        count = len(nodes)
+        if count:
+            if start + count > len(rows.triangles):
+                raise TriangulationError(self._label(lo) + ": the BSP tree does not close")
+            table = np.array(nodes, dtype=np.int64)
+            node_lo, node_hi, apex, parent = table[:, 0], table[:, 1], table[:, 2], table[:, 3]
+            # counter-clockwise in the working plane before mirroring (as in _grow)
+            first, second = (node_lo, node_hi) if self.prepared.mirrored else (node_hi, node_lo)
+            out = slice(start, start + count)
+            ids = self.ids
+            rows.triangles[out, 0] = ids[first]
+            rows.triangles[out, 1] = ids[second]
+            rows.triangles[out, 2] = ids[apex]
+            rows.parent[out] = np.where(parent < 0, -1, parent + start)
+            rows.depth[out] = table[:, 4]
+            rows.side[out] = table[:, 5]
+            rows.count = start + count
+            if self.tick is not None:
+                self.tick(rows.count / len(rows.triangles))
+        if pending:
+            work = [
+                (w_lo, w_hi, w_at_hi, w_parent + start if w_parent >= 0 else -1, depth, side)
+                for w_lo, w_hi, _, w_at_hi, w_parent, depth, side in pending
+            ]
+            self._grow(work, rows, None)
 
     def _place_blocks(
         self,
