@@ -44,7 +44,7 @@ from ..geometry.predicates_batch import (
     sure_signs,
 )
 from ..geometry.rings_batch import ragged_index
-from .one_by_one import first_subtree
+from .one_by_one import first_nodes
 
 # test items x sub-polygon vertices per numpy pass: tables of about 1 MB stay in the cache
 _CHUNK_ELEMENTS = 1 << 17
@@ -2076,7 +2076,7 @@ def _one_by_one(
     seqs: Sequences, state: np.ndarray, record: np.ndarray, off: np.ndarray
 ) -> np.ndarray:
     """Rule "first": the subtrees of the open nodes ``state`` built one node at a time
-    (``one_by_one.first_subtree``, exact), written to ``record``; per column whether it was
+    (``one_by_one.first_nodes``, exact), written to ``record``; per column whether it was
     built. A node that finds no candidate, or a subtree over its budget of edge tests, leaves
     its column to the rounds (which mend or fail its tree) and marks its sequence ``off``."""
     built = np.zeros(state.shape[1], dtype=bool)
@@ -2091,8 +2091,10 @@ def _one_by_one(
             (seqs.run_after[lo : hi + 1] - lo).tolist(),
             (seqs.run_before[lo : hi + 1] - lo).tolist(),
         )
-        nodes = first_subtree(xs, ys, 0, hi - lo, top - lo, at_hi == 1, seqs.exact, budget, runs)
-        if nodes is None:
+        nodes, left = first_nodes(
+            xs, ys, 0, hi - lo, top - lo, at_hi == 1, seqs.exact, budget, runs
+        )
+        if left:
             off[seq] = True
             continue
         built[j] = True

@@ -218,30 +218,6 @@ def run_bounds(runs: tuple[list[int], list[int]], lo: int, hi: int) -> tuple[int
 _BLOCKERS = 8
 
 
-def first_subtree(
-    xs: list[float],
-    ys: list[float],
-    lo: int,
-    hi: int,
-    top: int,
-    at_hi: bool,
-    exact: bool,
-    budget: int,
-    runs: tuple[list[int], list[int]] | None = None,
-) -> list[tuple[int, int, int, int, int, int]] | None:
-    """Rule "first": the BSP subtree of sub-polygon [lo, hi] of the sequence ``xs``, ``ys``
-    (positions in Python lists; the root's candidates from ``top`` down, those above it
-    rejected already; its V1 at hi where ``at_hi``), in pre-order: per node (lo, hi, apex,
-    parent, depth, side), parent the index of the parent's node in the list (-1 at the
-    root), depth from the root's 0, side 0 at the root, else 1 (left) or 2 (right). None where
-    a node finds no correct candidate, or after ``budget`` edge tests (a sub-polygon whose
-    nodes reject many candidates each is left to the vectorised tables). ``exact``: every
-    float orientation of the coordinates is exact (grid coordinates); ``runs``: see
-    :func:`first_correct`."""
-    nodes, pending = first_nodes(xs, ys, lo, hi, top, at_hi, exact, budget, runs)
-    return None if pending else nodes
-
-
 def first_nodes(
     xs: list[float],
     ys: list[float],
@@ -253,10 +229,17 @@ def first_nodes(
     budget: int,
     runs: tuple[list[int], list[int]] | None = None,
 ) -> tuple[list[tuple[int, int, int, int, int, int]], list[Work]]:
-    """:func:`first_subtree`, and where it stops (a node with no correct candidate, or the
-    ``budget`` spent) the nodes found so far in pre-order with the work left: the open nodes
-    (lo, hi, top, at_hi, parent, depth, side), the next one to build last, whose pre-order
-    continues the nodes'. No work left where the subtree is complete."""
+    """Rule "first": the BSP subtree of sub-polygon [lo, hi] of the sequence ``xs``, ``ys``
+    (positions in Python lists; the root's candidates from ``top`` down, those above it
+    rejected already; its V1 at hi where ``at_hi``), in pre-order: per node (lo, hi, apex,
+    parent, depth, side), parent the index of the parent's node in the list (-1 at the
+    root), depth from the root's 0, side 0 at the root, else 1 (left) or 2 (right); and the
+    work left, none where the subtree is complete. Where a node finds no correct candidate,
+    or after ``budget`` edge tests (a sub-polygon whose nodes reject many candidates each is
+    left to the vectorised tables), the nodes found so far come with the open nodes (lo, hi,
+    top, at_hi, parent, depth, side), the next one to build last: building them in that
+    order continues the pre-order. ``exact``: every float orientation of the coordinates is
+    exact (grid coordinates); ``runs``: see :func:`first_correct`."""
     sign = orient_float if exact else orient
     nodes: list[tuple[int, int, int, int, int, int]] = []
     blockers: list[int] = []

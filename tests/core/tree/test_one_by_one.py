@@ -1,5 +1,5 @@
 """Where few open nodes are left, the lock-step builder builds their subtrees one node at a time
-(``one_by_one.first_subtree``, rule first): the trees are the engine's, whether every round,
+(``one_by_one.first_nodes``, rule first): the trees are the engine's, whether every round,
 none or only the last ones go that way, and whether a subtree keeps to its budget of edge
 tests or goes back to the rounds."""
 
