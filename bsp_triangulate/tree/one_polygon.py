@@ -933,13 +933,18 @@ class _Tree:
         either corner fail condition 3. (lo + 1, hi - 1), no run, for short sequences."""
         if self.boxes is None:
             return lo + 1, hi - 1
+        return run_bounds(self._runs(), lo, hi)
+
+    def _runs(self) -> tuple[list[int], list[int]]:
+        """Per position, the first position at or after it and the last at or before it where
+        the sequence bends (``lockstep.straight_runs``), made once."""
         if self._bends is None:
             x, y, m = self.sx, self.sy, self.m
             turn = np.zeros(m + 1)
             turn[1:m] = orient_many(x[:-2], y[:-2], x[1:-1], y[1:-1], x[2:], y[2:], self.exact)
             after, before = straight_runs(x, y, turn, np.zeros(1, dtype=np.int64))
             self._bends = after.tolist(), before.tolist()
-        return run_bounds(self._bends, lo, hi)
+        return self._bends
 
     def _fan_steps(self, lo: int, top: int, most: int) -> int:
         """How many nodes of a fan at ``lo`` are decided at once: node j (j < ``most``) has the
@@ -1452,10 +1457,8 @@ class _Tree:
         if type(self.rule) is not FirstRule:
             self._grow([(lo, hi, v1_at_hi, -1, 0, 0)], rows, None)
             return
-        runs = None
-        if self.boxes is not None:
-            self._straight_runs(lo, hi)
-            runs = self._bends
+        # the straight runs where _straight_runs uses them (long sequences)
+        runs = self._runs() if self.boxes is not None else None
         budget = _FIRST_BLOCK_TESTS * (hi - lo)
         nodes, pending = first_nodes(
             self.xs, self.ys, lo, hi, hi - 1, v1_at_hi, self.exact, budget, runs
