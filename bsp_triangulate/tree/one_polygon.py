@@ -1450,11 +1450,15 @@ class _Tree:
 
     def _first_block(self, lo: int, hi: int, v1_at_hi: bool, rows: _Rows) -> None:
         """The subtree of sub-polygon [lo, hi] (V1 at hi where ``v1_at_hi``), written to
-        ``rows`` from ``rows.count`` on, in pre-order. Under rule "first" its nodes are
-        built with the scalar tests of ``one_by_one.first_nodes`` (the same conditions, with
-        less work per node) as far as they find correct candidates; :meth:`_grow` builds
-        the rest (invalid input: its fallbacks, and its errors)."""
-        if type(self.rule) is not FirstRule:
+        ``rows`` from ``rows.count`` on, in pre-order. Under rule "first", in a sub-polygon of
+        at most ``MAX_POSITIONS`` positions, its nodes are built with the scalar tests of
+        ``one_by_one.first_nodes`` (the same conditions, with less work per node) as far as
+        they find correct candidates; :meth:`_grow` builds the rest (invalid input: its
+        fallbacks, and its errors)."""
+        if type(self.rule) is not FirstRule or hi - lo > MAX_POSITIONS:
+            # a long one (a whole tree built one step at a time after the lock-step attempt
+            # failed): _grow's chain boxes and shadows keep its nodes near-linear, where the
+            # scalar tests scan every edge of the sub-polygon
             self._grow([(lo, hi, v1_at_hi, -1, 0, 0)], rows, None)
             return
         # the straight runs where _straight_runs uses them (long sequences)

@@ -101,3 +101,23 @@ def test_nodes_and_the_work_left_continue_the_pre_order() -> None:
     square = [0.0, 1.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 1.0, 0.0]
     nodes, pending = one_by_one.first_nodes(*square, 1, 4, 3, True, True, 1 << 20)
     assert not pending and [node[:3] for node in nodes] == [(1, 4, 3), (1, 3, 2)]
+
+
+def test_a_long_tree_one_step_at_a_time_keeps_the_chain_boxes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A whole tree built one step at a time (here forced: the lock-step attempt fails on
+    some invalid input): sub-polygons of more than ``MAX_POSITIONS`` positions stay with
+    ``_grow``, whose chain boxes and shadows the scalar tests lack; the result is the same."""
+    rings = _star(900, 4, 11)
+    want = engine_or_error(rings, "first", "as_given")
+    spans = []
+
+    def recorded(xs, ys, lo, hi, *args):
+        spans.append(hi - lo)
+        return one_by_one.first_nodes(xs, ys, lo, hi, *args)
+
+    monkeypatch.setattr(one_polygon._Tree, "_lockstep_rule", lambda self: None)
+    monkeypatch.setattr(one_polygon, "first_nodes", recorded)
+    assert same_result(engine_or_error(rings, "first", "as_given"), want)
+    assert not spans
