@@ -257,7 +257,7 @@ def _points_at_once(
     trees: list[Triangulation | None] = [None] * len(index)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         try:
-            inserted = insert_points(polygons, found, points, rough)
+            inserted = insert_points(polygons, found, points)
             trees = trees_of_inserted(polygons, found, points, inserted, plane, rough)
         except (ArithmeticError, ValueError, TypeError, IndexError):
             trees = [None] * len(index)

@@ -42,14 +42,15 @@ def insert_points(
     polygons: Sequence[Sequence[object]],
     ring_meshes: Sequence[Triangulation | None],
     points: Sequence[object],
-    rough: Sequence[bool] | None = None,
 ) -> list[InsertedMesh | None]:
-    """Per polygon (rings as given, its rings' constrained Delaunay triangulation from the
-    batch path or None, its points (m, 2 or 3) in XY): its :class:`InsertedMesh`, or None
-    where it has no ring triangulation. ``rough``: per polygon, whether its ring
-    triangulation is any one, flipped here into the constrained Delaunay one first. A point
-    is used where it lies strictly inside a triangle or on an edge between two, and is no
-    vertex or repeat of an earlier point."""
+    """Per polygon (rings as given, a triangulation of its rings or None, its points (m, 2
+    or 3) in XY): its :class:`InsertedMesh`, or None where it has no ring triangulation. The
+    ring triangulations are flipped into the constrained Delaunay one under the tie rule
+    first: those the batch path leaves are any one (``rough_rings``), and the batch path's
+    own rule "delaunay" trees keep a bridge that is the other diagonal of a cocircular group
+    (its diametral circle holds no vertex strictly inside). A point is used where it lies
+    strictly inside a triangle or on an edge between two, and is no vertex or repeat of an
+    earlier point."""
     kept = [
         i
         for i, mesh in enumerate(ring_meshes)
@@ -76,9 +77,8 @@ def insert_points(
     px = np.concatenate([p[:, 0] for p in given]) * mirror[owner]
     py = np.concatenate([p[:, 1] for p in given])
     mesh = MeshSet(x, y, triangles, region)
-    if rough is not None:
-        flip = np.flatnonzero(np.array([rough[i] for i in kept], dtype=bool)[region])
-        mesh.make_delaunay(flip)  # before the points are looked for: far fewer slivers
+    # before the points are looked for (far fewer slivers in a rough ring triangulation)
+    mesh.make_delaunay(np.arange(len(region)))
     start = containing_triangles(x, y, mesh.triangles(), px, py, region, owner)
     ids = np.full(len(px), -1, dtype=np.int64)
     inside = np.flatnonzero(start >= 0)

@@ -34,7 +34,8 @@ def trees_of_inserted(
     rough: Sequence[bool] | None = None,
 ) -> list[Triangulation | None]:
     """Per polygon (as :func:`insert_points` takes them, with its results; ``plane`` as
-    given to the engine; ``rough`` as :func:`insert_points` takes it): the BSP tree read
+    given to the engine; ``rough``: per polygon, whether its ring triangulation is any one,
+    from ``rough_rings``): the BSP tree read
     off its inserted mesh by the one-polygon builder's walk (``delaunay_points.tree_of_cdt``),
     for all polygons at once, or None where the polygon is not plainly one the batch path
     took or a check fails (the one-polygon builder then decides and names what is wrong).

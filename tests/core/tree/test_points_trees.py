@@ -290,3 +290,28 @@ def test_rings_that_touch_along_an_edge_are_left_to_the_one_polygon_builder(case
     points = np.array([(2.0, 5.0), (7.5, 6.0)])
     result = triangulate_many([rings], points=[points], rule="delaunay", on_error="return")[0]
     assert_same_fields(result, triangulate(rings, points=points, rule="delaunay"))
+
+
+def test_clockwise_grid_polygon_with_a_cocircular_bridge() -> None:
+    """Found by the fuzz run: a clockwise outer ring (x mirrored) and two islands whose
+    vertices (16, 32), (16, 36), (20, 36) and (20, 32) are the corners of one square. The
+    batch path's rings-only tree bridges along the diagonal (16, 32) - (20, 36), whose
+    diametral circle holds the other two corners on it, not inside; the tie rule takes the
+    other diagonal. The points go into the ring triangulation only after it is flipped under
+    the tie rule, so that the polygon gets the one-polygon builder's triangles."""
+    rings = [
+        [(24, 48), (32, 48), (32, 40), (40, 40), (40, 36), (40, 32), (32, 32), (24, 32),
+         (24, 28), (24, 24), (16, 24), (16, 32), (12, 32), (8, 32), (8, 40), (8, 44),
+         (8, 48), (16, 48)],
+        [(14, 36), (16, 36), (22, 40), (18, 38)],
+        [(21, 34), (22, 36), (20, 36), (20, 32)],
+    ]  # fmt: skip
+    rings = [np.array(ring, dtype=np.float64) for ring in rings]
+    points = np.array([(24.0, 30.0), (24.0, 42.0), (32.0, 42.0), (32.0, 36.0), (24.0, 36.0)])
+    many = triangulate_many([rings], points=[points], rule="delaunay")[0]
+    single = triangulate(rings, points=points, rule="delaunay")
+    assert_same_fields(many, single)
+    diagonals = {tuple(sorted(pair)) for t in single.triangles.tolist() for pair in
+                 ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))}  # fmt: skip
+    index = {tuple(v): k for k, v in enumerate(single.vertices[:, :2].tolist())}
+    assert tuple(sorted((index[(16.0, 36.0)], index[(20.0, 32.0)]))) in diagonals
