@@ -218,6 +218,10 @@ def run_bounds(runs: tuple[list[int], list[int]], lo: int, hi: int) -> tuple[int
 _BLOCKERS = 8
 
 
+# an open node: (lo, hi, top, at_hi, parent, depth, side)
+Work = tuple[int, int, int, bool, int, int, int]
+
+
 def first_nodes(
     xs: list[float],
     ys: list[float],
@@ -260,7 +264,3 @@ def first_nodes(
             if chi - clo > 1:
                 work.append((clo, chi, chi - 1, flag, here, depth + 1, child_side))
     return nodes, work
-
-
-# an open node: (lo, hi, top, at_hi, parent, depth, side)
-Work = tuple[int, int, int, bool, int, int, int]

@@ -80,7 +80,8 @@ _EPS8 = 8.0 * 2.0**-53
 _MAX_FIRST_CHUNK = 1024
 # Candidates left after the scalar ones beyond which rule "first" skips shadowed chain boxes.
 _SHADOWED = 64
-# edge tests per position of a sub-polygon built by _first_block before it is left to _grow
+# rule first, _one_step_subtree: edge tests per position of a sub-polygon given to the scalar
+# tests before _grow takes over
 _FIRST_BLOCK_TESTS = 256
 # Nodes of a fan (rule "first", long sub-polygons) decided in the first batch, and at most in
 # one batch (the batches double in size while every node passes).
@@ -1227,7 +1228,7 @@ class _Tree:
         if rows is None:  # one step at a time throughout (and the errors in pre-order)
             rows = _Rows(max(self.m - 2, 0))
             self._restart_watch()
-            self._first_block(1, self.m, True, rows)
+            self._one_step_subtree(1, self.m, True, rows)
         count = rows.count
         return Triangulation(
             vertices=self.prepared.vertices,
@@ -1441,14 +1442,14 @@ class _Tree:
             for _, lo, hi, v1_at_hi, *_ in deferred:
                 start = blocks.count
                 starts.append(start)
-                self._first_block(lo, hi, v1_at_hi, blocks)
+                self._one_step_subtree(lo, hi, v1_at_hi, blocks)
                 if np.count_nonzero(blocks.parent[start + 1 : blocks.count] < 0):
                     raise TriangulationError(self._label(lo) + ": a loop is cut off")
         finally:
             self.tick = tick
         return blocks, np.array([*starts, blocks.count], dtype=np.int64)
 
-    def _first_block(self, lo: int, hi: int, v1_at_hi: bool, rows: _Rows) -> None:
+    def _one_step_subtree(self, lo: int, hi: int, v1_at_hi: bool, rows: _Rows) -> None:
         """The subtree of sub-polygon [lo, hi] (V1 at hi where ``v1_at_hi``), written to
         ``rows`` from ``rows.count`` on, in pre-order. Under rule "first", in a sub-polygon of
         at most ``MAX_POSITIONS`` positions, its nodes are built with the scalar tests of
