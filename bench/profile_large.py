@@ -41,7 +41,8 @@ from bsp_triangulate.tree import one_polygon
 STAGES = (
     ("bridging", one_polygon, "bridge_islands"),
     ("apex search, large sub-polygons", one_polygon._Tree, "_apex"),
-    ("lock-step, small sub-polygons", one_polygon, "build_subtrees"),
+    ("fans, large sub-polygons", one_polygon._Tree, "_fan_steps"),
+    ("lock-step, small sub-polygons", one_polygon, "built_if_worth"),
 )
 
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")
