@@ -967,6 +967,8 @@ _ELEVATION_ROUNDS = 7
 # rule "elevation": a node of more than twice this many candidates takes about this many of
 # its closest first
 _NEAR_CANDIDATES = 16
+# ... and a node left undecided by them takes this many times as many next
+_WIDER = 8
 # largest-angle-first tries of rule "delaunay" before a node tests all its candidates left
 _DELAUNAY_TRIES = 8
 # rounds of at least this many nodes test first candidates with _facing_ear
@@ -1226,8 +1228,8 @@ def _bad_rows(
 
 
 def _elevation_apex(
-    seqs: Sequences, sz: np.ndarray, state: np.ndarray, top_z: float, near_first: bool = True
-) -> tuple[np.ndarray, np.ndarray]:
+    seqs: Sequences, sz: np.ndarray, state: np.ndarray, top_z: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rule "elevation" for the open nodes ``state``: per node whether it has a correct
     apex, and the one ``_choose_elevation`` picks among all of them (or -1).
 
@@ -1241,11 +1243,13 @@ def _elevation_apex(
     edges most likely to cross it (``_ELEVATION_CROSSINGS``): the closest elevation is often
     far across the sub-polygon, a triangle with two new sides.
 
-    ``near_first``: a node of many candidates first takes only those whose elevation lies
-    within a share of its candidates' spread of the closest (about ``_NEAR_CANDIDATES`` of
-    them, from the spread alone); where its choice among them is not sure to hold against all
-    the others (each surely farther), it is decided again with all of them. ``top_z``: the
-    largest |z| of ``sz``, which bounds the error of every candidate's distance.
+    A node of many candidates takes only those whose elevation lies within a share of its
+    candidates' spread of the closest: about ``_NEAR_CANDIDATES`` of them, from the spread
+    alone, or the number its ``_BLOCK`` row holds (0: all of them). Where its choice among
+    them is not sure to hold against all the others (each surely farther), it is undecided:
+    the caller tries it again with ``_WIDER`` times as many (:func:`_wider`), or with all.
+    ``top_z``: the largest |z| of ``sz``, which bounds the error of every candidate's
+    distance. Returns found, apex and undecided per node.
     """
     lo, hi = state[_LO], state[_HI]
     n = len(lo)
@@ -1258,7 +1262,8 @@ def _elevation_apex(
     # per node a lower bound of |2 z - z1 - z2| (its float value less its error) of every
     # candidate left out (none: infinite)
     floor = np.full(n, np.inf)
-    wide = np.flatnonzero(span > 2 * _NEAR_CANDIDATES) if near_first else np.zeros(0, np.int64)
+    nearest = np.where(state[_BLOCK] < 0, _NEAR_CANDIDATES, state[_BLOCK])
+    wide = np.flatnonzero((span > 2 * nearest) & (nearest > 0))
     if len(wide):
         approx = _elevation_approx(np.take(sz, c), np.take(z1, owner), np.take(z2, owner))
         first = (np.cumsum(span) - span)[wide]
@@ -1268,7 +1273,7 @@ def _elevation_apex(
         low = np.minimum.reduceat(padded, cuts)[::2]
         high = np.maximum.reduceat(padded, cuts)[::2]
         threshold = np.full(n, np.inf)
-        threshold[wide] = low + (high - low) * (_NEAR_CANDIDATES / span[wide])
+        threshold[wide] = low + (high - low) * (nearest[wide] / span[wide])
         near = approx <= threshold[owner]
         owner, c = owner[near], c[near]
         # the error bound of a candidate at the largest |z|: at least any candidate's
@@ -1276,12 +1281,15 @@ def _elevation_apex(
         # one step down: the float difference may round up
         floor[wide] = np.nextafter(threshold[wide] - bound, -np.inf)
     owner, c = _facing_candidates(seqs, lo, hi, (owner, c), corners=True)
-    found, apex, undecided = _closest_correct(seqs, sz, lo, hi, owner, c, floor, v1, v2)
-    redo = np.flatnonzero(undecided)
-    if len(redo):
-        redone = _elevation_apex(seqs, sz, state[:, redo], top_z, near_first=False)
-        found[redo], apex[redo] = redone
-    return found, apex
+    return _closest_correct(seqs, sz, lo, hi, owner, c, floor, v1, v2)
+
+
+def _wider(state: np.ndarray) -> np.ndarray:
+    """Per open node of rule "elevation" left undecided (:func:`_elevation_apex`), the
+    number of nearest candidates to take next: ``_WIDER`` times as many, or all (0) where
+    that would be most of its candidates."""
+    taken = np.where(state[_BLOCK] < 0, _NEAR_CANDIDATES, state[_BLOCK]) * _WIDER
+    return np.where(2 * taken < state[_HI] - state[_LO] - 1, taken, 0)
 
 
 def _within_corners(
@@ -1856,14 +1864,18 @@ def build_trees(
                 if not state.shape[1]:
                     break
         lo = state[_LO]
-        if rule != "first":
-            if rule == "delaunay":
-                found, apex = _delaunay_apex(seqs, state)
-            else:
-                found, apex = _elevation_apex(seqs, sz, state, top_z)
+        if rule == "delaunay":
+            found, apex = _delaunay_apex(seqs, state)
             failed = ~found
             # no node tries again: the rule tested all its candidates
             retry, blocker = np.zeros(0, dtype=np.int64), apex
+        elif rule == "elevation":
+            found, apex, undecided = _elevation_apex(seqs, sz, state, top_z)
+            failed = ~found & ~undecided
+            # a node undecided among its nearest candidates tries again with more of them
+            retry = np.flatnonzero(undecided)
+            blocker = np.zeros(len(apex), dtype=np.int64)
+            blocker[retry] = _wider(state[:, retry])
         else:
             found, apex, blocker = _first_correct(seqs, state)
             failed = ~found & (apex <= lo)

@@ -365,14 +365,18 @@ def test_rule_elevation_near_candidates_first_equals_engine(
     elevations: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A node of many candidates takes its closest ones first, and where its choice among
-    them may not hold against the others it is decided again with all of them: the trees are
-    the engine's, on mid-size polygons (both paths taken)."""
-    calls = {True: 0, False: 0}
+    them may not hold against the others it is decided again in a later round with more of
+    them, or with all: the trees are the engine's, on mid-size polygons (all three paths
+    taken)."""
+    calls = {"nearest": 0, "wider": 0, "all": 0}
     elevation_apex = lockstep._elevation_apex
 
-    def counted(seqs, sz, state, top_z, near_first=True):
-        calls[near_first] += 1
-        return elevation_apex(seqs, sz, state, top_z, near_first)
+    def counted(seqs, sz, state, top_z):
+        block = state[lockstep._BLOCK]
+        calls["nearest"] += int((block < 0).sum())
+        calls["wider"] += int((block > 0).sum())
+        calls["all"] += int((block == 0).sum())
+        return elevation_apex(seqs, sz, state, top_z)
 
     monkeypatch.setattr(lockstep, "_elevation_apex", counted)
     rnd = random.Random(41)
@@ -387,7 +391,7 @@ def test_rule_elevation_near_candidates_first_equals_engine(
     problems, handled = mismatches(polygons, rule="elevation")
     assert problems == []
     assert handled == len(polygons)
-    assert calls[True] and calls[False]
+    assert calls["nearest"] and calls["wider"] and calls["all"]
 
 
 def concave_stars(rnd: random.Random, count: int) -> list:
