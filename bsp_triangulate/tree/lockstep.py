@@ -971,6 +971,8 @@ _NEAR_CANDIDATES = 16
 _WIDER = 8
 # largest-angle-first tries of rule "delaunay" before a node tests all its candidates left
 _DELAUNAY_TRIES = 8
+# ... and then each node's next this many candidates at once, twice as many each time after
+_DELAUNAY_WIDTH = 8
 # rounds of at least this many nodes test first candidates with _facing_ear
 _EAR_ROUND = 1024
 # candidates tested per node in rounds of fewer nodes, its first one included
@@ -1606,11 +1608,12 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
     ``predicates.cocircular_sign``: outside its circle, or its point later in candidate
     order) drops out. The best left when none remains is the best of all correct candidates
     in that order, whatever the order of the tries: the rule's choice. After
-    ``_DELAUNAY_TRIES`` tries a node tests all its candidates left at once. In sub-polygons
-    of more than ``_DELAUNAY_EVERY`` positions every position is tested, even if proven:
-    there these candidates are mostly wide triangles behind a spike, which edges cross with
-    no vertex inside (missed by :func:`_bent_in_triangle`, their trees would often need
-    mending), and whose many bent positions cost that more than the run tables. In smaller
+    ``_DELAUNAY_TRIES`` tries a node tests its next ``_DELAUNAY_WIDTH`` candidates left at
+    once, then twice as many each time (a correct one found drops most of the others). In
+    sub-polygons of more than ``_DELAUNAY_EVERY`` positions every position is tested, even if
+    proven: there these candidates are mostly wide triangles behind a spike, which edges
+    cross with no vertex inside (missed by :func:`_bent_in_triangle`, their trees would often
+    need mending), and whose many bent positions cost that more than the run tables. In smaller
     proven ones the tables are those of :func:`_bent_in_triangle`: a candidate passed
     wrongly is chosen only if it is the best of those passed, and then its tree cannot
     complete (it is mended or built again with every table, see :func:`build_trees`).
@@ -1634,11 +1637,18 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
     best = np.full(n, -1, dtype=np.int64)
     blocker = np.full(n, -1, dtype=np.int64)  # per node a position inside a failed triangle
     tries = 0
+    width = _DELAUNAY_WIDTH
     while True:
         live = np.flatnonzero(alive)
         if tries >= _DELAUNAY_TRIES and len(live):
             untested = live[~tested[live]]
             if len(untested):
+                # each node's next few (a correct one found drops most of the others)
+                o = owner[untested]
+                starts = np.flatnonzero(np.r_[True, o[1:] != o[:-1]])
+                rank = np.arange(len(o)) - np.repeat(starts, np.diff(np.r_[starts, len(o)]))
+                untested = untested[rank < width]
+                width *= 2
                 t = owner[untested]
                 good = _known_then_tables(
                     seqs, lo, hi, t, c[untested], blocker, _DELAUNAY_EVERY, _DELAUNAY_EVERY

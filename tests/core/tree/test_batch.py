@@ -676,17 +676,56 @@ def test_rule_delaunay_on_cocircular_vertices_equals_engine(
     assert sum(tried) > 0
 
 
-def test_rule_delaunay_tries_alone_equal_engine(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every node through the exact tries (no float guess): the same results."""
+@pytest.mark.parametrize(("tries", "width"), [(8, 8), (0, 1), (1, 3)])
+def test_rule_delaunay_tries_alone_equal_engine(
+    tries: int, width: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Every node through the exact tries (no float guess): the same results, whether a
+    node tries its candidates one by one first or goes at once to testing the next few
+    (doubling) of those left."""
     from bsp_triangulate.tree import lockstep
 
     monkeypatch.setattr(lockstep, "_delaunay_apex", lockstep._delaunay_tries)
+    monkeypatch.setattr(lockstep, "_DELAUNAY_TRIES", tries)
+    monkeypatch.setattr(lockstep, "_DELAUNAY_WIDTH", width)
     rnd = random.Random(3)
     polygons = concave_stars(rnd, 60) + regular_polygons(10)
     polygons += [random_polygon(rnd, islands=rnd.randint(0, 2)) for _ in range(40)]
     problems, handled = mismatches(polygons, rule="delaunay")
     assert problems == []
     assert handled >= 0.9 * len(polygons)
+
+
+@pytest.mark.parametrize(("tries", "width"), [(0, 1), (1, 3)])
+def test_rule_delaunay_tries_in_few_at_a_time_choose_as_all_at_once(
+    tries: int, width: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Node by node, the exact tries that test the candidates left a few at a time (doubling)
+    choose the apexes that testing all of them at once chooses (on these polygons; in a
+    proven one, a candidate that the bent positions' tables pass wrongly may be tested in
+    one order and not the other, and its tree is then mended)."""
+    tries_of = lockstep._delaunay_tries
+    compared = []
+
+    def both(seqs, state):
+        monkeypatch.setattr(lockstep, "_DELAUNAY_TRIES", tries)
+        monkeypatch.setattr(lockstep, "_DELAUNAY_WIDTH", width)
+        found, apex = tries_of(seqs, state)
+        monkeypatch.setattr(lockstep, "_DELAUNAY_WIDTH", 1 << 40)
+        all_found, all_apex = tries_of(seqs, state)
+        assert np.array_equal(found, all_found)
+        assert np.array_equal(apex, all_apex)
+        compared.append(state.shape[1])
+        return found, apex
+
+    monkeypatch.setattr(lockstep, "_delaunay_apex", both)
+    rnd = random.Random(5)
+    # mid-size concave polygons: nodes whose largest-angle candidates fail
+    polygons = mid_size_polygons(rnd, MID_MIN_COUNT, integer=False) + regular_polygons(6)
+    polygons += [random_polygon(rnd, islands=rnd.randint(0, 2)) for _ in range(30)]
+    problems, _ = mismatches(polygons, rule="delaunay")
+    assert problems == []
+    assert sum(compared) > 10_000
 
 
 def test_rule_delaunay_on_small_earcut_fixtures_and_farms() -> None:
