@@ -969,9 +969,9 @@ _ELEVATION_ROUNDS = 7
 _NEAR_CANDIDATES = 16
 # ... and a node left undecided by them takes this many times as many next
 _WIDER = 8
-# largest-angle-first tries of rule "delaunay" before a node tests all its candidates left
+# largest-angle-first tries of rule "delaunay", one candidate per node at a time...
 _DELAUNAY_TRIES = 8
-# ... and then each node's next this many candidates at once, twice as many each time after
+# ... then each node's next this many of its candidates left at once, twice as many each time
 _DELAUNAY_WIDTH = 8
 # rounds of at least this many nodes test first candidates with _facing_ear
 _EAR_ROUND = 1024
