@@ -1764,7 +1764,8 @@ def _extents(sx: np.ndarray, sy: np.ndarray, starts: np.ndarray) -> tuple[np.nda
 
 # rows of the open-node state (one column per node): sub-polygon [lo, hi], next candidate,
 # parent (pre-order index), depth, side, output row of the node, V1 at hi (1) or at lo (0),
-# output row of its sequence's first triangle, sequence, a position to test first (or -1);
+# output row of its sequence's first triangle, sequence, a position to test first (or -1;
+# under rule "elevation" the number of nearest candidates to take, see _wider);
 # an emitted node's first _RECORD rows (its apex in _CAND) are its output record, and its
 # rows up to _AT_HI all that its emission reads
 _LO, _HI, _CAND, _PARENT, _DEPTH, _SIDE, _ROW, _AT_HI, _FIRST, _SEQ, _BLOCK = range(11)
