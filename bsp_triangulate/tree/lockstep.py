@@ -1362,10 +1362,7 @@ def _closest_correct(
         if not len(left):
             break
         o = owner[left]
-        starts = np.flatnonzero(np.r_[True, o[1:] != o[:-1]])
-        sizes = np.diff(np.r_[starts, len(o)])
-        group = np.repeat(np.arange(len(starts)), sizes)
-        rank = np.arange(len(o)) - starts[group]
+        starts, sizes, group, rank = _owner_runs(o)
         taken = np.flatnonzero(rank < take)
         t = left[taken]
         ok = _known_then_tables(
@@ -1413,6 +1410,15 @@ def _closest_correct(
         found[chosen] = True
         apex[chosen] = _choose_elevation(sz, owner[good], c[good], v1, v2)
     return found, apex, undecided
+
+
+def _owner_runs(owner: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For items grouped by ``owner`` (each owner's items in one run): the runs' starts and
+    sizes, and per item its run and its rank within the run."""
+    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    sizes = np.diff(np.r_[starts, len(owner)])
+    group = np.repeat(np.arange(len(starts)), sizes)
+    return starts, sizes, group, np.arange(len(owner)) - starts[group]
 
 
 def _mirrored(zd: np.ndarray, zc: np.ndarray, z1: np.ndarray, z2: np.ndarray) -> np.ndarray:
@@ -1644,9 +1650,7 @@ def _delaunay_tries(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.
             untested = live[~tested[live]]
             if len(untested):
                 # each node's next few (a correct one found drops most of the others)
-                o = owner[untested]
-                starts = np.flatnonzero(np.r_[True, o[1:] != o[:-1]])
-                rank = np.arange(len(o)) - np.repeat(starts, np.diff(np.r_[starts, len(o)]))
+                *_, rank = _owner_runs(owner[untested])
                 untested = untested[rank < width]
                 width *= 2
                 t = owner[untested]
