@@ -35,9 +35,15 @@ _FEW = 32
 # bridge candidates tested together after the nearest: doubling from the first block size up to
 # the last
 _FIRST_BLOCK = 8
-_LAST_BLOCK = 64
+_LAST_BLOCK = 1024
 # edges that blocked segments to one island's vertex, tried first for its next segments
 _KNOWN_BLOCKERS = 16
+# segments to an island's vertex are first tested against the ring edges along their first
+# stretches of these many grid cells from their other end, where at least _LONG_SEGMENTS are
+# over _LONG_SHARE times that long
+_NEAR_CELLS = (16, 128)
+_LONG_SHARE = 2
+_LONG_SEGMENTS = 8
 
 
 def ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -420,35 +426,86 @@ class _Bridger:
 
     def _segments_looked_up(self, us: np.ndarray, w: int) -> np.ndarray:
         """:meth:`_segments_clear` by the edges and bridges the grid finds near each segment;
-        the edges that block the most of them join those tried first."""
+        the edges that block the most of them join those tried first.
+
+        Segments many grid cells long first meet the ring edges in the cells along their first
+        stretches from u, ``_NEAR_CELLS`` cells long (an island with no valid bridge is tested
+        against every vertex, and most of those segments leave the polygon near u): those
+        blocked there are not looked up along their whole length."""
         x, y = self.x, self.y
         wx, wy = float(x[w]), float(y[w])
         clear = np.ones(len(us), dtype=bool)
         ux, uy = x[us], y[us]
-        row, found = self.edges.query_segments(ux, uy, np.full(len(us), wx), np.full(len(us), wy))
-        a, b = self.edge_a[found], self.edge_b[found]
-        if self.bridge_count:
-            extra = self.bridges[: self.bridge_count]
-            # only (segment, bridge) pairs whose bounding boxes meet can meet (exact)
-            bxa, bya, bxb, byb = x[extra[:, 0]], y[extra[:, 0]], x[extra[:, 1]], y[extra[:, 1]]
-            near = (
-                (np.maximum(bxa, bxb) >= np.minimum(ux, wx)[:, None])
-                & (np.minimum(bxa, bxb) <= np.maximum(ux, wx)[:, None])
-                & (np.maximum(bya, byb) >= np.minimum(uy, wy)[:, None])
-                & (np.minimum(bya, byb) <= np.maximum(uy, wy)[:, None])
+        cell = max(self.edges.size_x, self.edges.size_y)
+        length = np.maximum(np.abs(wx - ux), np.abs(wy - uy))
+        starts, ends = [], []
+        for cells in _NEAR_CELLS:
+            long = np.flatnonzero(clear & (length > _LONG_SHARE * cells * cell))
+            if len(long) < _LONG_SEGMENTS:
+                break
+            found = self._blocked_near(ux[long], uy[long], wx, wy, cells * cell)
+            if found is None:
+                break
+            blocked, a, b = found
+            clear[long[blocked]] = False
+            starts.append(a)
+            ends.append(b)
+        rest = np.flatnonzero(clear)
+        if len(rest):
+            ux, uy = ux[rest], uy[rest]
+            row, found = self.edges.query_segments(
+                ux, uy, np.full(len(rest), wx), np.full(len(rest), wy)
             )
-            pair_row, pair_bridge = np.nonzero(near)
-            row = np.concatenate([row, pair_row])
-            a = np.concatenate([a, extra[pair_bridge, 0]])
-            b = np.concatenate([b, extra[pair_bridge, 1]])
-        hit = blocking_pairs(x, y, row, a, b, ux, uy, wx, wy)
-        clear[row[hit]] = False
-        if hit.any():
-            # the edges that blocked the most of these segments, then those known before
-            fresh, count = np.unique(np.column_stack([a[hit], b[hit]]), axis=0, return_counts=True)
-            fresh = fresh[np.argsort(-count, kind="stable")]
+            a, b = self.edge_a[found], self.edge_b[found]
+            if self.bridge_count:
+                extra = self.bridges[: self.bridge_count]
+                # only (segment, bridge) pairs whose bounding boxes meet can meet (exact)
+                bxa, bya = x[extra[:, 0]], y[extra[:, 0]]
+                bxb, byb = x[extra[:, 1]], y[extra[:, 1]]
+                near = (
+                    (np.maximum(bxa, bxb) >= np.minimum(ux, wx)[:, None])
+                    & (np.minimum(bxa, bxb) <= np.maximum(ux, wx)[:, None])
+                    & (np.maximum(bya, byb) >= np.minimum(uy, wy)[:, None])
+                    & (np.minimum(bya, byb) <= np.maximum(uy, wy)[:, None])
+                )
+                pair_row, pair_bridge = np.nonzero(near)
+                row = np.concatenate([row, pair_row])
+                a = np.concatenate([a, extra[pair_bridge, 0]])
+                b = np.concatenate([b, extra[pair_bridge, 1]])
+            hit = blocking_pairs(x, y, row, a, b, ux, uy, wx, wy)
+            clear[rest[row[hit]]] = False
+            starts.append(a[hit])
+            ends.append(b[hit])
+        if not clear.all():
+            # the edges that blocked the most of these segments, then those known before (ties
+            # by start, then end: one integer key per edge sorts as the pairs do)
+            span = len(x) + 1
+            keys, count = np.unique(
+                np.concatenate(starts) * span + np.concatenate(ends), return_counts=True
+            )
+            keys = keys[np.argsort(-count, kind="stable")]
+            fresh = np.column_stack([keys // span, keys % span])
             self._known = np.concatenate([fresh, self._known])[:_KNOWN_BLOCKERS]
         return clear
+
+    def _blocked_near(
+        self, ux: np.ndarray, uy: np.ndarray, wx: float, wy: float, reach: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The segments u-w (indices) that a ring edge in the grid cells along their first
+        ``reach`` (in x or y) from u blocks, with the blocking edges' ends (exact); None where
+        a point that far along is not a finite float."""
+        length = np.maximum(np.abs(wx - ux), np.abs(wy - uy))
+        with np.errstate(over="ignore", invalid="ignore"):
+            share = reach / length
+            mx, my = ux + share * (wx - ux), uy + share * (wy - uy)
+        if not (np.isfinite(mx).all() and np.isfinite(my).all()):
+            return None
+        row, found = self.edges.query_segments(ux, uy, mx, my)
+        a, b = self.edge_a[found], self.edge_b[found]
+        hit = blocking_pairs(self.x, self.y, row, a, b, ux, uy, wx, wy)
+        blocked = np.zeros(len(ux), dtype=bool)
+        blocked[row[hit]] = True
+        return np.flatnonzero(blocked), a[hit], b[hit]
 
     def _valid_many(self, vids: np.ndarray, island: np.ndarray, h_index: int) -> list[list[int]]:
         """:meth:`_valid_occurrences` of each vertex of ``vids``, the tests vectorised."""

@@ -7,7 +7,8 @@ ones.
   touching rings (islands sharing a point with the shell or with each other, a vertex on
   another ring's edge), and with the lock-step calls split into groups.
 - The bridge search that tests blocks of candidates at once (``_Bridger.find_bridge``) picks
-  the bridge that testing one candidate at a time picks.
+  the bridge that testing one candidate at a time picks, and long segments tested first near
+  their far end give what segments looked up whole give.
 - Rule delaunay's outward search on long sub-polygons picks the apex that testing every
   candidate picks.
 """
@@ -20,7 +21,7 @@ import random
 import numpy as np
 import pytest
 
-from bsp_triangulate import triangulate
+from bsp_triangulate import TriangulationError, triangulate
 from bsp_triangulate.geometry import bridges
 from bsp_triangulate.tree import one_polygon, subtrees
 
@@ -35,6 +36,7 @@ from .random_polygons import (
 )
 
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")
+RULES = ("first", "elevation", "delaunay")
 
 
 def _wavy(vertices: int, islands: int, seed: int) -> list[np.ndarray]:
@@ -169,6 +171,74 @@ def test_blocked_bridge_search_matches_one_at_a_time(monkeypatch: pytest.MonkeyP
     monkeypatch.setattr(bridges, "_LAST_BLOCK", 1)
     _same(fast, triangulate(rings, rule="delaunay"))
     _same(triangulate(rings), _one_step(monkeypatch, rings))
+
+
+@pytest.mark.parametrize("where", ["outside", "across the shell"])
+def test_bridge_search_near_first_matches_whole_segments(
+    monkeypatch: pytest.MonkeyPatch, where: str
+) -> None:
+    """An island outside the outer ring, or across it, has no valid bridge: the search tests
+    every vertex. Long segments tested first against the edges near their other end give
+    the bridges, triangles and errors of segments looked up whole."""
+    centre = 130.0 if where == "outside" else 100.0
+    square = np.array([(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)])
+    square[:, 0] += centre
+    rings = [*_wavy(1500, 40, 6), square]
+    blocked: list[int] = []
+    near_first = bridges._Bridger._blocked_near
+
+    def counted(self: bridges._Bridger, *args: object) -> object:
+        found = near_first(self, *args)
+        blocked.append(0 if found is None else len(found[0]))
+        return found
+
+    monkeypatch.setattr(bridges._Bridger, "_blocked_near", counted)
+
+    def outcomes() -> list[object]:
+        found: list[object] = [triangulate(rings, rule=r, invalid="as_given") for r in RULES]
+        with pytest.raises(TriangulationError) as error:
+            triangulate(rings)
+        return [*found, str(error.value)]
+
+    monkeypatch.setattr(bridges, "_NEAR_CELLS", (2, 8))
+    near = outcomes()
+    assert sum(blocked) > 0  # segments were found blocked near their far end
+    monkeypatch.setattr(bridges, "_NEAR_CELLS", ())
+    whole = outcomes()
+    for first, second in zip(near[:-1], whole[:-1]):
+        _same(first, second)
+    assert near[-1] == whole[-1]
+
+
+def test_segments_near_first_clear_as_looked_up_whole(monkeypatch: pytest.MonkeyPatch) -> None:
+    """From every vertex to islands' vertices near and far, long and short segments, clear
+    and blocked: the near-first lookups find each clear exactly where whole lookups do."""
+    rings = _wavy(1500, 40, 7)
+    points = np.concatenate(rings)
+    ids, start = [], 0
+    for ring in rings:
+        ids.append(np.arange(start, start + len(ring)))
+        start += len(ring)
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    us = np.arange(len(x))
+    targets = (int(ids[1][0]), int(ids[20][2]), int(ids[-1][1]))
+    blocked: list[int] = []
+    near_first = bridges._Bridger._blocked_near
+
+    def counted(self: bridges._Bridger, *args: object) -> object:
+        found = near_first(self, *args)
+        blocked.append(0 if found is None else len(found[0]))
+        return found
+
+    monkeypatch.setattr(bridges._Bridger, "_blocked_near", counted)
+    monkeypatch.setattr(bridges, "_NEAR_CELLS", (2, 8))
+    near = [bridges._Bridger(x, y, ids)._segments_looked_up(us, w) for w in targets]
+    assert sum(blocked) > 0
+    monkeypatch.setattr(bridges, "_NEAR_CELLS", ())
+    for w, expected in zip(targets, near):
+        whole = bridges._Bridger(x, y, ids)._segments_looked_up(us, w)
+        assert 0 < whole.sum() < len(whole)
+        assert np.array_equal(whole, expected)
 
 
 def test_lockstep_subtrees_only_where_many_advance_together(
