@@ -167,6 +167,9 @@ class _Bridger:
         self.bridge_cells = BridgeCells(
             self.points.x0, self.points.y0, self.points.size_x, self.points.size_y
         )
+        # per island vertex whose whole search found no valid target, the node count then
+        # (see find_bridge)
+        self._hopeless: dict[int, int] = {}
         # the edges (vertex id pairs) that blocked segments to vertex _known_to
         self._known_to = -1
         self._known = np.zeros((0, 2), dtype=np.int64)
@@ -542,10 +545,22 @@ class _Bridger:
         The sequence's vertices near h are tested nearest first, in blocks at once, until
         the nearest valid one is known and every one within the tie margin of it. None also
         where the nearest valid one surely lies beyond ``give_up`` (the search stops there).
+
+        Where a search from this vertex found no valid target among all the vertices of the
+        sequence, none of those can be valid later (bridges only block more segments, and a
+        splice only divides a vertex's angle where its bridge leaves inside it): only the
+        vertices joined since are tested, and where none of them is valid either, None.
         """
         x, y = self.x, self.y
         h = int(island[h_index])
         hx, hy = float(x[h]), float(y[h])
+        since = self._hopeless.get(h)
+        if since is not None:
+            fresh = np.unique(self.vid[since : self.count])
+            fresh = fresh[self.first[fresh] >= since]
+            if not any(self._valid_many(fresh, island, h_index)) if len(fresh) else True:
+                self._hopeless[h] = self.count
+                return None
         grid = self.points
         radius = max(grid.size_x, grid.size_y)
         full = max(grid.size_x * grid.nx, grid.size_y * grid.ny) * 2.0 + radius
@@ -585,7 +600,10 @@ class _Bridger:
                 position = stop
             if best is not None and (best * (1 + _DISTANCE_MARGIN) <= limit or radius >= full):
                 return self._nearest_exact(tested, h, best)
-            if radius >= full or radius >= give_up:
+            if radius >= full:
+                self._hopeless[h] = self.count
+                return None
+            if radius >= give_up:
                 return None
             radius *= 2.0
 
@@ -740,7 +758,11 @@ class _Bridger:
         self.bridge_cells.add(float(x[sk]), float(y[sk]), float(x[h]), float(y[h]))
 
     def nearest_occurrence(self, h: int) -> tuple[int, int]:
-        """(node, vertex id) of the occurrence nearest to vertex ``h`` (first on ties)."""
+        """(node, vertex id) of the occurrence nearest to vertex ``h`` (first on ties): the
+        bridge of an island with no valid one. It may leave its vertex outside the angle
+        there, which a later splice would no longer divide: the searches that found no valid
+        target are forgotten."""
+        self._hopeless.clear()
         x, y = self.x, self.y
         order = self._order()
         seq = self.vid[order]

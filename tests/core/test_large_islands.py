@@ -210,6 +210,112 @@ def test_bridge_search_near_first_matches_whole_segments(
     assert near[-1] == whole[-1]
 
 
+class _Forgetful(dict):
+    """A bridger's record of hopeless searches that keeps nothing, counting the lookups that
+    would have found one."""
+
+    hits = 0
+
+    def get(self, key: object, default: object = None) -> object:
+        _Forgetful.hits += key in self.seen
+        return default
+
+    def __setitem__(self, key: object, value: object) -> None:
+        self.seen.add(key)
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen: set[object] = set()
+
+
+def test_hopeless_searches_remembered_as_searched_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Rule delaunay tries an island with no Delaunay bridge again in later rounds. Islands
+    outside the outer ring find no valid target at all: later searches from the same vertex
+    test only the vertices joined since, and give what whole searches give."""
+    squares = []
+    for cx, cy in ((130.0, 0.0), (0.0, -135.0), (101.0, 0.0)):
+        square = np.array([(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)])
+        squares.append(square + np.array([cx, cy]))
+    rings = [*_wavy(1200, 30, 8), *squares]
+
+    def outcomes() -> list[object]:
+        found: list[object] = [triangulate(rings, rule="delaunay", invalid="as_given")]
+        with pytest.raises(TriangulationError) as error:
+            triangulate(rings, rule="delaunay")
+        return [*found, str(error.value)]
+
+    remembered = outcomes()
+    init = bridges._Bridger.__init__
+
+    def forgetful(self: bridges._Bridger, *args: object) -> None:
+        init(self, *args)
+        self._hopeless = _Forgetful()
+
+    monkeypatch.setattr(bridges._Bridger, "__init__", forgetful)
+    whole = outcomes()
+    assert _Forgetful.hits > 0  # later searches would have used the record
+    _same(remembered[0], whole[0])
+    assert remembered[1] == whole[1]
+
+
+def test_hopeless_search_finds_the_vertices_joined_since() -> None:
+    """A vertex of an island inside the cavity of a C-shaped island, the cavity's opening
+    hidden behind the island itself, sees no vertex of the outer ring: its search finds no
+    valid target. Once the C-shaped island is joined, its cavity's vertices are valid ones:
+    the search again finds what a bridger without the record finds."""
+    shell = [(-50, -50), (50, -50), (50, 50), (-50, 50)]
+    # counter-clockwise; the cavity x -2..4, y -4..4 opens at the right, y -0.5..0.5
+    c_shape = [(-3, -5), (5, -5), (5, -0.5), (4, -0.5), (4, -4), (-2, -4)]
+    c_shape += [(-2, 4), (4, 4), (4, 0.5), (5, 0.5), (5, 5), (-3, 5)]
+    inner = [(-1, -1), (-1, 1), (1, 1), (1, -1)]  # clockwise
+    points = np.array(shell + c_shape[::-1] + inner, dtype=np.float64)
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    rings = [np.arange(4), np.arange(4, 16), np.arange(16, 20)]
+    c_left = int(np.flatnonzero(rings[1] == 4 + 11)[0])  # (-3, -5), reversed to the end
+
+    def with_c_shape_joined(bridger: bridges._Bridger) -> None:
+        target = bridger.find_bridge(rings[1], c_left)
+        assert target is not None
+        bridger.splice(target[0], rings[1], c_left)
+
+    bridger = bridges._Bridger(x, y, rings)
+    assert bridger.find_bridge(rings[2], 0) is None
+    with_c_shape_joined(bridger)
+    fresh = bridges._Bridger(x, y, rings)
+    with_c_shape_joined(fresh)
+    expected = fresh.find_bridge(rings[2], 0)
+    assert expected is not None
+    assert bridger.find_bridge(rings[2], 0) == expected
+
+
+def test_hopeless_searches_forgotten_after_a_bridge_with_no_valid_target() -> None:
+    """Two squares outside the outer ring's corner (10, 10): the first finds no valid target
+    (it sees the corner, from outside its angle). The second, hidden behind the first, is
+    joined to the corner anyway (as given): its bridge leaves the corner outside the angle
+    there, which now holds the first square's vertex. The corner is a valid target for it
+    from then on, as a bridger without the record finds."""
+    shell = [(0, 0), (10, 0), (10, 10), (0, 10)]
+    first = [(12, 12), (12, 13), (13, 13), (13, 12)]  # clockwise
+    second = [(15, 12), (15, 13), (16, 13), (16, 12)]
+    points = np.array(shell + first + second, dtype=np.float64)
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    rings = [np.arange(4), np.arange(4, 8), np.arange(8, 12)]
+
+    def with_second_joined(bridger: bridges._Bridger) -> None:
+        assert bridger.find_bridge(rings[2], 0) is None
+        node, _ = bridger.nearest_occurrence(int(rings[2][0]))
+        bridger.splice(node, rings[2], 0)
+
+    bridger = bridges._Bridger(x, y, rings)
+    assert bridger.find_bridge(rings[1], 0) is None
+    with_second_joined(bridger)
+    fresh = bridges._Bridger(x, y, rings)
+    with_second_joined(fresh)
+    expected = fresh.find_bridge(rings[1], 0)
+    assert expected is not None and expected[1] == 2  # the corner
+    assert bridger.find_bridge(rings[1], 0) == expected
+
+
 def test_segments_near_first_clear_as_looked_up_whole(monkeypatch: pytest.MonkeyPatch) -> None:
     """From every vertex to islands' vertices near and far, long and short segments, clear
     and blocked: the near-first lookups find each clear exactly where whole lookups do."""
