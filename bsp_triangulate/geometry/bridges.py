@@ -549,7 +549,9 @@ class _Bridger:
         Where a search from this vertex found no valid target among all the vertices of the
         sequence, none of those can be valid later (bridges only block more segments, and a
         splice only divides a vertex's angle where its bridge leaves inside it): only the
-        vertices joined since are tested, and where none of them is valid either, None.
+        vertices joined since are tested, and where none of them is valid either, None. A
+        splice that may widen an angle (a touching island, a bridge to the nearest
+        occurrence) forgets every such search.
         """
         x, y = self.x, self.y
         h = int(island[h_index])
@@ -730,7 +732,12 @@ class _Bridger:
         h = int(island[h_index])
         sk = int(self.vid[k])
         touching = x[sk] == x[h] and y[sk] == y[h]
-        if not touching:
+        if touching:
+            # an island's edge along the sequence's leaves a spike at s_k, whose angle takes
+            # every direction but its own (bridge_islands joins touching islands before any
+            # search is recorded)
+            self._hopeless.clear()
+        else:
             self._add_bridge(sk, h)
         # k == 0: the island goes to the end, so that S keeps its first two vertices
         node = int(self.prv[0]) if k == 0 else k

@@ -316,6 +316,33 @@ def test_hopeless_searches_forgotten_after_a_bridge_with_no_valid_target() -> No
     assert bridger.find_bridge(rings[1], 0) == expected
 
 
+def test_hopeless_searches_forgotten_after_a_touching_island() -> None:
+    """A triangle below the outer ring's corner (0, 0) finds no valid target. An island
+    touching that corner, with an edge along the ring's, leaves a spike there whose angle
+    takes every direction but its own: the corner is then a valid target, as a bridger
+    without the record finds."""
+    shell = [(10, 0), (10, 10), (0, 10), (0, 0)]
+    below = [(0, -3), (-1, -4), (1, -4)]
+    touching = [(0, 0), (0, 2), (1, 1)]
+    points = np.array(shell + below + touching, dtype=np.float64)
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    rings = [np.arange(4), np.arange(4, 7), np.arange(7, 10)]
+
+    def with_touching_joined(bridger: bridges._Bridger) -> None:
+        target = bridger.find_bridge(rings[2], 0)
+        assert target is not None and target[1] == 3  # at the corner (0, 0)
+        bridger.splice(target[0], rings[2], 0)
+
+    bridger = bridges._Bridger(x, y, rings)
+    assert bridger.find_bridge(rings[1], 0) is None
+    with_touching_joined(bridger)
+    fresh = bridges._Bridger(x, y, rings)
+    with_touching_joined(fresh)
+    expected = fresh.find_bridge(rings[1], 0)
+    assert expected is not None and expected[1] == 3
+    assert bridger.find_bridge(rings[1], 0) == expected
+
+
 def test_segments_near_first_clear_as_looked_up_whole(monkeypatch: pytest.MonkeyPatch) -> None:
     """From every vertex to islands' vertices near and far, long and short segments, clear
     and blocked: the near-first lookups find each clear exactly where whole lookups do."""
