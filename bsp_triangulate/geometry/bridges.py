@@ -446,7 +446,7 @@ class _Bridger:
             long = np.flatnonzero(clear & (length > _LONG_SHARE * cells * cell))
             if len(long) < _LONG_SEGMENTS:
                 break
-            found = self._blocked_near(ux[long], uy[long], wx, wy, cells * cell)
+            found = self._blocked_near(ux[long], uy[long], length[long], wx, wy, cells * cell)
             if found is None:
                 break
             blocked, a, b = found
@@ -455,30 +455,10 @@ class _Bridger:
             ends.append(b)
         rest = np.flatnonzero(clear)
         if len(rest):
-            ux, uy = ux[rest], uy[rest]
-            row, found = self.edges.query_segments(
-                ux, uy, np.full(len(rest), wx), np.full(len(rest), wy)
-            )
-            a, b = self.edge_a[found], self.edge_b[found]
-            if self.bridge_count:
-                extra = self.bridges[: self.bridge_count]
-                # only (segment, bridge) pairs whose bounding boxes meet can meet (exact)
-                bxa, bya = x[extra[:, 0]], y[extra[:, 0]]
-                bxb, byb = x[extra[:, 1]], y[extra[:, 1]]
-                near = (
-                    (np.maximum(bxa, bxb) >= np.minimum(ux, wx)[:, None])
-                    & (np.minimum(bxa, bxb) <= np.maximum(ux, wx)[:, None])
-                    & (np.maximum(bya, byb) >= np.minimum(uy, wy)[:, None])
-                    & (np.minimum(bya, byb) <= np.maximum(uy, wy)[:, None])
-                )
-                pair_row, pair_bridge = np.nonzero(near)
-                row = np.concatenate([row, pair_row])
-                a = np.concatenate([a, extra[pair_bridge, 0]])
-                b = np.concatenate([b, extra[pair_bridge, 1]])
-            hit = blocking_pairs(x, y, row, a, b, ux, uy, wx, wy)
-            clear[rest[row[hit]]] = False
-            starts.append(a[hit])
-            ends.append(b[hit])
+            blocked, a, b = self._blocked_whole(ux[rest], uy[rest], wx, wy)
+            clear[rest[blocked]] = False
+            starts.append(a)
+            ends.append(b)
         if not clear.all():
             # the edges that blocked the most of these segments, then those known before (ties
             # by start, then end: one integer key per edge sorts as the pairs do)
@@ -492,19 +472,61 @@ class _Bridger:
         return clear
 
     def _blocked_near(
-        self, ux: np.ndarray, uy: np.ndarray, wx: float, wy: float, reach: float
+        self,
+        ux: np.ndarray,
+        uy: np.ndarray,
+        length: np.ndarray,
+        wx: float,
+        wy: float,
+        reach: float,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """The segments u-w (indices) that a ring edge in the grid cells along their first
-        ``reach`` (in x or y) from u blocks, with the blocking edges' ends (exact); None where
-        a point that far along is not a finite float."""
-        length = np.maximum(np.abs(wx - ux), np.abs(wy - uy))
+        ``reach`` (in x or y; ``length`` the whole in x or y) from u blocks, with the blocking
+        edges' ends (exact); None where a point that far along is not a finite float."""
         with np.errstate(over="ignore", invalid="ignore"):
             share = reach / length
             mx, my = ux + share * (wx - ux), uy + share * (wy - uy)
         if not (np.isfinite(mx).all() and np.isfinite(my).all()):
             return None
         row, found = self.edges.query_segments(ux, uy, mx, my)
+        return self._blocking(row, self.edge_a[found], self.edge_b[found], ux, uy, wx, wy)
+
+    def _blocked_whole(
+        self, ux: np.ndarray, uy: np.ndarray, wx: float, wy: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The segments u-w (indices) that a ring edge in the grid cells along them, or a
+        bridge made so far, blocks, with the blocking edges' ends (exact)."""
+        x, y = self.x, self.y
+        row, found = self.edges.query_segments(ux, uy, np.full(len(ux), wx), np.full(len(ux), wy))
         a, b = self.edge_a[found], self.edge_b[found]
+        if self.bridge_count:
+            extra = self.bridges[: self.bridge_count]
+            # only (segment, bridge) pairs whose bounding boxes meet can meet (exact)
+            bxa, bya, bxb, byb = x[extra[:, 0]], y[extra[:, 0]], x[extra[:, 1]], y[extra[:, 1]]
+            near = (
+                (np.maximum(bxa, bxb) >= np.minimum(ux, wx)[:, None])
+                & (np.minimum(bxa, bxb) <= np.maximum(ux, wx)[:, None])
+                & (np.maximum(bya, byb) >= np.minimum(uy, wy)[:, None])
+                & (np.minimum(bya, byb) <= np.maximum(uy, wy)[:, None])
+            )
+            pair_row, pair_bridge = np.nonzero(near)
+            row = np.concatenate([row, pair_row])
+            a = np.concatenate([a, extra[pair_bridge, 0]])
+            b = np.concatenate([b, extra[pair_bridge, 1]])
+        return self._blocking(row, a, b, ux, uy, wx, wy)
+
+    def _blocking(
+        self,
+        row: np.ndarray,
+        a: np.ndarray,
+        b: np.ndarray,
+        ux: np.ndarray,
+        uy: np.ndarray,
+        wx: float,
+        wy: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Of the (segment ``row``, edge a-b) pairs, the segments an edge blocks (indices,
+        each once) and the blocking edges' ends (``bridge_plan.blocking_pairs``)."""
         hit = blocking_pairs(self.x, self.y, row, a, b, ux, uy, wx, wy)
         blocked = np.zeros(len(ux), dtype=bool)
         blocked[row[hit]] = True
@@ -550,8 +572,7 @@ class _Bridger:
         sequence, none of those can be valid later (bridges only block more segments, and a
         splice only divides a vertex's angle where its bridge leaves inside it): only the
         vertices joined since are tested, and where none of them is valid either, None. A
-        splice that may widen an angle (a touching island, a bridge to the nearest
-        occurrence) forgets every such search.
+        splice that may widen an angle (:meth:`splice`) forgets every such search.
         """
         x, y = self.x, self.y
         h = int(island[h_index])
@@ -560,7 +581,7 @@ class _Bridger:
         if since is not None:
             fresh = np.unique(self.vid[since : self.count])
             fresh = fresh[self.first[fresh] >= since]
-            if not any(self._valid_many(fresh, island, h_index)) if len(fresh) else True:
+            if not len(fresh) or not any(self._valid_many(fresh, island, h_index)):
                 self._hopeless[h] = self.count
                 return None
         grid = self.points
@@ -718,10 +739,17 @@ class _Bridger:
     def splice(self, k: int, island: np.ndarray, h_index: int) -> None:
         """Join the island at occurrence (node) k (docs/algorithm.md section 2)."""
         x, y = self.x, self.y
+        h = int(island[h_index])
+        sk = int(self.vid[k])
+        touching = x[sk] == x[h] and y[sk] == y[h]
+        if self._hopeless and (touching or not self._inside_angle(k, x[h], y[h])):
+            # the angle at s_k may widen (a touching island's edge along the sequence's
+            # leaves a spike there, whose angle takes every direction but its own; a bridge
+            # with no valid target may leave outside the angle): a vertex found no valid
+            # target may become one, so the searches that found none are forgotten
+            self._hopeless.clear()
         if len(island) == 1:  # an interior point: ..., s_k, p, s_k, ...
-            h = int(island[0])
-            sk = int(self.vid[k])
-            if x[sk] == x[h] and y[sk] == y[h]:
+            if touching:
                 parts = [h]
             else:
                 self._add_bridge(sk, h)
@@ -729,15 +757,7 @@ class _Bridger:
             self._insert_few_after(int(self.prv[0]) if k == 0 else k, parts)
             self._add_points(island)
             return
-        h = int(island[h_index])
-        sk = int(self.vid[k])
-        touching = x[sk] == x[h] and y[sk] == y[h]
-        if touching:
-            # an island's edge along the sequence's leaves a spike at s_k, whose angle takes
-            # every direction but its own (bridge_islands joins touching islands before any
-            # search is recorded)
-            self._hopeless.clear()
-        else:
+        if not touching:
             self._add_bridge(sk, h)
         # k == 0: the island goes to the end, so that S keeps its first two vertices
         node = int(self.prv[0]) if k == 0 else k
@@ -765,11 +785,7 @@ class _Bridger:
         self.bridge_cells.add(float(x[sk]), float(y[sk]), float(x[h]), float(y[h]))
 
     def nearest_occurrence(self, h: int) -> tuple[int, int]:
-        """(node, vertex id) of the occurrence nearest to vertex ``h`` (first on ties): the
-        bridge of an island with no valid one. It may leave its vertex outside the angle
-        there, which a later splice would no longer divide: the searches that found no valid
-        target are forgotten."""
-        self._hopeless.clear()
+        """(node, vertex id) of the occurrence nearest to vertex ``h`` (first on ties)."""
         x, y = self.x, self.y
         order = self._order()
         seq = self.vid[order]

@@ -1264,7 +1264,7 @@ def _elevation_apex(
     # per node a lower bound of |2 z - z1 - z2| (its float value less its error) of every
     # candidate left out (none: infinite)
     floor = np.full(n, np.inf)
-    nearest = np.where(state[_BLOCK] < 0, _NEAR_CANDIDATES, state[_BLOCK])
+    nearest = _nearest_count(state)
     wide = np.flatnonzero((span > 2 * nearest) & (nearest > 0))
     if len(wide):
         approx = _elevation_approx(np.take(sz, c), np.take(z1, owner), np.take(z2, owner))
@@ -1286,11 +1286,17 @@ def _elevation_apex(
     return _closest_correct(seqs, sz, lo, hi, owner, c, floor, v1, v2)
 
 
+def _nearest_count(state: np.ndarray) -> np.ndarray:
+    """Per open node of rule "elevation", the number of its nearest candidates it takes
+    (0: all): ``_NEAR_CANDIDATES`` at first, then what its ``_BLOCK`` row holds."""
+    return np.where(state[_BLOCK] < 0, _NEAR_CANDIDATES, state[_BLOCK])
+
+
 def _wider(state: np.ndarray) -> np.ndarray:
     """Per open node of rule "elevation" left undecided (:func:`_elevation_apex`), the
     number of nearest candidates to take next: ``_WIDER`` times as many, or all (0) where
     that would be most of its candidates."""
-    taken = np.where(state[_BLOCK] < 0, _NEAR_CANDIDATES, state[_BLOCK]) * _WIDER
+    taken = _nearest_count(state) * _WIDER
     return np.where(2 * taken < state[_HI] - state[_LO] - 1, taken, 0)
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import random
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -173,17 +174,13 @@ def test_blocked_bridge_search_matches_one_at_a_time(monkeypatch: pytest.MonkeyP
     _same(triangulate(rings), _one_step(monkeypatch, rings))
 
 
-@pytest.mark.parametrize("where", ["outside", "across the shell"])
-def test_bridge_search_near_first_matches_whole_segments(
-    monkeypatch: pytest.MonkeyPatch, where: str
-) -> None:
-    """An island outside the outer ring, or across it, has no valid bridge: the search tests
-    every vertex. Long segments tested first against the edges near their other end give
-    the bridges, triangles and errors of segments looked up whole."""
-    centre = 130.0 if where == "outside" else 100.0
-    square = np.array([(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)])
-    square[:, 0] += centre
-    rings = [*_wavy(1500, 40, 6), square]
+def _square(cx: float, cy: float) -> np.ndarray:
+    """A clockwise 2 x 2 square centred on (cx, cy)."""
+    return np.array([(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)]) + np.array([cx, cy])
+
+
+def _count_near_first(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """Per call of ``_Bridger._blocked_near`` from now on, the segments it found blocked."""
     blocked: list[int] = []
     near_first = bridges._Bridger._blocked_near
 
@@ -193,21 +190,38 @@ def test_bridge_search_near_first_matches_whole_segments(
         return found
 
     monkeypatch.setattr(bridges._Bridger, "_blocked_near", counted)
+    return blocked
 
-    def outcomes() -> list[object]:
-        found: list[object] = [triangulate(rings, rule=r, invalid="as_given") for r in RULES]
-        with pytest.raises(TriangulationError) as error:
-            triangulate(rings)
-        return [*found, str(error.value)]
 
+def _outcomes(rings: list[np.ndarray], rules: tuple[str, ...], failing: str) -> list[object]:
+    """The triangulations of ``rings`` as given under ``rules``, then the message with which
+    rule ``failing`` reports them."""
+    found: list[object] = [triangulate(rings, rule=r, invalid="as_given") for r in rules]
+    with pytest.raises(TriangulationError) as error:
+        triangulate(rings, rule=failing)
+    return [*found, str(error.value)]
+
+
+def _same_outcomes(first: list[object], second: list[object]) -> None:
+    for one, other in zip(first[:-1], second[:-1]):
+        _same(one, other)
+    assert first[-1] == second[-1]
+
+
+@pytest.mark.parametrize("where", ["outside", "across the shell"])
+def test_bridge_search_near_first_matches_whole_segments(
+    monkeypatch: pytest.MonkeyPatch, where: str
+) -> None:
+    """An island outside the outer ring, or across it, has no valid bridge: the search tests
+    every vertex. Long segments tested first against the edges near their other end give
+    the bridges, triangles and errors of segments looked up whole."""
+    rings = [*_wavy(1500, 40, 6), _square(130.0 if where == "outside" else 100.0, 0.0)]
+    blocked = _count_near_first(monkeypatch)
     monkeypatch.setattr(bridges, "_NEAR_CELLS", (2, 8))
-    near = outcomes()
+    near = _outcomes(rings, RULES, "first")
     assert sum(blocked) > 0  # segments were found blocked near their far end
     monkeypatch.setattr(bridges, "_NEAR_CELLS", ())
-    whole = outcomes()
-    for first, second in zip(near[:-1], whole[:-1]):
-        _same(first, second)
-    assert near[-1] == whole[-1]
+    _same_outcomes(near, _outcomes(rings, RULES, "first"))
 
 
 class _Forgetful(dict):
@@ -232,19 +246,9 @@ def test_hopeless_searches_remembered_as_searched_again(monkeypatch: pytest.Monk
     """Rule delaunay tries an island with no Delaunay bridge again in later rounds. Islands
     outside the outer ring find no valid target at all: later searches from the same vertex
     test only the vertices joined since, and give what whole searches give."""
-    squares = []
-    for cx, cy in ((130.0, 0.0), (0.0, -135.0), (101.0, 0.0)):
-        square = np.array([(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)])
-        squares.append(square + np.array([cx, cy]))
+    squares = [_square(cx, cy) for cx, cy in ((130.0, 0.0), (0.0, -135.0), (101.0, 0.0))]
     rings = [*_wavy(1200, 30, 8), *squares]
-
-    def outcomes() -> list[object]:
-        found: list[object] = [triangulate(rings, rule="delaunay", invalid="as_given")]
-        with pytest.raises(TriangulationError) as error:
-            triangulate(rings, rule="delaunay")
-        return [*found, str(error.value)]
-
-    remembered = outcomes()
+    remembered = _outcomes(rings, ("delaunay",), "delaunay")
     init = bridges._Bridger.__init__
 
     def forgetful(self: bridges._Bridger, *args: object) -> None:
@@ -252,10 +256,33 @@ def test_hopeless_searches_remembered_as_searched_again(monkeypatch: pytest.Monk
         self._hopeless = _Forgetful()
 
     monkeypatch.setattr(bridges._Bridger, "__init__", forgetful)
-    whole = outcomes()
+    whole = _outcomes(rings, ("delaunay",), "delaunay")
     assert _Forgetful.hits > 0  # later searches would have used the record
-    _same(remembered[0], whole[0])
-    assert remembered[1] == whole[1]
+    _same_outcomes(remembered, whole)
+
+
+def _coordinates(*rings: list[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray, list]:
+    """x, y of the rings' points one after the other, and each ring's vertex ids."""
+    points = np.array([point for ring in rings for point in ring], dtype=np.float64)
+    sizes = np.cumsum([0] + [len(ring) for ring in rings])
+    ids = [np.arange(start, end) for start, end in zip(sizes[:-1], sizes[1:])]
+    return points[:, 0].copy(), points[:, 1].copy(), ids
+
+
+def _hopeless_then_as_fresh(
+    x: np.ndarray, y: np.ndarray, rings: list, island: int, join: Callable
+) -> tuple[int, int]:
+    """Island ``island``'s first vertex finds no valid target; after ``join`` (the same on a
+    fresh bridger) its search finds what the fresh bridger's finds, which is returned."""
+    bridger = bridges._Bridger(x, y, rings)
+    assert bridger.find_bridge(rings[island], 0) is None
+    join(bridger)
+    fresh = bridges._Bridger(x, y, rings)
+    join(fresh)
+    expected = fresh.find_bridge(rings[island], 0)
+    assert expected is not None
+    assert bridger.find_bridge(rings[island], 0) == expected
+    return expected
 
 
 def test_hopeless_search_finds_the_vertices_joined_since() -> None:
@@ -268,24 +295,15 @@ def test_hopeless_search_finds_the_vertices_joined_since() -> None:
     c_shape = [(-3, -5), (5, -5), (5, -0.5), (4, -0.5), (4, -4), (-2, -4)]
     c_shape += [(-2, 4), (4, 4), (4, 0.5), (5, 0.5), (5, 5), (-3, 5)]
     inner = [(-1, -1), (-1, 1), (1, 1), (1, -1)]  # clockwise
-    points = np.array(shell + c_shape[::-1] + inner, dtype=np.float64)
-    x, y = points[:, 0].copy(), points[:, 1].copy()
-    rings = [np.arange(4), np.arange(4, 16), np.arange(16, 20)]
-    c_left = int(np.flatnonzero(rings[1] == 4 + 11)[0])  # (-3, -5), reversed to the end
+    x, y, rings = _coordinates(shell, c_shape[::-1], inner)
+    c_left = len(c_shape) - 1  # (-3, -5), reversed to the end
 
-    def with_c_shape_joined(bridger: bridges._Bridger) -> None:
+    def join_c_shape(bridger: bridges._Bridger) -> None:
         target = bridger.find_bridge(rings[1], c_left)
         assert target is not None
         bridger.splice(target[0], rings[1], c_left)
 
-    bridger = bridges._Bridger(x, y, rings)
-    assert bridger.find_bridge(rings[2], 0) is None
-    with_c_shape_joined(bridger)
-    fresh = bridges._Bridger(x, y, rings)
-    with_c_shape_joined(fresh)
-    expected = fresh.find_bridge(rings[2], 0)
-    assert expected is not None
-    assert bridger.find_bridge(rings[2], 0) == expected
+    _hopeless_then_as_fresh(x, y, rings, 2, join_c_shape)
 
 
 def test_hopeless_searches_forgotten_after_a_bridge_with_no_valid_target() -> None:
@@ -297,23 +315,14 @@ def test_hopeless_searches_forgotten_after_a_bridge_with_no_valid_target() -> No
     shell = [(0, 0), (10, 0), (10, 10), (0, 10)]
     first = [(12, 12), (12, 13), (13, 13), (13, 12)]  # clockwise
     second = [(15, 12), (15, 13), (16, 13), (16, 12)]
-    points = np.array(shell + first + second, dtype=np.float64)
-    x, y = points[:, 0].copy(), points[:, 1].copy()
-    rings = [np.arange(4), np.arange(4, 8), np.arange(8, 12)]
+    x, y, rings = _coordinates(shell, first, second)
 
-    def with_second_joined(bridger: bridges._Bridger) -> None:
+    def join_second(bridger: bridges._Bridger) -> None:
         assert bridger.find_bridge(rings[2], 0) is None
         node, _ = bridger.nearest_occurrence(int(rings[2][0]))
         bridger.splice(node, rings[2], 0)
 
-    bridger = bridges._Bridger(x, y, rings)
-    assert bridger.find_bridge(rings[1], 0) is None
-    with_second_joined(bridger)
-    fresh = bridges._Bridger(x, y, rings)
-    with_second_joined(fresh)
-    expected = fresh.find_bridge(rings[1], 0)
-    assert expected is not None and expected[1] == 2  # the corner
-    assert bridger.find_bridge(rings[1], 0) == expected
+    assert _hopeless_then_as_fresh(x, y, rings, 1, join_second)[1] == 2  # the corner
 
 
 def test_hopeless_searches_forgotten_after_a_touching_island() -> None:
@@ -324,46 +333,23 @@ def test_hopeless_searches_forgotten_after_a_touching_island() -> None:
     shell = [(10, 0), (10, 10), (0, 10), (0, 0)]
     below = [(0, -3), (-1, -4), (1, -4)]
     touching = [(0, 0), (0, 2), (1, 1)]
-    points = np.array(shell + below + touching, dtype=np.float64)
-    x, y = points[:, 0].copy(), points[:, 1].copy()
-    rings = [np.arange(4), np.arange(4, 7), np.arange(7, 10)]
+    x, y, rings = _coordinates(shell, below, touching)
 
-    def with_touching_joined(bridger: bridges._Bridger) -> None:
+    def join_touching(bridger: bridges._Bridger) -> None:
         target = bridger.find_bridge(rings[2], 0)
         assert target is not None and target[1] == 3  # at the corner (0, 0)
         bridger.splice(target[0], rings[2], 0)
 
-    bridger = bridges._Bridger(x, y, rings)
-    assert bridger.find_bridge(rings[1], 0) is None
-    with_touching_joined(bridger)
-    fresh = bridges._Bridger(x, y, rings)
-    with_touching_joined(fresh)
-    expected = fresh.find_bridge(rings[1], 0)
-    assert expected is not None and expected[1] == 3
-    assert bridger.find_bridge(rings[1], 0) == expected
+    assert _hopeless_then_as_fresh(x, y, rings, 1, join_touching)[1] == 3
 
 
 def test_segments_near_first_clear_as_looked_up_whole(monkeypatch: pytest.MonkeyPatch) -> None:
     """From every vertex to islands' vertices near and far, long and short segments, clear
     and blocked: the near-first lookups find each clear exactly where whole lookups do."""
-    rings = _wavy(1500, 40, 7)
-    points = np.concatenate(rings)
-    ids, start = [], 0
-    for ring in rings:
-        ids.append(np.arange(start, start + len(ring)))
-        start += len(ring)
-    x, y = points[:, 0].copy(), points[:, 1].copy()
+    x, y, ids = _coordinates(*(ring.tolist() for ring in _wavy(1500, 40, 7)))
     us = np.arange(len(x))
     targets = (int(ids[1][0]), int(ids[20][2]), int(ids[-1][1]))
-    blocked: list[int] = []
-    near_first = bridges._Bridger._blocked_near
-
-    def counted(self: bridges._Bridger, *args: object) -> object:
-        found = near_first(self, *args)
-        blocked.append(0 if found is None else len(found[0]))
-        return found
-
-    monkeypatch.setattr(bridges._Bridger, "_blocked_near", counted)
+    blocked = _count_near_first(monkeypatch)
     monkeypatch.setattr(bridges, "_NEAR_CELLS", (2, 8))
     near = [bridges._Bridger(x, y, ids)._segments_looked_up(us, w) for w in targets]
     assert sum(blocked) > 0
