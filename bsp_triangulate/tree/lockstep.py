@@ -1744,9 +1744,8 @@ def _choose_elevation(
 ) -> np.ndarray:
     """``rules.ElevationRule.choose`` per owner: ``cand`` grouped by owner in candidate order;
     ``v1``, ``v2`` per owner. Returns the chosen position per owner."""
-    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    starts, _, group, _ = _owner_runs(owner)
     z1, z2 = sz[v1][owner[starts]], sz[v2][owner[starts]]
-    group = np.cumsum(np.r_[False, owner[1:] != owner[:-1]])
     zc = sz[cand]
     approx, error = _elevation_distance(zc, z1[group], z2[group])
     top = np.minimum.reduceat(approx + error, starts)
