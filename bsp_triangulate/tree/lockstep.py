@@ -113,6 +113,8 @@ class Sequences:
     long: np.ndarray
     runs: RunBoxes | None = None
     circle_bounds: np.ndarray | None = None
+    # some sequence is long
+    any_long: bool = False
 
     def rows_at(self, positions: np.ndarray) -> np.ndarray:
         """The ``table`` rows of ``positions`` (gathered as four complex numbers per row,
@@ -192,6 +194,7 @@ class Sequences:
         return cls(
             sx, sy, xy, twin, extent_x, extent_y, table, exact, starts, proven_at, bent,
             bent_xy, bent_xy32, bent_rank, loops, run_after, run_before, long,
+            any_long=bool(lengths.max(initial=0) > LONG_SEQUENCE),
         )  # fmt: skip
 
 
@@ -538,30 +541,43 @@ def _known_then_tables(
 
 
 def _tables(
-    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, crossings: bool = False
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    crossings: bool = False,
+    across: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Conditions 2 and 3 for facing candidates ``c`` of sub-polygons [lo, hi] of at least 4
     vertices: per item whether it fails, and a position strictly inside its triangle or -1.
 
     In proven-valid polygons only the bent positions are tested (:func:`_bent_in_triangle`,
-    with ``crossings`` some edges too).
+    with ``crossings`` some edges too, and ``across`` as there).
     """
     proven = seqs.proven[lo]
     if proven.all():
-        return _bent_in_triangle(seqs, lo, hi, c, crossings)
+        return _bent_in_triangle(seqs, lo, hi, c, crossings, across)
     if not proven.any():
         return _all_tables(seqs, lo, hi, c)
     bad = np.zeros(len(c), dtype=bool)
     inside = np.full(len(c), -1, dtype=np.int64)
     idx = np.flatnonzero(proven)
-    bad[idx], inside[idx] = _bent_in_triangle(seqs, lo[idx], hi[idx], c[idx], crossings)
+    part = None if across is None else across[idx]
+    bad[idx], inside[idx] = _bent_in_triangle(seqs, lo[idx], hi[idx], c[idx], crossings, part)
+    if across is not None:
+        across[idx] = part
     idx = np.flatnonzero(~proven)
     bad[idx], inside[idx] = _all_tables(seqs, lo[idx], hi[idx], c[idx])
     return bad, inside
 
 
 def _bent_in_triangle(
-    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, crossings: bool = False
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    crossings: bool = False,
+    across: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_tables` for a proven-valid polygon, by its bent positions (not a strict left
     turn, or a bridge end) between lo and hi alone: a candidate fails where one of them lies
@@ -591,14 +607,15 @@ def _bent_in_triangle(
     an island or a bridge with no vertex inside. With ``crossings`` (rule first, whose fans
     make many such triangles in large sub-polygons, and rule elevation, whose closest
     elevation often lies far across), :func:`_edges_across` looks for the edges most likely
-    to cross one, so that fewer trees are built twice.
+    to cross one, so that fewer trees are built twice; ``across`` (per candidate, if given)
+    then takes the first position e of an edge e -> e + 1 found across it.
     """
     n = len(lo)
     corners = np.take(seqs.xy, np.stack([hi, lo, c]), axis=0)
     (ax, bx, cx), (ay, by, cy) = corners[..., 0], corners[..., 1]
     bad = _bridge_at_corner(seqs, lo, hi, c)
     if crossings:
-        bad |= _edges_across(seqs, lo, hi, c, corners)
+        bad |= _edges_across(seqs, lo, hi, c, corners, across)
     found = np.full(n, -1, dtype=np.int64)
     first = seqs.bent_rank[lo + 1]
     # an ear's range ends before its candidate hi - 1, a corner (bent in most tests)
@@ -732,7 +749,12 @@ def _bridge_at_corner(seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.nda
 
 
 def _edges_across(
-    seqs: Sequences, lo: np.ndarray, hi: np.ndarray, c: np.ndarray, corners: np.ndarray
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    corners: np.ndarray,
+    across: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per candidate at least ``_ACROSS_CORNER`` positions from either base corner, in a
     sub-polygon of more than ``_RUN_MIN`` positions (``_ACROSS_LONG`` in a long sequence): an
@@ -745,6 +767,8 @@ def _edges_across(
 
     One side is enough: with no bent position in the triangle, an edge that meets it crosses
     it from side to side, and no edge crosses the base (an edge or a correct side).
+    ``across`` (per candidate, if given) takes the first position e of an edge e -> e + 1
+    found across it.
     """
     bad = np.zeros(len(lo), dtype=bool)
     least = np.where(seqs.long[lo], _ACROSS_LONG, _RUN_MIN)
@@ -810,6 +834,8 @@ def _edges_across(
             cx[keep], cy[keep], ax[keep], ay[keep],
         )  # fmt: skip
         bad[other[item[keep[hit]]]] = True
+        if across is not None:
+            across[other[item[keep[hit]]]] = e[keep[hit]]
     return bad
 
 
@@ -977,6 +1003,8 @@ _DELAUNAY_WIDTH = 8
 _EAR_ROUND = 1024
 # candidates tested per node in rounds of fewer nodes, its first one included
 _SMALL_ROUND_SPAN = 16
+# candidates tested at once by a node already a whole span back from its first
+_REACH = 48
 
 
 def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -988,9 +1016,12 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
     fails, or where the first candidate failed in an earlier round, up to ``_SPAN``
     candidates (``_SPAN_LARGE`` in large sub-polygons) in two passes (:func:`_span_passing`),
     in the same round. In rounds of fewer nodes, whose cost is mostly their fixed numpy calls,
-    a node tests up to ``_SMALL_ROUND_SPAN`` candidates at once. Returns per node whether its
-    candidate ``apex`` is correct, the apex (or the next candidate to test) and the blocker
-    to keep.
+    a node tests up to ``_SMALL_ROUND_SPAN`` candidates at once. Where some sequence is long,
+    a node already a whole span back from its first candidate tests ``_REACH`` at once: the
+    deepest trees' nodes walk long stretches of failing candidates, a round per span, and
+    their recorded blockers (a vertex inside, or an edge across) rule most of them out
+    without a table. Returns per node whether its candidate ``apex`` is correct, the apex
+    (or the next candidate to test) and the blocker to keep.
     """
     lo, hi, cand, block = state[_LO], state[_HI], state[_CAND], state[_BLOCK]
     n = len(lo)
@@ -1005,13 +1036,20 @@ def _first_correct(seqs: Sequences, state: np.ndarray) -> tuple[np.ndarray, np.n
         apex[r:] -= ~passed[r:]
         going = np.flatnonzero(~passed & (apex > lo))
         large = hi[going] - lo[going] > _RUN_MIN
-        span = np.minimum(apex[going] - lo[going], np.where(large, _SPAN_LARGE, _SPAN))
+        span = np.where(large, _SPAN_LARGE, _SPAN)
+        if seqs.any_long:
+            # nodes already a whole span back from their first candidate reach further
+            span = np.where(cand[going] < hi[going] - 1 - span, _REACH, span)
+        span = np.minimum(apex[going] - lo[going], span)
         hit, found = _span_passing(seqs, lo, hi, block, going, apex[going], span)
         passed[going] = hit
         apex[going] = np.where(hit, found, apex[going] - span)
     else:
         # few nodes: the round costs mostly its fixed numpy calls, a longer span little
         span = np.minimum(cand - lo, _SMALL_ROUND_SPAN)
+        if seqs.any_long:
+            far = np.flatnonzero(cand < hi - 1 - _SMALL_ROUND_SPAN)
+            span[far] = np.minimum(cand[far] - lo[far], _REACH)
         passed, found = _first_passing(seqs, lo, hi, block, np.arange(n), cand, span)
         apex = np.where(passed, found, cand - span)
     correct = np.zeros(n, dtype=bool)
@@ -1034,15 +1072,21 @@ def _tables_of(
 ) -> None:
     """The tables (conditions 2 and 3) of the ``nodes``' candidates ``apex``, which pass
     conditions 1 and 4: ``correct`` where they pass; where they fail, ``apex`` moves to the
-    next candidate and a vertex found strictly inside becomes the ``blocker``."""
+    next candidate and a vertex found strictly inside becomes the ``blocker`` (or, where
+    none is, an edge found across, coded -2 - its first position)."""
     small = hi[nodes] - lo[nodes] == 2
     correct[nodes[small]] = True
     table = nodes[~small]
     if len(table):
-        bad, inside = _tables(seqs, lo[table], hi[table], apex[table], True)
+        across = np.full(len(table), -1, dtype=np.int64) if seqs.any_long else None
+        bad, inside = _tables(seqs, lo[table], hi[table], apex[table], True, across)
         correct[table[~bad]] = True
         found = inside >= 0
         blocker[table[found]] = inside[found]
+        if across is not None:
+            # no position inside, an edge across: that edge, coded -2 - its first position
+            edge = bad & ~found & (across >= 0)
+            blocker[table[edge]] = -2 - across[edge]
         # a failed candidate: the next test starts below it
         apex[table[bad]] -= 1
 
@@ -1081,7 +1125,8 @@ def _first_passing(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per node of ``nodes``: the first of its candidates ``top``, ``top`` - 1, ... (``count``
     of them) that passes conditions 1 and 4 and does not hold the node's recorded blocker
-    (if any) strictly inside its triangle; (whether one does, that candidate)."""
+    (if any) strictly inside its triangle, or its recorded edge across the side c -> s_hi;
+    (whether one does, that candidate)."""
     c = np.repeat(top, count)
     single = len(c) == len(nodes)
     owner = nodes
@@ -1094,6 +1139,11 @@ def _first_passing(
     if len(tested):
         inside = _strictly_inside(seqs, hi_o[tested], lo_o[tested], c[tested], block[owner[tested]])
         ok[tested[inside]] = False
+    # a recorded edge (coded -2 - its first position e) across the side c -> s_hi
+    crossed = np.flatnonzero(ok & (block[owner] <= -2)) if seqs.any_long else ()
+    if len(crossed):
+        e = -2 - block[owner[crossed]]
+        ok[crossed[_cross(seqs, c[crossed], hi_o[crossed], e, e + 1)]] = False
     if single:
         return ok, c
     index = np.arange(len(c))
@@ -1774,7 +1824,8 @@ def _extents(sx: np.ndarray, sy: np.ndarray, starts: np.ndarray) -> tuple[np.nda
 # rows of the open-node state (one column per node): sub-polygon [lo, hi], next candidate,
 # parent (pre-order index), depth, side, output row of the node, V1 at hi (1) or at lo (0),
 # output row of its sequence's first triangle, sequence, a position to test first (or -1;
-# under rule "elevation" the number of nearest candidates to take, see _wider);
+# under rule "first" -2 - e for an edge e -> e + 1 found across a side, see _tables_of; under
+# rule "elevation" the number of nearest candidates to take, see _wider);
 # an emitted node's first _RECORD rows (its apex in _CAND) are its output record, and its
 # rows up to _AT_HI all that its emission reads
 _LO, _HI, _CAND, _PARENT, _DEPTH, _SIDE, _ROW, _AT_HI, _FIRST, _SEQ, _BLOCK = range(11)

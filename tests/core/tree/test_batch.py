@@ -482,8 +482,8 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
     log = RestartLog(monkeypatch)
     bent_in_triangle = batch_bsp._bent_in_triangle
 
-    def checked(seqs, lo, hi, c, crossings=False):
-        bad, found = bent_in_triangle(seqs, lo, hi, c, crossings)
+    def checked(seqs, lo, hi, c, crossings=False, across=None):
+        bad, found = bent_in_triangle(seqs, lo, hi, c, crossings, across)
         table_bad, _ = batch_bsp._all_tables(seqs, lo, hi, c)
         counts["passed"] += int((~bad).sum())
         counts["rejected"] += int(bad.sum())
@@ -915,8 +915,8 @@ def test_crossing_edges_across_fans(monkeypatch: pytest.MonkeyPatch) -> None:
     edges_across = batch_bsp._edges_across
     rejected = []
 
-    def checked(seqs, lo, hi, c, corners):
-        bad = edges_across(seqs, lo, hi, c, corners)
+    def checked(seqs, lo, hi, c, corners, across=None):
+        bad = edges_across(seqs, lo, hi, c, corners, across)
         table_bad, _ = batch_bsp._all_tables(seqs, lo[bad], hi[bad], c[bad])
         assert table_bad.all()
         rejected.append(int(bad.sum()))
@@ -931,11 +931,48 @@ def test_crossing_edges_across_fans(monkeypatch: pytest.MonkeyPatch) -> None:
     with_checks = len(log.restarted)
 
     monkeypatch.setattr(
-        batch_bsp, "_edges_across", lambda seqs, lo, hi, c, corners: np.zeros(len(lo), bool)
+        batch_bsp,
+        "_edges_across",
+        lambda seqs, lo, hi, c, corners, across=None: np.zeros(len(lo), bool),
     )
     log = RestartLog(monkeypatch)
     assert mismatches(polygons)[0] == []
     assert len(log.restarted) > 2 * with_checks
+
+
+def test_edge_across_blocks_later_candidates(monkeypatch: pytest.MonkeyPatch) -> None:
+    """In a long sequence a candidate crossed by an edge with no vertex inside keeps that edge
+    as its node's blocker: a later candidate whose side to s_hi the edge crosses fails
+    without its tables. Each candidate passed over that way fails the whole table, and all
+    results equal the engine's."""
+    from bsp_triangulate.tree import lockstep as batch_bsp
+
+    polygons = radial_polygons(random.Random(31), 12)
+    monkeypatch.setattr(batch_bsp, "_ONE_BY_ONE", 0)
+    monkeypatch.setattr(batch_bsp, "LONG_SEQUENCE", 64)  # these polygons count as long
+    first_passing = batch_bsp._first_passing
+    passed_over = []
+
+    def checked(seqs, lo, hi, block, nodes, top, count):
+        hit, found = first_passing(seqs, lo, hi, block, nodes, top, count)
+        edge = block[nodes] <= -2
+        if edge.any():
+            plain = np.where(block <= -2, -1, block)
+            hit_plain, found_plain = first_passing(seqs, lo, hi, plain, nodes, top, count)
+            # without the edge a node stops at a candidate that the edge passed over
+            over = np.flatnonzero(edge & hit_plain & (~hit | (found < found_plain)))
+            if len(over):
+                owner = nodes[over]
+                bad, _ = batch_bsp._all_tables(seqs, lo[owner], hi[owner], found_plain[over])
+                assert bad.all()
+                passed_over.append(len(over))
+        return hit, found
+
+    monkeypatch.setattr(batch_bsp, "_first_passing", checked)
+    problems, handled = mismatches(polygons)
+    assert problems == []
+    assert handled == len(polygons)
+    assert sum(passed_over) > 0
 
 
 def test_small_sub_polygons_of_long_sequences_are_checked_for_crossings(
