@@ -91,7 +91,7 @@ class Sequences:
     (p, q, x0, x1, y0, y1) with their boxes, in order; ``run_after[p]`` and ``run_before[p]``:
     the first position at or after p, and the last at or before it, where the sequence
     bends (:func:`straight_runs`); ``long``: the position's sequence has more than
-    ``LONG_SEQUENCE`` positions."""
+    ``LONG_SEQUENCE`` positions, ``any_long``: some sequence has."""
 
     sx: np.ndarray
     sy: np.ndarray
@@ -113,7 +113,6 @@ class Sequences:
     long: np.ndarray
     runs: RunBoxes | None = None
     circle_bounds: np.ndarray | None = None
-    # some sequence is long
     any_long: bool = False
 
     def rows_at(self, positions: np.ndarray) -> np.ndarray:
