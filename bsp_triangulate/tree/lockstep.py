@@ -832,9 +832,10 @@ def _edges_across(
             seqs.exact, side[k], side[k + 1], px[k], py[k], px[k + 1], py[k + 1],
             cx[keep], cy[keep], ax[keep], ay[keep],
         )  # fmt: skip
-        bad[other[item[keep[hit]]]] = True
+        crossed = other[item[keep[hit]]]
+        bad[crossed] = True
         if across is not None:
-            across[other[item[keep[hit]]]] = e[keep[hit]]
+            across[crossed] = e[keep[hit]]
     return bad
 
 
