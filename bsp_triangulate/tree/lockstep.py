@@ -546,25 +546,29 @@ def _tables(
     c: np.ndarray,
     crossings: bool = False,
     across: np.ndarray | None = None,
+    least: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Conditions 2 and 3 for facing candidates ``c`` of sub-polygons [lo, hi] of at least 4
     vertices: per item whether it fails, and a position strictly inside its triangle or -1.
 
     In proven-valid polygons only the bent positions are tested (:func:`_bent_in_triangle`,
-    with ``crossings`` some edges too, and ``across`` as there).
+    with ``crossings`` some edges too, and ``across`` and ``least`` as there).
     """
     proven = seqs.proven[lo]
     if proven.all():
-        return _bent_in_triangle(seqs, lo, hi, c, crossings, across)
+        return _bent_in_triangle(seqs, lo, hi, c, crossings, across, least)
     if not proven.any():
         return _all_tables(seqs, lo, hi, c)
     bad = np.zeros(len(c), dtype=bool)
     inside = np.full(len(c), -1, dtype=np.int64)
     idx = np.flatnonzero(proven)
     part = None if across is None else across[idx]
-    bad[idx], inside[idx] = _bent_in_triangle(seqs, lo[idx], hi[idx], c[idx], crossings, part)
+    some = None if least is None else least[idx]
+    bad[idx], inside[idx] = _bent_in_triangle(seqs, lo[idx], hi[idx], c[idx], crossings, part, some)
     if across is not None:
         across[idx] = part
+    if least is not None:
+        least[idx] = some
     idx = np.flatnonzero(~proven)
     bad[idx], inside[idx] = _all_tables(seqs, lo[idx], hi[idx], c[idx])
     return bad, inside
@@ -577,6 +581,7 @@ def _bent_in_triangle(
     c: np.ndarray,
     crossings: bool = False,
     across: np.ndarray | None = None,
+    least: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_tables` for a proven-valid polygon, by its bent positions (not a strict left
     turn, or a bridge end) between lo and hi alone: a candidate fails where one of them lies
@@ -607,7 +612,9 @@ def _bent_in_triangle(
     make many such triangles in large sub-polygons, and rule elevation, whose closest
     elevation often lies far across), :func:`_edges_across` looks for the edges most likely
     to cross one, so that fewer trees are built twice; ``across`` (per candidate, if given)
-    then takes the first position e of an edge e -> e + 1 found across it.
+    then takes the first position e of an edge e -> e + 1 found across it. ``least`` (per
+    candidate, if given) takes, for an ear (c = hi - 1) that fails, the apex of its base
+    where :func:`_least_angle` finds it.
     """
     n = len(lo)
     corners = np.take(seqs.xy, np.stack([hi, lo, c]), axis=0)
@@ -653,6 +660,9 @@ def _bent_in_triangle(
         oax, oay, bx[o], by[o], cx[o], cy[o], qx, qy, seqs.table[lo, _BOUND][o], seqs.exact
     )
     bad[owner[closed]] = True
+    if least is not None:
+        entry = (index, at)
+        _least_angle(seqs, lo, hi, c, bad, owner, closed, entry, qx, qy, least)
     strictly = np.flatnonzero(strictly)
     if len(strictly):
         # the first position strictly inside, per candidate (owners and positions ascend)
@@ -664,6 +674,98 @@ def _bent_in_triangle(
 
 # two True bytes read as one 2-byte value
 _BOTH = np.array([True, True]).view(np.uint16)[0]
+
+
+def _least_angle(
+    seqs: Sequences,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    c: np.ndarray,
+    bad: np.ndarray,
+    owner: np.ndarray,
+    closed: np.ndarray,
+    entry: tuple[np.ndarray, np.ndarray],
+    qx: np.ndarray,
+    qy: np.ndarray,
+    least: np.ndarray,
+) -> None:
+    """Per failing ear (c = hi - 1, ``bad``) among the items: the apex of its base, into
+    ``least``. The bent positions in the items' triangles are ``seqs.bent[index[at]]`` for
+    ``entry`` = (index, at), at ``qx``, ``qy``, of the item ``owner`` (ascending), in the
+    closed triangle where ``closed``.
+
+    The first correct candidate back from hi is the vertex visible from s_lo nearest in
+    angle to the base (tree/visible_apex.py); the edge (hi - 1, hi) hides every point behind
+    it, so that is the vertex in the ear's triangle of least angle at s_lo (the nearest
+    along a ray). Its two edges turn away from s_lo on one side, so it is bent, unless an
+    edge goes to a corner: lo + 1 and hi - 2 are tested too. Left out (-1) where the least
+    angle is not surely below the next one's by the float angles' rounding, where that
+    vertex is a bridge end whose twin lies in the sub-polygon, or where a corner's twin
+    does (a bridge from s_hi may cross the ear with no vertex in it; one from s_lo or
+    s_{hi-1} may have a left turn of least angle next to it)."""
+    items = np.flatnonzero(bad & (c == hi - 1))
+    if not len(items):
+        return
+    for corner in (hi, lo, c):
+        twin = seqs.twin[corner[items]]
+        items = items[(twin <= lo[items]) | (twin >= hi[items])]
+    if not len(items):
+        return
+    first = np.searchsorted(owner, items, side="left")
+    count = np.searchsorted(owner, items, side="right") - first
+    e = ragged_index(first, count)
+    e = e[closed[e]]
+    index, at = entry
+    o = owner[e]
+    position = seqs.bent[index[at[e]]]
+    px, py = qx[e], qy[e]
+    # lo + 1 and hi - 2 where they are not bent (a strict left turn, no bridge end) and lie
+    # in the closed triangle other than at a corner's point
+    near_item = np.concatenate([items, items])
+    near = np.concatenate([lo[items] + 1, hi[items] - 2])
+    keep = (near > lo[near_item]) & (near < hi[near_item] - 1)
+    keep &= seqs.bent_rank[near + 1] == seqs.bent_rank[near]
+    near, near_item = near[keep], near_item[keep]
+    if len(near):
+        corners = np.take(seqs.xy, np.stack([hi[near_item], lo[near_item], c[near_item]]), axis=0)
+        (kx, lx, cx), (ky, ly, cy) = corners[..., 0], corners[..., 1]
+        nx, ny = seqs.sx[near], seqs.sy[near]
+        away = ((nx != kx) | (ny != ky)) & ((nx != lx) | (ny != ly)) & ((nx != cx) | (ny != cy))
+        inside, _ = _in_triangle(
+            kx, ky, lx, ly, cx, cy, nx, ny, seqs.table[lo[near_item], _BOUND], seqs.exact
+        )
+        keep = np.flatnonzero(inside & away)
+        o = np.concatenate([o, near_item[keep]])
+        position = np.concatenate([position, near[keep]])
+        px, py = np.concatenate([px, nx[keep]]), np.concatenate([py, ny[keep]])
+    ax, ay = seqs.sx[hi[o]], seqs.sy[hi[o]]
+    bx, by = seqs.sx[lo[o]], seqs.sy[lo[o]]
+    ux, uy = ax - bx, ay - by
+    vx, vy = px - bx, py - by
+    angle = np.arctan2(uy * vx - ux * vy, ux * vx + uy * vy)
+    distance2 = vx * vx + vy * vy
+    # the angles' rounding: coordinates' differences off by their magnitudes' ulp, over
+    # the lengths of the two rays
+    scale = np.abs(ax) + np.abs(ay) + np.abs(px) + np.abs(py) + np.abs(bx) + np.abs(by)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slack = 16.0 * _EPS * scale * (1.0 / np.sqrt(distance2) + 1.0 / np.hypot(ux, uy))
+    slack += 1e-15
+    order = np.lexsort((distance2, angle, o))
+    o_sorted = o[order]
+    head = np.flatnonzero(np.r_[True, o_sorted[1:] != o_sorted[:-1]])
+    best = order[head]
+    sure = angle[best] > slack[best]
+    # the runner-up of the same item: its angle surely larger
+    then = head + 1
+    has_next = then < len(order)
+    has_next[has_next] = o_sorted[then[has_next]] == o_sorted[head[has_next]]
+    second = order[np.minimum(then, len(order) - 1)]
+    apart = angle[second] - angle[best] > slack[best] + slack[second]
+    sure &= ~has_next | apart
+    item, position = o[best], position[best]
+    twin = seqs.twin[position]
+    sure &= (twin <= lo[item]) | (twin >= hi[item])
+    least[item[sure]] = position[sure]
 
 
 def _in_triangle(
@@ -1079,7 +1181,16 @@ def _tables_of(
     table = nodes[~small]
     if len(table):
         across = np.full(len(table), -1, dtype=np.int64) if seqs.any_long else None
-        bad, inside = _tables(seqs, lo[table], hi[table], apex[table], True, across)
+        least = np.full(len(table), -1, dtype=np.int64)
+        bad, inside = _tables(seqs, lo[table], hi[table], apex[table], True, across, least)
+        took = np.flatnonzero(least >= 0)
+        if len(took):
+            # a failing ear's apex: the vertex in it of least angle at s_lo (conditions 1
+            # and 4 checked here; 2 and 3 hold, see _least_angle)
+            node = table[took]
+            took = took[_facing(seqs, lo[node], hi[node], least[took])]
+            apex[table[took]] = least[took]
+            bad[took] = False
         correct[table[~bad]] = True
         found = inside >= 0
         blocker[table[found]] = inside[found]

@@ -47,6 +47,7 @@ from .subtrees import (
     Subtrees,
     built_if_worth,
 )
+from .visible_apex import visible_apex
 
 INVALID_MODES = ("fail", "as_given")
 # a tree built in steps: it yields its lock-step sub-polygons and gets their subtrees back
@@ -892,6 +893,10 @@ class _Tree:
         candidates of this base often block the next ones too and are tried first.
         """
         xs, ys = self.xs, self.ys
+        if self.boxes is not None and hi - lo > SMALL_SEQUENCE:
+            apex = visible_apex(xs, ys, self.sign, self.boxes, lo, hi)
+            if apex is not None:
+                return apex
         blockers: list[int] = []
         start = max(hi - 1 - _SCALAR_CANDIDATES, lo)
         # candidates in a straight run on from either corner of the base fail (below)

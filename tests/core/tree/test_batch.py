@@ -477,14 +477,23 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
     engine's."""
     from bsp_triangulate.tree import lockstep as batch_bsp
 
-    counts = {"passed": 0, "rejected": 0, "passed ears": 0, "passed and bad": 0}
+    counts = {"passed": 0, "rejected": 0, "passed ears": 0, "passed and bad": 0, "least": 0}
     wrong: set[tuple[int, int]] = set()
     log = RestartLog(monkeypatch)
     bent_in_triangle = batch_bsp._bent_in_triangle
 
-    def checked(seqs, lo, hi, c, crossings=False, across=None):
-        bad, found = bent_in_triangle(seqs, lo, hi, c, crossings, across)
+    def checked(seqs, lo, hi, c, crossings=False, across=None, least=None):
+        bad, found = bent_in_triangle(seqs, lo, hi, c, crossings, across, least)
         table_bad, _ = batch_bsp._all_tables(seqs, lo, hi, c)
+        if least is not None:
+            # a failing ear's apex of least angle that faces its base passes every table,
+            # or its tree (a wrong pass above it) is built again
+            took = np.flatnonzero(least >= 0)
+            took = took[batch_bsp._facing(seqs, lo[took], hi[took], least[took])]
+            counts["least"] += len(took)
+            least_bad, _ = batch_bsp._all_tables(seqs, lo[took], hi[took], least[took])
+            sequence = np.searchsorted(seqs.starts, lo[took[least_bad]], side="right") - 1
+            wrong.update((log.call, int(i)) for i in sequence)
         counts["passed"] += int((~bad).sum())
         counts["rejected"] += int(bad.sum())
         counts["passed ears"] += int((~bad & (c == hi - 1)).sum())
@@ -505,6 +514,7 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
     assert wrong <= log.restarted
     assert counts["passed"] > 3 * counts["rejected"] > 0
     assert counts["passed ears"] > 0
+    assert counts["least"] > 0
     if family == "concave-stars":
         # notches of the exterior across a triangle: passed, found wrong, started again
         assert counts["passed and bad"] > 0

@@ -1,0 +1,136 @@
+"""Rule first's apex as the vertex visible from s_lo of least angle (``tree/visible_apex.py``,
+and ``lockstep._least_angle`` for failing ears in the lock-step rounds): every apex it gives
+is the first correct candidate of the plain scan, and the trees are those of the plain scan."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bsp_triangulate import triangulate, triangulate_many
+from bsp_triangulate.geometry.spatial_index import ChainBoxes
+from bsp_triangulate.tree import lockstep, one_polygon
+from bsp_triangulate.tree.one_by_one import first_correct
+from bsp_triangulate.tree.visible_apex import Sign
+
+FIELDS = ("vertices", "triangles", "parent", "depth", "side")
+
+
+def _star(
+    rng: np.random.Generator,
+    centre: tuple[float, float],
+    count: int,
+    radius: float,
+    spread: float,
+    clockwise: bool = False,
+) -> np.ndarray:
+    angles = np.linspace(0.0, 2 * np.pi, count, endpoint=False) + rng.uniform(0, 1)
+    radii = radius * (1.0 + spread * rng.uniform(-1, 1, count))
+    ring = np.column_stack([centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles)])
+    return ring[::-1].copy() if clockwise else ring
+
+
+def _spiky_strip(half: int, islands: int, seed: int, grid: float = 0.0) -> list[np.ndarray]:
+    """A meandering band whose banks are saw-tooth (each vertex off the bank by up to 40 %
+    of the band's half width, a few units apart): vertices in the crevices see little but
+    the far bank, the case that made rule first walk far back; with star islands."""
+    rng = np.random.default_rng(seed)
+    length, width = 3000.0, 100.0
+    t = np.linspace(0.0, 1.0, half)
+    mid_x, mid_y = length * t, 0.1 * length * np.sin(2 * np.pi * 2 * t)
+    dx, dy = np.gradient(mid_x), np.gradient(mid_y)
+    norm = np.hypot(dx, dy)
+    nx, ny = -dy / norm, dx / norm
+    wiggle = 1.0 + 0.4 * rng.uniform(-1, 1, (2, half))
+    left = np.column_stack([mid_x + nx * width / 2 * wiggle[0], mid_y + ny * width / 2 * wiggle[0]])
+    right = np.column_stack(
+        [mid_x - nx * width / 2 * wiggle[1], mid_y - ny * width / 2 * wiggle[1]]
+    )
+    rings = [np.concatenate([right, left[::-1]])]
+    for at in np.linspace(0.05, 0.95, islands):
+        index = int(at * (half - 1))
+        offset = rng.uniform(-0.3, 0.3) * width / 2
+        centre = (mid_x[index] + nx[index] * offset, mid_y[index] + ny[index] * offset)
+        rings.append(_star(rng, centre, int(rng.integers(4, 12)), 8.0, 0.3, clockwise=True))
+    if grid:
+        rings = [np.round(ring / grid) * grid for ring in rings]
+    return rings
+
+
+def _same(first: object, second: object) -> None:
+    for field in FIELDS:
+        assert np.array_equal(getattr(first, field), getattr(second, field)), field
+
+
+CASES = [
+    _spiky_strip(700, 12, 1),
+    _spiky_strip(900, 20, 2),
+    _spiky_strip(600, 10, 3, grid=2.0),
+    [_star(np.random.default_rng(4), (0.0, 0.0), 3000, 100.0, 0.45)],
+]
+IDS = ["saw-tooth strip", "saw-tooth strip 2", "saw-tooth strip on a 2 m grid", "radial 3,000"]
+
+
+@pytest.mark.parametrize("rings", CASES, ids=IDS)
+def test_each_visible_apex_is_the_first_correct_candidate(
+    monkeypatch: pytest.MonkeyPatch, rings: list[np.ndarray]
+) -> None:
+    found = {"ear": 0, "beyond": 0}
+    real = one_polygon.visible_apex
+
+    def checked(
+        xs: list[float], ys: list[float], sign: Sign, boxes: ChainBoxes, lo: int, hi: int
+    ) -> int | None:
+        apex = real(xs, ys, sign, boxes, lo, hi)
+        if apex is not None:
+            scan = first_correct(xs, ys, lo, hi, hi - 1, sign, [], [math.inf])
+            assert apex == scan, (lo, hi)
+            ear = sign(xs[hi], ys[hi], xs[lo], ys[lo], xs[hi - 1], ys[hi - 1]) > 0
+            found["ear" if ear else "beyond"] += 1
+        return apex
+
+    monkeypatch.setattr(one_polygon, "visible_apex", checked)
+    for invalid in ("fail", "as_given"):
+        triangulate(rings, invalid=invalid)
+    assert found["ear"] and (found["beyond"] or len(rings) == 1)
+
+
+@pytest.mark.parametrize("rings", CASES, ids=IDS)
+def test_trees_are_those_of_the_plain_scan(
+    monkeypatch: pytest.MonkeyPatch, rings: list[np.ndarray]
+) -> None:
+    for invalid in ("fail", "as_given"):
+        fast = triangulate(rings, invalid=invalid)
+        with monkeypatch.context() as patch:
+            patch.setattr(one_polygon, "visible_apex", lambda *args: None)
+            _same(fast, triangulate(rings, invalid=invalid))
+
+
+def _radial_with_island(seed: int, count: int) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    shell = _star(rng, (0.0, 0.0), count, 100.0, 0.45)
+    return [shell, _star(rng, (0.0, 0.0), 12, 10.0, 0.1, clockwise=True)]
+
+
+def test_lockstep_least_angle_gives_the_trees_of_the_plain_rounds(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    polygons = [_radial_with_island(seed, 260 + 7 * seed) for seed in range(60)]
+    used: list[int] = []
+    real = lockstep._least_angle
+
+    def counted(*args: object) -> None:
+        least = args[-1]
+        before = int((least >= 0).sum())
+        real(*args)
+        used.append(int((least >= 0).sum()) - before)
+
+    monkeypatch.setattr(lockstep, "_least_angle", counted)
+    fast = triangulate_many(polygons, invalid="as_given", on_error="return")
+    assert sum(used)
+    monkeypatch.setattr(lockstep, "_least_angle", lambda *args: None)
+    plain = triangulate_many(polygons, invalid="as_given", on_error="return")
+    for first, second in zip(fast, plain):
+        _same(first, second)
