@@ -30,7 +30,9 @@ Sign = Callable[[float, float, float, float, float, float], int]
 Runs = list[tuple[int, int]]
 
 # positions walked back from hi for the edge that crosses the base's line beyond s_hi
+# (beyond them, the ray is looked up in the chain boxes)
 _CROSSING_WALK = 256
+_FAR = -2
 # queries made at most for the nearest edge across that line beyond s_hi
 _QUERIES = 4
 # relative margin between two crossings' distances along the base's line (floats)
@@ -65,21 +67,29 @@ def _edge_beyond(
     """Where hi - 1 does not lie left of the base's line: the runs of the leaves meeting a
     triangle that holds the one bounded by the base's line, the ray s_lo -> s_q and the edge
     (e, e + 1) that the ray from s_lo through s_hi meets first beyond s_hi, with e and its
-    end q left of the line; None if the chain back from hi does not cross the line beyond
-    s_hi within ``_CROSSING_WALK`` positions, a vertex lies on the line there, or two
-    crossings are too close to order."""
+    end q left of the line. That edge comes from the chain back from hi where it crosses
+    the line within ``_CROSSING_WALK`` positions, else from the chain boxes along the ray,
+    and then the nearest crossing in the triangle so bounded. None where none is found, a
+    vertex lies on the line there, or two crossings are too close to order."""
     ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
     dx, dy = ax - bx, ay - by
     length2 = dx * dx + dy * dy
     if not 0.0 < length2 < float("inf"):
         return None
     k = _crossing_back(xs, ys, sign, lo, hi)
-    if k < 0:
+    if k >= 0:
+        along = _along(xs, ys, k, dx, dy, bx, by, length2)
+        if not along > _AHEAD:
+            return None  # across the base or behind s_lo, or too near s_hi to tell
+        edge, q = k, k
+    elif k == _FAR:
+        found = _ray_crossing(xs, ys, sign, boxes, lo, hi)
+        if found is None:
+            return None
+        edge, along = found
+        q = edge if sign(ax, ay, bx, by, xs[edge], ys[edge]) > 0 else edge + 1
+    else:
         return None
-    along = _along(xs, ys, k, dx, dy, bx, by, length2)
-    if not along > _AHEAD:
-        return None  # across the base or behind s_lo, or too near s_hi to tell
-    edge, q = k, k
     runs: Runs = []
     for _ in range(_QUERIES):
         reach = along * (1.0 + 1e-6) + 1e-9
@@ -103,10 +113,34 @@ def _edge_beyond(
     return None
 
 
+def _ray_crossing(
+    xs: list[float], ys: list[float], sign: Sign, boxes: ChainBoxes, lo: int, hi: int
+) -> tuple[int, float] | None:
+    """The edge that the ray from s_lo through s_hi meets first beyond s_hi and where (as
+    :func:`_nearest_crossing`), found among the chain boxes along ever longer stretches of
+    the ray (4 times as long each, to the chain's extent); None if there is none or it is
+    not sure."""
+    ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
+    dx, dy = ax - bx, ay - by
+    x0, x1, y0, y1 = boxes.levels[-1][0][:4]
+    far = max(abs(x0 - bx), abs(x1 - bx)) + max(abs(y0 - by), abs(y1 - by))
+    most = 2.0 * far / max(abs(dx), abs(dy))
+    reach = 2.0
+    while True:
+        x, y = bx + reach * dx, by + reach * dy
+        runs = list(boxes.leaves_meeting(lo, hi, hi, (x, y, bx, by, x, y)))
+        found = _nearest_crossing(xs, ys, sign, runs, lo, hi, -1, reach)
+        if found is None or found[0] >= 0:
+            return found
+        if reach > most:
+            return None
+        reach *= 4.0
+
+
 def _crossing_back(xs: list[float], ys: list[float], sign: Sign, lo: int, hi: int) -> int:
     """The first position k back from hi - 1 left of the base's line (the chain back from hi
-    right of it up to there), within ``_CROSSING_WALK`` positions; -1 if none is or a
-    position on the line comes first."""
+    right of it up to there), within ``_CROSSING_WALK`` positions; -1 if a position on the
+    line comes first, ``_FAR`` if none is within the walk."""
     ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
     for k in range(hi - 1, max(hi - 1 - _CROSSING_WALK, lo), -1):
         px, py = xs[k], ys[k]
@@ -119,7 +153,7 @@ def _crossing_back(xs: list[float], ys: list[float], sign: Sign, lo: int, hi: in
             return k
         if side == 0:
             return -1
-    return -1
+    return _FAR
 
 
 def _nearest_crossing(
@@ -133,9 +167,9 @@ def _nearest_crossing(
     along: float,
 ) -> tuple[int, float] | None:
     """Of the edges of the ``runs`` that cross the base's line beyond s_hi, the one met
-    first from s_hi (``edge`` at ``along`` to begin with) and where; None if a vertex lies
-    on the line beyond s_hi no farther, or two crossings are too close to order (the two
-    copies of a bridge count once)."""
+    first from s_hi (``edge`` at ``along`` to begin with; -1: none nearer than ``along``)
+    and where; None if a vertex lies on the line beyond s_hi no farther, or two crossings
+    are too close to order (the two copies of a bridge count once)."""
     ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
     dx, dy = ax - bx, ay - by
     length2 = dx * dx + dy * dy
@@ -171,7 +205,7 @@ def _nearest_crossing(
                 return None
             if abs(at - nearest_along) <= _MARGIN * nearest_along:
                 n = nearest
-                twin = (px, py, qx, qy) == (xs[n + 1], ys[n + 1], xs[n], ys[n])
+                twin = n >= 0 and (px, py, qx, qy) == (xs[n + 1], ys[n + 1], xs[n], ys[n])
                 close = close or not twin
             elif at < nearest_along:
                 nearest, nearest_along, close = e, at, False
@@ -218,7 +252,8 @@ def _least_angle(
     A point at s_lo's or s_q's place (a bridge end's twin) is no apex, and an edge from it
     into the triangle ends inside it or crosses the hiding edge or the base's line beyond
     s_hi, where the nearest crossing would have been found: skipped. One at s_hi's place
-    may start a bridge across the triangle with no vertex in it: left to the full search."""
+    may start a bridge across the triangle with no vertex in it: left to the full search
+    where one of its edges leaves s_hi into the triangle (or onto its sides)."""
     ax, ay, bx, by, qx, qy = xs[hi], ys[hi], xs[lo], ys[lo], xs[q], ys[q]
     ex, ey, fx, fy = xs[edge], ys[edge], xs[edge + 1], ys[edge + 1]
     # s_lo's side of the hiding edge's line (not 0: s_q lies left of the base's line)
@@ -243,7 +278,16 @@ def _least_angle(
             if vx == bx and vy == by:
                 continue
             if vx == ax and vy == ay:
-                return None
+                # another occurrence of s_hi: an edge from it into the triangle could cross
+                # it with no vertex in it
+                for w in (p - 1, p + 1):
+                    wx, wy = xs[w], ys[w]
+                    if (wx == ax and wy == ay) or (
+                        sign(ax, ay, bx, by, wx, wy) >= 0
+                        and sign(ex, ey, fx, fy, wx, wy) * front >= 0
+                    ):
+                        return None
+                continue
             if sign(bx, by, qx, qy, vx, vy) < 0:
                 continue
             base = sign(ax, ay, bx, by, vx, vy)
