@@ -676,6 +676,10 @@ def _bent_in_triangle(
 _BOTH = np.array([True, True]).view(np.uint16)[0]
 
 
+# _least_angle: fewer failing ears than this in a call are left to walk on
+_LEAST_FEW = 16
+
+
 def _least_angle(
     seqs: Sequences,
     lo: np.ndarray,
@@ -704,8 +708,8 @@ def _least_angle(
     does (a bridge from s_hi may cross the ear with no vertex in it; one from s_lo or
     s_{hi-1} may have a left turn of least angle next to it)."""
     items = np.flatnonzero(bad & (c == hi - 1))
-    if not len(items):
-        return
+    if len(items) < _LEAST_FEW:
+        return  # a few nodes walk on for less than this search's fixed calls
     for corner in (hi, lo, c):
         twin = seqs.twin[corner[items]]
         items = items[(twin <= lo[items]) | (twin >= hi[items])]

@@ -478,6 +478,7 @@ def test_candidates_decided_by_bent_vertices(family: str, monkeypatch: pytest.Mo
     from bsp_triangulate.tree import lockstep as batch_bsp
 
     counts = {"passed": 0, "rejected": 0, "passed ears": 0, "passed and bad": 0, "least": 0}
+    monkeypatch.setattr(batch_bsp, "_LEAST_FEW", 1)  # the least-angle apex in every call
     wrong: set[tuple[int, int]] = set()
     log = RestartLog(monkeypatch)
     bent_in_triangle = batch_bsp._bent_in_triangle

@@ -118,6 +118,7 @@ def test_lockstep_least_angle_gives_the_trees_of_the_plain_rounds(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     polygons = [_radial_with_island(seed, 260 + 7 * seed) for seed in range(60)]
+    monkeypatch.setattr(lockstep, "_LEAST_FEW", 1)
     used: list[int] = []
     real = lockstep._least_angle
 
