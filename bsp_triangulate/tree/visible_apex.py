@@ -20,7 +20,7 @@ the base's line or on e, crossings too close to order) is left to the full searc
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 from ..geometry.predicates import CCW_ERRBOUND, UNDERFLOW_SLACK
 from ..geometry.spatial_index import ChainBoxes
@@ -35,6 +35,9 @@ _CROSSING_WALK = 256
 _FAR = -2
 # queries made at most for the nearest edge across that line beyond s_hi
 _QUERIES = 4
+# positions a query may return (see _runs_within), and what visible_apex returns past them
+_MOST_POINTS = 256
+WIDE = -3
 # relative margin between two crossings' distances along the base's line (floats)
 _MARGIN = 1e-9
 # a crossing of the base's line surely beyond s_hi (at 1 in units of the base), surely
@@ -47,23 +50,41 @@ def visible_apex(
     xs: list[float], ys: list[float], sign: Sign, boxes: ChainBoxes, lo: int, hi: int
 ) -> int | None:
     """The first correct candidate of sub-polygon [lo, hi] (rule "first"), or None where
-    this test does not decide (the full search then does)."""
+    this test does not decide (the full search then does), or ``WIDE`` where a query holds
+    more than ``_MOST_POINTS`` positions (the caller may stop asking: see ``_runs_within``)."""
     c = hi - 1
     ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
     if sign(ax, ay, bx, by, xs[c], ys[c]) > 0:
         corners = (ax, ay, bx, by, xs[c], ys[c])
-        runs = list(boxes.leaves_meeting(lo, hi, c, corners))
+        runs = _runs_within(boxes.leaves_meeting(lo, hi, c, corners))
+        if runs is None:
+            return WIDE
         return _least_angle(xs, ys, sign, runs, lo, hi, c, c)
     found = _edge_beyond(xs, ys, sign, boxes, lo, hi)
-    if found is None:
-        return None
+    if found is None or found == WIDE:
+        return found
     runs, edge, q = found
     return _least_angle(xs, ys, sign, runs, lo, hi, q, edge)
 
 
+def _runs_within(leaves: Iterator[tuple[int, int]]) -> Runs | None:
+    """The runs of a chain-box query, or None once they hold more than ``_MOST_POINTS``
+    positions: the Python scans here cost about a microsecond a position, and a wide
+    triangle full of the chain (a star's interior, say) is left to the search with the
+    shadows, which skips whole boxes and stops at the first blocking edge."""
+    runs: Runs = []
+    total = 0
+    for start, end in leaves:
+        total += end - start
+        if total > _MOST_POINTS:
+            return None
+        runs.append((start, end))
+    return runs
+
+
 def _edge_beyond(
     xs: list[float], ys: list[float], sign: Sign, boxes: ChainBoxes, lo: int, hi: int
-) -> tuple[Runs, int, int] | None:
+) -> tuple[Runs, int, int] | int | None:
     """Where hi - 1 does not lie left of the base's line: the runs of the leaves meeting a
     triangle that holds the one bounded by the base's line, the ray s_lo -> s_q and the edge
     (e, e + 1) that the ray from s_lo through s_hi meets first beyond s_hi, with e and its
@@ -84,8 +105,8 @@ def _edge_beyond(
         edge, q = k, k
     elif k == _FAR:
         found = _ray_crossing(xs, ys, sign, boxes, lo, hi)
-        if found is None:
-            return None
+        if found is None or found == WIDE:
+            return found
         edge, along = found
         q = edge if sign(ax, ay, bx, by, xs[edge], ys[edge]) > 0 else edge + 1
     else:
@@ -94,7 +115,10 @@ def _edge_beyond(
     for _ in range(_QUERIES):
         reach = along * (1.0 + 1e-6) + 1e-9
         corners = (bx + reach * dx, by + reach * dy, bx, by, xs[q], ys[q])
-        runs = list(boxes.leaves_meeting(lo, hi, q, corners))
+        found_runs = _runs_within(boxes.leaves_meeting(lo, hi, q, corners))
+        if found_runs is None:
+            return WIDE
+        runs = found_runs
         found = _nearest_crossing(xs, ys, sign, runs, lo, hi, edge, along)
         if found is None:
             return None
@@ -115,7 +139,7 @@ def _edge_beyond(
 
 def _ray_crossing(
     xs: list[float], ys: list[float], sign: Sign, boxes: ChainBoxes, lo: int, hi: int
-) -> tuple[int, float] | None:
+) -> tuple[int, float] | int | None:
     """The edge that the ray from s_lo through s_hi meets first beyond s_hi and where (as
     :func:`_nearest_crossing`), found among the chain boxes along ever longer stretches of
     the ray (4 times as long each, to the chain's extent); None if there is none or it is
@@ -128,7 +152,9 @@ def _ray_crossing(
     reach = 2.0
     while True:
         x, y = bx + reach * dx, by + reach * dy
-        runs = list(boxes.leaves_meeting(lo, hi, hi, (x, y, bx, by, x, y)))
+        runs = _runs_within(boxes.leaves_meeting(lo, hi, hi, (x, y, bx, by, x, y)))
+        if runs is None:
+            return WIDE
         found = _nearest_crossing(xs, ys, sign, runs, lo, hi, -1, reach)
         if found is None or found[0] >= 0:
             return found

@@ -13,7 +13,7 @@ from bsp_triangulate import triangulate, triangulate_many
 from bsp_triangulate.geometry.spatial_index import ChainBoxes
 from bsp_triangulate.tree import lockstep, one_polygon
 from bsp_triangulate.tree.one_by_one import first_correct
-from bsp_triangulate.tree.visible_apex import Sign
+from bsp_triangulate.tree.visible_apex import WIDE, Sign
 
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")
 
@@ -84,7 +84,7 @@ def test_each_visible_apex_is_the_first_correct_candidate(
         xs: list[float], ys: list[float], sign: Sign, boxes: ChainBoxes, lo: int, hi: int
     ) -> int | None:
         apex = real(xs, ys, sign, boxes, lo, hi)
-        if apex is not None:
+        if apex is not None and apex != WIDE:
             scan = first_correct(xs, ys, lo, hi, hi - 1, sign, [], [math.inf])
             assert apex == scan, (lo, hi)
             ear = sign(xs[hi], ys[hi], xs[lo], ys[lo], xs[hi - 1], ys[hi - 1]) > 0
@@ -106,6 +106,38 @@ def test_trees_are_those_of_the_plain_scan(
         with monkeypatch.context() as patch:
             patch.setattr(one_polygon, "visible_apex", lambda *args: None)
             _same(fast, triangulate(rings, invalid=invalid))
+
+
+def _spiky_star(count: int, seed: int) -> list[np.ndarray]:
+    """A star whose vertices alternate between two radii: the fans across its interior
+    make ear triangles that hold much of the chain."""
+    rng = np.random.default_rng(seed)
+    angles = np.linspace(0.0, 2 * np.pi, count, endpoint=False)
+    radii = np.where(np.arange(count) % 2 == 0, 100.0, 30.0) * (
+        1 + 0.05 * rng.uniform(-1, 1, count)
+    )
+    shell = np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
+    return [shell, _star(rng, (0.0, 0.0), 8, 5.0, 0.1, clockwise=True)]
+
+
+def test_wide_queries_leave_a_polygon_to_the_shadow_walk(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where one in 8 of its queries holds more than 256 positions, a tree stops asking for
+    the apex seen from s_lo (the shadow walk costs less there); the trees are the same."""
+    rings = _spiky_star(4000, 5)
+    seen: list[list[int]] = []
+    real = one_polygon._Tree._visible_apex_pays
+
+    def watched(self: one_polygon._Tree) -> bool:
+        seen.append(self._seen)
+        return real(self)
+
+    monkeypatch.setattr(one_polygon._Tree, "_visible_apex_pays", watched)
+    fast = triangulate(rings)
+    asked, wide = seen[-1]
+    assert wide * 8 > asked >= 64
+    with monkeypatch.context() as patch:
+        patch.setattr(one_polygon, "visible_apex", lambda *args: None)
+        _same(fast, triangulate(rings))
 
 
 def _radial_with_island(seed: int, count: int) -> list[np.ndarray]:
