@@ -44,6 +44,9 @@ _MARGIN = 1e-9
 # before it (the base itself or behind s_lo); between the two the float is not trusted
 _AHEAD = 1.0 + 1e-6
 _BEHIND = 1.0 - 1e-6
+# least sine of the angle between a crossing edge and the base's line (with the 1-norms in
+# _along, a factor of 2 more) for its crossing's distance to be trusted to _MARGIN
+_STEEP = 1e-5
 
 
 def visible_apex(
@@ -250,11 +253,14 @@ def _along(
 ) -> float:
     """Where the edge (e, e + 1), whose ends lie strictly on either side of the line from
     s_lo along (dx, dy), crosses it: its distance from s_lo in units of (dx, dy) (s_hi at 1;
-    nan where the float intersection fails)."""
+    nan where the float intersection is not trusted)."""
     px, py, qx, qy = xs[e], ys[e], xs[e + 1], ys[e + 1]
     fp = dx * (py - by) - dy * (px - bx)
     fq = dx * (qy - by) - dy * (qx - bx)
-    if fp == fq:
+    # an edge nearly along the line crosses it where rounding moves the point far: about
+    # 4 eps / sin(angle) of the distance; kept only where that is far below _MARGIN
+    span = abs(dx * (qy - py) - dy * (qx - px))
+    if not span > _STEEP * (abs(dx) + abs(dy)) * (abs(qx - px) + abs(qy - py)):
         return float("nan")
     t = fp / (fp - fq)
     x, y = px + t * (qx - px), py + t * (qy - py)

@@ -167,3 +167,16 @@ def test_lockstep_least_angle_gives_the_trees_of_the_plain_rounds(
     plain = triangulate_many(polygons, invalid="as_given", on_error="return")
     for first, second in zip(fast, plain):
         _same(first, second)
+
+
+def test_a_crossing_nearly_along_the_base_line_is_not_trusted() -> None:
+    """The distance along the base's line where an edge crosses it is rounded by about
+    4 eps / sin(angle): an edge within 1e-5 rad of the line gives none (nan), so the nearest
+    crossing is never decided by a rounded distance."""
+    from bsp_triangulate.tree.visible_apex import _along
+
+    # the line from (0, 0) along (1, 0); an edge crossing it at x = 5, steep, then nearly flat
+    steep = _along([4.0, 6.0], [-1.0, 1.0], 0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    assert steep == pytest.approx(5.0)
+    flat = _along([0.0, 10.0], [-1e-7, 1e-7], 0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    assert math.isnan(flat)
