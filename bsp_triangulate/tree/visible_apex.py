@@ -281,11 +281,12 @@ def _least_angle(
     line, the ray s_lo -> s_q and the edge (edge, edge + 1) (the hiding edge, q its end left
     of the base): the one of least angle at s_lo (nearest along a ray), checked.
 
-    A point at s_lo's or s_q's place (a bridge end's twin) is no apex, and an edge from it
-    into the triangle ends inside it or crosses the hiding edge or the base's line beyond
-    s_hi, where the nearest crossing would have been found: skipped. One at s_hi's place
-    may start a bridge across the triangle with no vertex in it: left to the full search
-    where one of its edges leaves s_hi into the triangle (or onto its sides)."""
+    Another occurrence of a corner's point (a bridge end's twin) is no apex. An edge from
+    it may cross the triangle with no vertex in it (a bridge from s_hi's point over the
+    ear) and hide the vertex of least angle: that vertex's triangle then fails the check
+    (every edge that could break it is in the runs), and the full search decides. Where the
+    vertex of least angle passes, it is visible from s_lo, and every vertex visible at a
+    smaller angle would lie in the triangle too: it is the apex."""
     ax, ay, bx, by, qx, qy = xs[hi], ys[hi], xs[lo], ys[lo], xs[q], ys[q]
     ex, ey, fx, fy = xs[edge], ys[edge], xs[edge + 1], ys[edge + 1]
     # s_lo's side of the hiding edge's line (not 0: s_q lies left of the base's line)
@@ -307,18 +308,7 @@ def _least_angle(
                 if p != q:
                     at_q.append(p)
                 continue
-            if vx == bx and vy == by:
-                continue
-            if vx == ax and vy == ay:
-                # another occurrence of s_hi: an edge from it into the triangle could cross
-                # it with no vertex in it
-                for w in (p - 1, p + 1):
-                    wx, wy = xs[w], ys[w]
-                    if (wx == ax and wy == ay) or (
-                        sign(ax, ay, bx, by, wx, wy) >= 0
-                        and sign(ex, ey, fx, fy, wx, wy) * front >= 0
-                    ):
-                        return None
+            if (vx == bx and vy == by) or (vx == ax and vy == ay):
                 continue
             if sign(bx, by, qx, qy, vx, vy) < 0:
                 continue
