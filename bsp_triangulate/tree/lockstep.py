@@ -662,7 +662,7 @@ def _bent_in_triangle(
     bad[owner[closed]] = True
     if least is not None:
         entry = (index, at)
-        _least_angle(seqs, lo, hi, c, bad, owner, closed, entry, qx, qy, least)
+        _least_angle(seqs, lo, hi, c, corners, bad, owner, closed, entry, qx, qy, least)
     strictly = np.flatnonzero(strictly)
     if len(strictly):
         # the first position strictly inside, per candidate (owners and positions ascend)
@@ -685,6 +685,7 @@ def _least_angle(
     lo: np.ndarray,
     hi: np.ndarray,
     c: np.ndarray,
+    corners: np.ndarray,
     bad: np.ndarray,
     owner: np.ndarray,
     closed: np.ndarray,
@@ -693,7 +694,8 @@ def _least_angle(
     qy: np.ndarray,
     least: np.ndarray,
 ) -> None:
-    """Per failing ear (c = hi - 1, ``bad``) among the items: the apex of its base, into
+    """Per failing ear (c = hi - 1, ``bad``) among the items (``corners``: their s_hi, s_lo
+    and s_c, as :func:`_bent_in_triangle` takes them): the apex of its base, into
     ``least``. The bent positions in the items' triangles are ``seqs.bent[index[at]]`` for
     ``entry`` = (index, at), at ``qx``, ``qy``, of the item ``owner`` (ascending), in the
     closed triangle where ``closed``.
@@ -730,9 +732,10 @@ def _least_angle(
     keep = (near > lo[near_item]) & (near < hi[near_item] - 1)
     keep &= seqs.bent_rank[near + 1] == seqs.bent_rank[near]
     near, near_item = near[keep], near_item[keep]
+    (kx, lx, cx), (ky, ly, cy) = corners[..., 0], corners[..., 1]
     if len(near):
-        corners = np.take(seqs.xy, np.stack([hi[near_item], lo[near_item], c[near_item]]), axis=0)
-        (kx, lx, cx), (ky, ly, cy) = corners[..., 0], corners[..., 1]
+        kx, ky, lx, ly = kx[near_item], ky[near_item], lx[near_item], ly[near_item]
+        cx, cy = cx[near_item], cy[near_item]
         nx, ny = seqs.sx[near], seqs.sy[near]
         away = ((nx != kx) | (ny != ky)) & ((nx != lx) | (ny != ly)) & ((nx != cx) | (ny != cy))
         inside, _ = _in_triangle(
@@ -742,8 +745,7 @@ def _least_angle(
         o = np.concatenate([o, near_item[keep]])
         position = np.concatenate([position, near[keep]])
         px, py = np.concatenate([px, nx[keep]]), np.concatenate([py, ny[keep]])
-    ax, ay = seqs.sx[hi[o]], seqs.sy[hi[o]]
-    bx, by = seqs.sx[lo[o]], seqs.sy[lo[o]]
+    ax, ay, bx, by = corners[0, o, 0], corners[0, o, 1], corners[1, o, 0], corners[1, o, 1]
     ux, uy = ax - bx, ay - by
     vx, vy = px - bx, py - by
     angle = np.arctan2(uy * vx - ux * vy, ux * vx + uy * vy)

@@ -14,8 +14,8 @@ beyond s_hi, and the triangle's third corner is e's end left of the base. The ap
 corner or, where vertices lie in the triangle in front of e, the one of least angle (the
 nearest along a ray). A node whose candidates walk far back (a vertex next to s_lo hiding
 most of the sub-polygon) is then a query instead of a walk. The apex found is checked as
-every apex is, and an input where the reasoning may not hold (a point at s_hi's place, on
-the base's line or on e, crossings too close to order) is left to the full search.
+every apex is, and a node where the reasoning may not hold (a point on the base's line or on
+e, crossings too close to order, an apex that fails the check) is left to the full search.
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ def _edge_beyond(
         if found is None or found == WIDE:
             return found
         edge, along = found
-        q = edge if sign(ax, ay, bx, by, xs[edge], ys[edge]) > 0 else edge + 1
+        q = _left_end(xs, ys, sign, lo, hi, edge)
     else:
         return None
     runs: Runs = []
@@ -130,7 +130,7 @@ def _edge_beyond(
             return runs, edge, q
         # the nearer edge's end left of the line; the runs serve where it lies in the
         # triangle queried (not beyond the ray to s_q, in front of the edge before)
-        near_q = nearest if sign(ax, ay, bx, by, xs[nearest], ys[nearest]) > 0 else nearest + 1
+        near_q = _left_end(xs, ys, sign, lo, hi, nearest)
         qx, qy, nx, ny = xs[q], ys[q], xs[near_q], ys[near_q]
         front = sign(xs[edge], ys[edge], xs[edge + 1], ys[edge + 1], bx, by)
         inside = sign(bx, by, qx, qy, nx, ny) >= 0
@@ -138,6 +138,11 @@ def _edge_beyond(
             return runs, nearest, near_q
         edge, q, along = nearest, near_q, at
     return None
+
+
+def _left_end(xs: list[float], ys: list[float], sign: Sign, lo: int, hi: int, e: int) -> int:
+    """The end of the edge (e, e + 1), which crosses the base's line, left of it."""
+    return e if sign(xs[hi], ys[hi], xs[lo], ys[lo], xs[e], ys[e]) > 0 else e + 1
 
 
 def _ray_crossing(
