@@ -16,36 +16,9 @@ from bsp_triangulate.tree import one_polygon
 from bsp_triangulate.tree import shadows as shadows_module
 from bsp_triangulate.tree.shadows import Horizon, Shadows
 
+from .rivers import river
+
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")
-
-
-def _river(half: int, islands: int, seed: int, grid: float = 0.0) -> list[np.ndarray]:
-    """A meandering band (``half`` vertices per bank) with small star islands in it;
-    ``grid`` > 0 rounds every coordinate to that step (collinear and repeated positions)."""
-    rng = np.random.default_rng(seed)
-    length, width = 4000.0, 100.0
-    t = np.linspace(0.0, 1.0, half)
-    mid_x, mid_y = length * t, 0.1 * length * np.sin(2 * np.pi * 3 * t)
-    dx, dy = np.gradient(mid_x), np.gradient(mid_y)
-    norm = np.hypot(dx, dy)
-    nx, ny = -dy / norm, dx / norm
-    wiggle = 1.0 + 0.05 * rng.uniform(-1, 1, (2, half))
-    left = np.column_stack([mid_x + nx * width / 2 * wiggle[0], mid_y + ny * width / 2 * wiggle[0]])
-    right = np.column_stack(
-        [mid_x - nx * width / 2 * wiggle[1], mid_y - ny * width / 2 * wiggle[1]]
-    )
-    rings = [np.concatenate([right, left[::-1]])]
-    for at in np.linspace(0.05, 0.95, islands):
-        index = int(at * (half - 1))
-        offset = rng.uniform(-0.6, 0.6) * width / 2
-        cx, cy = mid_x[index] + nx[index] * offset, mid_y[index] + ny[index] * offset
-        count = int(rng.integers(4, 12))
-        angles = -np.linspace(0.0, 2 * np.pi, count, endpoint=False) + rng.uniform(0, 1)
-        radius = width * rng.uniform(0.04, 0.12)
-        rings.append(np.column_stack([cx + radius * np.cos(angles), cy + radius * np.sin(angles)]))
-    if grid:
-        rings = [np.round(ring / grid) * grid for ring in rings]
-    return rings
 
 
 def _same(first: object, second: object) -> None:
@@ -55,7 +28,7 @@ def _same(first: object, second: object) -> None:
 
 @pytest.mark.parametrize(
     "rings",
-    [_river(600, 30, 1), _river(800, 40, 2), _river(500, 25, 3, grid=5.0)],
+    [river(600, 30, 1), river(800, 40, 2), river(500, 25, 3, grid=5.0)],
     ids=["river", "river 2", "river on a 5 m grid"],
 )
 def test_shadowed_scan_gives_the_trees_of_the_plain_scan(
@@ -300,7 +273,7 @@ def test_rule_elevation_bounds_its_apexes_in_a_box_with_the_same_trees(
     region_box = Shadows.region_box
     monkeypatch.setattr(Shadows, "region_box", lambda self: boxes.append(1) or region_box(self))
     monkeypatch.setattr(one_polygon, "_REGION_SPAN", 128)
-    rings = _river(900, 60, 6)
+    rings = river(900, 60, 6)
     rings = [np.column_stack([r, np.cos(r[:, 0] / 53) * 25 + r[:, 1] / 7]) for r in rings]
     fast = triangulate(rings, rule="elevation")
     with monkeypatch.context() as patch:
@@ -329,7 +302,7 @@ def test_rule_elevation_skips_shadowed_candidates_with_the_same_trees(
         "_near_shadows",
         lambda self, *args: used.append(1) or shadows(self, *args),
     )
-    rings = _river(700, 30, 4)
+    rings = river(700, 30, 4)
     rings = [np.column_stack([r, np.sin(r[:, 0] / 97) * 40 + r[:, 1] / 50]) for r in rings]
     for invalid in ("fail", "as_given"):
         fast = triangulate(rings, rule="elevation", invalid=invalid)
@@ -376,7 +349,7 @@ def test_rule_elevation_casts_the_shadows_next_to_the_base_with_the_same_trees(
     monkeypatch.setattr(
         one_polygon._Tree, "_near_shadows", lambda self, *args: used.append(1) or near(self, *args)
     )
-    rings = _river(900, 60, 5)
+    rings = river(900, 60, 5)
     rings = [np.column_stack([r, np.cos(r[:, 0] / 61) * 25 + r[:, 1] / 9]) for r in rings]
     fast = triangulate(rings, rule="elevation")
     with monkeypatch.context() as patch:

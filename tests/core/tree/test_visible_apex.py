@@ -15,6 +15,8 @@ from bsp_triangulate.tree import lockstep, one_polygon
 from bsp_triangulate.tree.one_by_one import first_correct
 from bsp_triangulate.tree.visible_apex import WIDE, Sign
 
+from .rivers import river
+
 FIELDS = ("vertices", "triangles", "parent", "depth", "side")
 
 
@@ -32,42 +34,16 @@ def _star(
     return ring[::-1].copy() if clockwise else ring
 
 
-def _spiky_strip(half: int, islands: int, seed: int, grid: float = 0.0) -> list[np.ndarray]:
-    """A meandering band whose banks are saw-tooth (each vertex off the bank by up to 40 %
-    of the band's half width, a few units apart): vertices in the crevices see little but
-    the far bank, the case that made rule first walk far back; with star islands."""
-    rng = np.random.default_rng(seed)
-    length, width = 3000.0, 100.0
-    t = np.linspace(0.0, 1.0, half)
-    mid_x, mid_y = length * t, 0.1 * length * np.sin(2 * np.pi * 2 * t)
-    dx, dy = np.gradient(mid_x), np.gradient(mid_y)
-    norm = np.hypot(dx, dy)
-    nx, ny = -dy / norm, dx / norm
-    wiggle = 1.0 + 0.4 * rng.uniform(-1, 1, (2, half))
-    left = np.column_stack([mid_x + nx * width / 2 * wiggle[0], mid_y + ny * width / 2 * wiggle[0]])
-    right = np.column_stack(
-        [mid_x - nx * width / 2 * wiggle[1], mid_y - ny * width / 2 * wiggle[1]]
-    )
-    rings = [np.concatenate([right, left[::-1]])]
-    for at in np.linspace(0.05, 0.95, islands):
-        index = int(at * (half - 1))
-        offset = rng.uniform(-0.3, 0.3) * width / 2
-        centre = (mid_x[index] + nx[index] * offset, mid_y[index] + ny[index] * offset)
-        rings.append(_star(rng, centre, int(rng.integers(4, 12)), 8.0, 0.3, clockwise=True))
-    if grid:
-        rings = [np.round(ring / grid) * grid for ring in rings]
-    return rings
-
-
 def _same(first: object, second: object) -> None:
     for field in FIELDS:
         assert np.array_equal(getattr(first, field), getattr(second, field)), field
 
 
 CASES = [
-    _spiky_strip(700, 12, 1),
-    _spiky_strip(900, 20, 2),
-    _spiky_strip(600, 10, 3, grid=2.0),
+    # saw-tooth banks (the case that made rule first walk far back), islands near the middle
+    river(700, 12, 1, wiggle=0.4, spread=0.2),
+    river(900, 20, 2, wiggle=0.4, spread=0.2),
+    river(600, 10, 3, grid=2.0, wiggle=0.4, spread=0.2),
     [_star(np.random.default_rng(4), (0.0, 0.0), 3000, 100.0, 0.45)],
 ]
 IDS = ["saw-tooth strip", "saw-tooth strip 2", "saw-tooth strip on a 2 m grid", "radial 3,000"]
