@@ -14,7 +14,8 @@ from bsp_triangulate import triangulate
 from bsp_triangulate.tree import one_polygon
 
 from ..random_polygons import add_islands, is_valid, rotate_start, star_ring, touching_island
-from .test_shadows import _river, _same
+from .rivers import river
+from .test_shadows import _same
 
 
 def _wavy(vertices: int, islands: int, seed: int, grid: float = 0.0) -> list[np.ndarray]:
@@ -52,8 +53,8 @@ CASES = {
     "wavy": _wavy(3000, 12, 1),
     "wavy on a 0.25 m grid": _wavy(3000, 12, 2, grid=0.25),
     "wavy, dense": _wavy(6000, 4, 3),
-    "river": _river(900, 30, 4),
-    "river on a 5 m grid": _river(900, 30, 5, grid=5.0),
+    "river": river(900, 30, 4),
+    "river on a 5 m grid": river(900, 30, 5, grid=5.0),
 }
 
 
