@@ -98,6 +98,9 @@ _FAN_REACH = 1e3
 # centre in either axis (its rounding moves the angle by at most about 4e-9).
 _FAN_MARGIN = 1e-7
 _FAN_NEAR = 64.0
+# Positions a fan's node may skip back from the top of its base (a pocket: each fails
+# condition 1) before its apex; a node whose apex lies further back ends the batch.
+_FAN_POCKET = 16
 _TWO_PI = 2.0 * math.pi
 # Rule "delaunay" on long sub-polygons first tries the positions this close to either end of
 # the base (most apexes lie there).
@@ -966,43 +969,61 @@ class _Tree:
             self._bends = after.tolist(), before.tolist()
         return self._bends
 
-    def _fan_steps(self, lo: int, top: int, most: int) -> int:
-        """How many nodes of a fan at ``lo`` are decided at once: node j (j < ``most``) has the
-        base (lo, top - j) and, where its first candidate top - j - 1 forms a correct
-        triangle, that apex (rule "first"), which leaves node j + 1 as its only child with a
-        triangle. Returns the number of leading nodes whose first candidate is correct.
+    def _fan_apexes(self, lo: int, top: int, floor: int) -> list[int]:
+        """The apexes of a fan at ``lo`` decided at once (rule "first"): node j has the base
+        (lo, last), last = ``top`` for j = 0, else node j - 1's apex, with last > ``floor``,
+        and its apex is its first candidate back from last that passes condition 1 (at most
+        ``_FAN_POCKET`` before it fail it: a pocket, the node's upper child) where that
+        candidate forms a correct triangle: every candidate before it fails condition 1, so
+        it is the node's first correct one, and node j + 1 is its lower child.
 
         Checked a batch of nodes at a time. Conditions 1 and 4 per node, and the apexes must
         turn strictly clockwise around ``lo`` within a half-turn from the batch's first base:
-        the triangles then lie in disjoint sectors around ``lo``, so no edge of the batch's own
-        chain can break another's triangle. Conditions 2 and 3 are tested against the edges
-        before that chain in the chain boxes that meet a triangle holding the whole batch,
-        each edge only against the nodes whose sectors its angles (with a margin) overlap.
+        the triangles then lie in disjoint sectors around ``lo``, so no side of one breaks
+        another. Conditions 2 and 3 are tested against the edges before that chain in the
+        chain boxes that meet a triangle holding the whole batch, and against the pockets'
+        edges, each edge only against the nodes whose sectors its angles (with a margin)
+        overlap. The edges tested include every edge of each node's sub-polygon that could
+        break its triangle (and maybe others: a batch then ends early, and the node is left
+        to the full search, which decides the same).
         """
         xs, ys, sign = self.xs, self.ys, self.sign
         ox, oy = xs[lo], ys[lo]
         near = self.boxes.pad * _FAN_NEAR  # closer to lo, a point's angle is not trusted
-        done = 0
+        apexes: list[int] = []
         size = _FAN_BATCH
-        while done < most:
-            high = top - done
+        high = top
+        while high > floor:
             hx, hy = xs[high], ys[high]
-            count = 0
-            for j in range(min(size, most - done)):
-                c = high - j - 1
-                if sign(ox, oy, xs[c], ys[c], hx, hy) <= 0 or not facing_one(xs, ys, lo, c + 1, c):
+            batch: list[int] = []
+            pockets: list[int] = []  # per node of the batch, its base's top
+            last = high
+            while len(batch) < size and last > floor:
+                lx, ly = xs[last], ys[last]
+                c = last - 1
+                stop = max(last - 1 - _FAN_POCKET, lo)
+                while c > stop and sign(lx, ly, ox, oy, xs[c], ys[c]) <= 0:
+                    c -= 1
+                if c <= stop or c <= lo:
                     break
-                count = j + 1
+                if sign(ox, oy, xs[c], ys[c], hx, hy) <= 0 or not facing_one(xs, ys, lo, last, c):
+                    break
+                batch.append(c)
+                pockets.append(last)
+                last = c
             size = min(2 * size, _MAX_FAN_BATCH)
-            fan = self._fan_sectors(lo, high, count, near) if count else None
+            fan = self._fan_sectors(lo, [high, *batch], near) if batch else None
             if fan is None:
-                return done
+                return apexes
             hull, ray, angles = fan
-            last = high - count
             hx0, hx1 = min(hull[0::2]), max(hull[0::2])
             hy0, hy1 = min(hull[1::2]), max(hull[1::2])
-            buckets: list[list[int]] = [[] for _ in range(count)]
-            for begin, end in self.boxes.leaves_meeting(lo, last, last, hull):
+            buckets: list[list[int]] = [[] for _ in batch]
+            runs = list(self.boxes.leaves_meeting(lo, last, last, hull))
+            # the pockets' edges (those of a node whose apex is the top's neighbour are the
+            # triangle's side)
+            runs += [(c, top_) for c, top_ in zip(batch, pockets) if top_ - c > 1]
+            for begin, end in runs:
                 # the angle of each edge's end (see _end_angle), kept for the next edge
                 known, known_angle = -1, None
                 for e in range(begin, end):
@@ -1020,29 +1041,31 @@ class _Tree:
                         buckets[k].append(e)
             for j, edges in enumerate(buckets):
                 if edges:
-                    a, c = high - j, high - j - 1
+                    a, c = pockets[j], batch[j]
                     corners = (xs[a], ys[a], ox, oy, xs[c], ys[c])
                     xmin, xmax = min(corners[0::2]), max(corners[0::2])
                     ymin, ymax = min(corners[1::2]), max(corners[1::2])
                     for e in edges:
                         if edge_blocks(corners, xmin, ymin, xmax, ymax, xs, ys, e, sign):
-                            return done + j
-            done += count
-        return done
+                            return apexes + batch[:j]
+            apexes += batch
+            high = last
+        return apexes
 
     def _fan_sectors(
-        self, lo: int, high: int, count: int, near: float
+        self, lo: int, positions: list[int], near: float
     ) -> tuple[tuple[float, float, float, float, float, float], float, list[float]] | None:
-        """For the fan at ``lo`` over positions high, high - 1, ..., high - count: a triangle
-        holding it (corners counter-clockwise, at ``lo`` along the rays to ``high`` and
-        ``high - count``, with a margin), the first ray's angle and the clockwise angles from
-        it of the rays to each position (kept non-decreasing); None where the two outer rays
+        """For the fan at ``lo`` over ``positions`` (its first base's top, then each node's
+        apex): a triangle holding it (corners counter-clockwise, at ``lo`` along the rays to
+        the first and the last position, with a margin), the first ray's angle and the
+        clockwise angles from it of the rays to each position (kept non-decreasing); None
+        where the two outer rays
         are too close to parallel or to opposite for a small such triangle, or a position
         lies within ``near`` of ``lo`` in both axes (its angle not trusted)."""
         xs, ys = self.xs, self.ys
         ox, oy = xs[lo], ys[lo]
-        ux, uy = xs[high] - ox, ys[high] - oy
-        wx, wy = xs[high - count] - ox, ys[high - count] - oy
+        ux, uy = xs[positions[0]] - ox, ys[positions[0]] - oy
+        wx, wy = xs[positions[-1]] - ox, ys[positions[-1]] - oy
         det = ux * wy - uy * wx
         if not -math.inf < det < 0:
             return None  # also where the products overflow: no trusted triangle
@@ -1050,7 +1073,7 @@ class _Tree:
         reach = 0.0
         angles = []
         turned = 0.0
-        for p in range(high, high - count - 1, -1):
+        for p in positions:
             vx, vy = xs[p] - ox, ys[p] - oy
             angle = _end_angle(vx, vy, start, near)
             if angle is None or angle < 0:
@@ -1348,13 +1371,18 @@ class _Tree:
             depth[node] = dep
             side[node] = sd
             count += 1
-            if fans and apex == hi - 1 and apex - lo > fan_above:
-                # the node's one child (lo, apex) may start a run of ears at hi's side: a fan
-                steps = self._fan_steps(lo, apex, apex - lo - fan_above)
-                if steps:
+            if fans and apex - lo > fan_above and (apex == hi - 1 or not v1_at_hi):
+                # the node's lower child (lo, apex) may start a fan at lo: a run of nodes on
+                # the bases (lo, apex), each taking the next apex back (see _fan_apexes)
+                apexes = self._fan_apexes(lo, apex, lo + fan_above)
+                if apexes:
                     sd = 2 if v1_at_hi else 1
-                    for _ in range(steps):
-                        hi, apex = apex, apex - 1
+                    for following in apexes:
+                        if apex < hi - 1:
+                            # the node's pocket (its upper child, on the right with V1 at
+                            # lo) comes after the rest of the fan in pre-order
+                            work.append((apex, hi, True, node, dep + 1, 2))
+                        hi, apex = apex, following
                         first, second = (lo, hi) if mirrored else (hi, lo)
                         triangles[count] = (ids[first], ids[second], ids[apex])
                         parent[count] = node

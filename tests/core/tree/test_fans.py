@@ -1,5 +1,6 @@
 """Rule first decides runs of fan nodes in long sub-polygons a batch at a time
-(``_Tree._fan_steps``): every node it decides is the one-step search's choice, and the trees are
+(``_Tree._fan_apexes``), each node's apex its base's top's neighbour or a few positions further
+back past a pocket: every node it decides is the one-step search's choice, and the trees are
 those built one node at a time."""
 
 from __future__ import annotations
@@ -18,12 +19,16 @@ from .rivers import river
 from .test_shadows import _same
 
 
-def _wavy(vertices: int, islands: int, seed: int, grid: float = 0.0) -> list[np.ndarray]:
+def _wavy(
+    vertices: int, islands: int, seed: int, grid: float = 0.0, ripple: float = 331.0
+) -> list[np.ndarray]:
     """A circle whose radius waves, far from the origin, with small rotated squares inside;
-    ``grid`` > 0 rounds every coordinate to that step (collinear runs, repeated points)."""
+    ``grid`` > 0 rounds every coordinate to that step (collinear runs, repeated points);
+    ``ripple``: the frequency of the small wave (near half the vertices, a zigzag whose
+    every other vertex is a pocket of the fans)."""
     rng = np.random.default_rng(seed)
     angles = 2.0 * np.pi * np.arange(vertices) / vertices
-    radius = 300.0 * (1.0 + 0.08 * np.sin(25.0 * angles) + 0.02 * np.sin(331.0 * angles))
+    radius = 300.0 * (1.0 + 0.08 * np.sin(25.0 * angles) + 0.02 * np.sin(ripple * angles))
     centre = np.array([5.0e5, 6.0e6])
     rings = [np.column_stack([radius * np.cos(angles), radius * np.sin(angles)]) + centre]
     square = np.array([(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)])  # clockwise
@@ -53,6 +58,8 @@ CASES = {
     "wavy": _wavy(3000, 12, 1),
     "wavy on a 0.25 m grid": _wavy(3000, 12, 2, grid=0.25),
     "wavy, dense": _wavy(6000, 4, 3),
+    "wavy zigzag": _wavy(3000, 12, 8, ripple=1477.0),
+    "wavy zigzag on a 0.25 m grid": _wavy(3000, 12, 7, grid=0.25, ripple=1477.0),
     "river": river(900, 30, 4),
     "river on a 5 m grid": river(900, 30, 5, grid=5.0),
 }
@@ -61,12 +68,14 @@ CASES = {
 def _counted_fan_steps(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """The nodes each fan batch call decides, recorded as the calls come."""
     steps: list[int] = []
-    fan_steps = one_polygon._Tree._fan_steps
-    monkeypatch.setattr(
-        one_polygon._Tree,
-        "_fan_steps",
-        lambda self, *args: steps.append(fan_steps(self, *args)) or steps[-1],
-    )
+    fan_apexes = one_polygon._Tree._fan_apexes
+
+    def counting(self: one_polygon._Tree, *args: int) -> list[int]:
+        apexes = fan_apexes(self, *args)
+        steps.append(len(apexes))
+        return apexes
+
+    monkeypatch.setattr(one_polygon._Tree, "_fan_apexes", counting)
     return steps
 
 
@@ -92,23 +101,30 @@ def test_fan_batches_give_the_trees_of_one_node_at_a_time(
 def test_each_fan_decision_is_the_one_step_search(
     monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:
-    """Node j of a batch (base (lo, top - j)) is decided with apex top - j - 1 only where the
-    one-step search of that base picks that apex (a node refused is searched one step at a
-    time, whatever its apex)."""
+    """Each node of a batch (base (lo, last): last the batch's top, then the node before's
+    apex) is decided with the apex the one-step search of that base picks; the zigzags'
+    fans skip pockets."""
     checked: list[int] = []
-    fan_steps = one_polygon._Tree._fan_steps
+    pockets: list[int] = []
+    fan_apexes = one_polygon._Tree._fan_apexes
 
-    def checking(self: one_polygon._Tree, lo: int, top: int, most: int) -> int:
-        steps = fan_steps(self, lo, top, most)
-        for j in range(min(steps + 1, most)):
-            chosen = self._first_apex(lo, top - j) == top - j - 1
-            assert chosen or j == steps, (lo, top, j, steps)
-            checked.append(j)
-        return steps
+    def checking(self: one_polygon._Tree, lo: int, top: int, floor: int) -> list[int]:
+        apexes = fan_apexes(self, lo, top, floor)
+        last = top
+        for apex in apexes:
+            assert last > floor
+            assert self._first_apex(lo, last) == apex, (lo, last, apex)
+            checked.append(apex)
+            if apex < last - 1:
+                pockets.append(last - apex - 1)
+            last = apex
+        return apexes
 
-    monkeypatch.setattr(one_polygon._Tree, "_fan_steps", checking)
+    monkeypatch.setattr(one_polygon._Tree, "_fan_apexes", checking)
     triangulate(CASES[name])
     assert len(checked) > 100
+    if "zigzag" in name:
+        assert len(pockets) > 100
 
 
 def test_batches_stop_short_of_a_half_turn(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -121,8 +137,8 @@ def test_batches_stop_short_of_a_half_turn(monkeypatch: pytest.MonkeyPatch) -> N
     turned: list[float] = []
     sectors = one_polygon._Tree._fan_sectors
 
-    def recording(self: one_polygon._Tree, lo: int, high: int, count: int, near: float) -> object:
-        found = sectors(self, lo, high, count, near)
+    def recording(self: one_polygon._Tree, lo: int, positions: list[int], near: float) -> object:
+        found = sectors(self, lo, positions, near)
         if found is not None:
             turned.append(found[2][-1])
         return found
