@@ -41,7 +41,7 @@ from bsp_triangulate.tree import one_polygon
 STAGES = (
     ("bridging", one_polygon, "bridge_islands"),
     ("apex search, large sub-polygons", one_polygon._Tree, "_apex"),
-    ("fans, large sub-polygons", one_polygon._Tree, "_fan_steps"),
+    ("fans, large sub-polygons", one_polygon._Tree, "_fan_apexes"),
     ("lock-step, small sub-polygons", one_polygon, "built_if_worth"),
 )
 
