@@ -127,6 +127,18 @@ def test_each_fan_decision_is_the_one_step_search(
         assert len(pockets) > 100
 
 
+def test_a_pocket_vertex_moved_across_the_fan(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A zigzag polygon with one pocket vertex moved off its place (its edges now cross the
+    fan's triangles: invalid, as given): a batch stops where a pocket's edge breaks a node's
+    triangle, and the trees are those built one node at a time."""
+    rings = [ring.copy() for ring in CASES["wavy zigzag"]]
+    rings[0][1808] = (499763.99587715894, 5999830.976882643)
+    assert not is_valid([[tuple(point) for point in rings[0].tolist()]])
+    batched = triangulate(rings, invalid="as_given")
+    monkeypatch.setattr(one_polygon, "_FAN_BATCH", 0)
+    _same(batched, triangulate(rings, invalid="as_given"))
+
+
 def test_batches_stop_short_of_a_half_turn(monkeypatch: pytest.MonkeyPatch) -> None:
     """With batches as long as the whole comb, its fan would turn around the centre by more
     than a half-turn: each batch stops before it, and the tree is the same."""
