@@ -1004,7 +1004,7 @@ class _Tree:
                 stop = max(last - 1 - _FAN_POCKET, lo)
                 while c > stop and sign(lx, ly, ox, oy, xs[c], ys[c]) <= 0:
                     c -= 1
-                if c <= stop or c <= lo:
+                if c <= stop:
                     break
                 if sign(ox, oy, xs[c], ys[c], hx, hy) <= 0 or not facing_one(xs, ys, lo, last, c):
                     break
@@ -1059,9 +1059,9 @@ class _Tree:
         apex): a triangle holding it (corners counter-clockwise, at ``lo`` along the rays to
         the first and the last position, with a margin), the first ray's angle and the
         clockwise angles from it of the rays to each position (kept non-decreasing); None
-        where the two outer rays
-        are too close to parallel or to opposite for a small such triangle, or a position
-        lies within ``near`` of ``lo`` in both axes (its angle not trusted)."""
+        where the two outer rays are too close to parallel or to opposite for a small such
+        triangle, or a position lies within ``near`` of ``lo`` in both axes (its angle not
+        trusted)."""
         xs, ys = self.xs, self.ys
         ox, oy = xs[lo], ys[lo]
         ux, uy = xs[positions[0]] - ox, ys[positions[0]] - oy
