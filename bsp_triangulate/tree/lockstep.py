@@ -649,9 +649,7 @@ def _bent_in_triangle(
     # a position at a corner's point (the candidate itself, a bridge end's twin) is neither
     # inside nor a failure: left out before any orientation (its signs are zeros)
     oax, oay = ax[owner], ay[owner]
-    away = (qx != oax) | (qy != oay)
-    away &= (qx != bx[owner]) | (qy != by[owner])
-    away &= (qx != cx[owner]) | (qy != cy[owner])
+    away = _off_corners(qx, qy, oax, oay, bx[owner], by[owner], cx[owner], cy[owner])
     if not away.all():
         kept = np.flatnonzero(away)
         at, owner, qx, qy, oax, oay = (v[kept] for v in (at, owner, qx, qy, oax, oay))
@@ -674,6 +672,23 @@ def _bent_in_triangle(
 
 # two True bytes read as one 2-byte value
 _BOTH = np.array([True, True]).view(np.uint16)[0]
+
+
+def _off_corners(
+    px: np.ndarray,
+    py: np.ndarray,
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+) -> np.ndarray:
+    """Per item: the point (px, py) is none of the triangle's corners' points (exactly)."""
+    away = (px != ax) | (py != ay)
+    away &= (px != bx) | (py != by)
+    away &= (px != cx) | (py != cy)
+    return away
 
 
 # _least_angle: fewer failing ears than this in a call are left to walk on
@@ -737,7 +752,7 @@ def _least_angle(
         kx, ky, lx, ly = kx[near_item], ky[near_item], lx[near_item], ly[near_item]
         cx, cy = cx[near_item], cy[near_item]
         nx, ny = seqs.sx[near], seqs.sy[near]
-        away = ((nx != kx) | (ny != ky)) & ((nx != lx) | (ny != ly)) & ((nx != cx) | (ny != cy))
+        away = _off_corners(nx, ny, kx, ky, lx, ly, cx, cy)
         inside, _ = _in_triangle(
             kx, ky, lx, ly, cx, cy, nx, ny, seqs.table[lo[near_item], _BOUND], seqs.exact
         )

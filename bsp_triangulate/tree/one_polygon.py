@@ -996,7 +996,6 @@ class _Tree:
         while high > floor:
             hx, hy = xs[high], ys[high]
             batch: list[int] = []
-            tops: list[int] = []  # per node of the batch, its base's top
             last = high
             while len(batch) < size and last > floor:
                 lx, ly = xs[last], ys[last]
@@ -1009,10 +1008,11 @@ class _Tree:
                 if sign(ox, oy, xs[c], ys[c], hx, hy) <= 0 or not facing_one(xs, ys, lo, last, c):
                     break
                 batch.append(c)
-                tops.append(last)
                 last = c
             size = min(2 * size, _MAX_FAN_BATCH)
-            fan = self._fan_sectors(lo, [high, *batch], near) if batch else None
+            # the batch's first top, then each node's apex: node j's base top is positions[j]
+            positions = [high, *batch]
+            fan = self._fan_sectors(lo, positions, near) if batch else None
             if fan is None:
                 return apexes
             hull, ray, angles = fan
@@ -1022,7 +1022,7 @@ class _Tree:
             runs = list(self.boxes.leaves_meeting(lo, last, last, hull))
             # the pockets' edges (a node whose apex is its top's neighbour has none: that edge
             # is its triangle's side)
-            runs += [(c, above) for c, above in zip(batch, tops) if above - c > 1]
+            runs += [(c, above) for above, c in zip(positions, batch) if above - c > 1]
             for begin, end in runs:
                 # the angle of each edge's end (see _end_angle), kept for the next edge
                 known, known_angle = -1, None
@@ -1041,7 +1041,7 @@ class _Tree:
                         buckets[k].append(e)
             for j, edges in enumerate(buckets):
                 if edges:
-                    a, c = tops[j], batch[j]
+                    a, c = positions[j], batch[j]
                     corners = (xs[a], ys[a], ox, oy, xs[c], ys[c])
                     xmin, xmax = min(corners[0::2]), max(corners[0::2])
                     ymin, ymax = min(corners[1::2]), max(corners[1::2])

@@ -16,8 +16,7 @@ from bsp_triangulate.tree.one_by_one import first_correct
 from bsp_triangulate.tree.visible_apex import WIDE, Sign
 
 from .rivers import river
-
-FIELDS = ("vertices", "triangles", "parent", "depth", "side")
+from .test_shadows import _same
 
 
 def _star(
@@ -32,11 +31,6 @@ def _star(
     radii = radius * (1.0 + spread * rng.uniform(-1, 1, count))
     ring = np.column_stack([centre[0] + radii * np.cos(angles), centre[1] + radii * np.sin(angles)])
     return ring[::-1].copy() if clockwise else ring
-
-
-def _same(first: object, second: object) -> None:
-    for field in FIELDS:
-        assert np.array_equal(getattr(first, field), getattr(second, field)), field
 
 
 CASES = [
