@@ -28,6 +28,8 @@ _DISTANCE_MARGIN = 1e-9
 # the margin on its angles (radians) and distances (relative)
 _GAP_ROUNDS = 3
 _GAP_MARGIN = 1e-6
+# witnesses that leave a gap this close to 180 degrees (radians) or wider bound nothing
+_OPEN_GAP = 1e-3
 # vertices near h tried as the one strictly inside a bridge's diametral circle
 _NEAREST_WITNESSES = 16
 # islands up to this many vertices are spliced element by element (no numpy calls)
@@ -674,14 +676,15 @@ class _Bridger:
 
     def _disk_never_empty_beyond(self, h: int) -> tuple[float, np.ndarray]:
         """A distance beyond which no vertex v has an empty diametral circle h-v (inf if none
-        is found), and the vertices near h it comes from: where the vertices w within rho of
-        h leave no angular gap of 90 degrees around it, every v farther than sqrt(2) rho lies
-        within 45 degrees of some w, so (w - h) . (v - h) > |w - h| rho >= |w - h|^2: w is
-        strictly inside that circle. Margins cover the float angles and distances."""
+        is found), and the vertices near h it comes from (:func:`_witness_bound`): the least
+        of the bounds of up to ``_GAP_ROUNDS`` neighbourhoods of h, each twice as wide, until
+        one leaves no angular gap of 90 degrees around h (a wider one then gains little).
+        Margins cover the float angles and distances."""
         x, y = self.x, self.y
         hx, hy = float(x[h]), float(y[h])
         grid = self.points
         radius = 2.0 * max(grid.size_x, grid.size_y)
+        best, witnesses = math.inf, self.point_ids[:0]
         for _ in range(_GAP_ROUNDS):
             found = self.point_ids[
                 np.unique(grid.query_box(hx - radius, hy - radius, hx + radius, hy + radius))
@@ -689,14 +692,14 @@ class _Bridger:
             dx, dy = x[found] - hx, y[found] - hy
             d2 = dx * dx + dy * dy
             near = (d2 > 0) & (d2 <= radius * radius)
-            if np.count_nonzero(near) >= 4:
-                angles = np.sort(np.arctan2(dy[near], dx[near]))
-                gaps = np.diff(np.append(angles, angles[0] + 2.0 * math.pi))
-                if float(gaps.max()) < 0.5 * math.pi - _GAP_MARGIN:
-                    reach = math.sqrt(2.0 * float(d2[near].max())) * (1.0 + _GAP_MARGIN)
-                    return reach, found[near]
+            if np.count_nonzero(near) >= 3:
+                reach, closed = _witness_bound(dx[near], dy[near])
+                if reach < best:
+                    best, witnesses = reach, found[near]
+                if closed:
+                    break
             radius *= 2.0
-        return math.inf, found[:0]
+        return best, witnesses
 
     def _no_empty_disk(self, h: int, reach: float, near: np.ndarray) -> bool:
         """Every vertex of the sequence within ``reach`` of h has a vertex of ``near``
@@ -1031,3 +1034,46 @@ def remove_spikes(
     if len(stack) == len(seq):
         return seq
     return seq[np.asarray(stack, dtype=np.int64)]
+
+
+def _witness_bound(dx: np.ndarray, dy: np.ndarray) -> tuple[float, bool]:
+    """For witnesses w at offsets (dx, dy) from h (none at h): a distance beyond which every
+    point v has one of them strictly inside its diametral circle with h (inf where they leave
+    an angular gap of nearly 180 degrees or more around h), and whether they leave no gap of
+    90 degrees.
+
+    w lies strictly inside the circle iff (w - h) . (v - h) > |w - h|^2: v beyond the line
+    through w square to h-w. Between two witnesses next to each other around h (directions
+    u_i, u_j at angle g < 180 degrees, distances d_i, d_j) the points inside neither half
+    plane lie in a convex corner: its far point is where the two lines meet (if that lies
+    between the directions) or on one of the two rays. Where no gap reaches 90 degrees,
+    every v farther than sqrt(2) max d also lies within 45 degrees of some w, which bounds
+    it too. Margins cover the float angles and distances."""
+    angles = np.arctan2(dy, dx)
+    order = np.argsort(angles, kind="stable")
+    a = angles[order]
+    d = np.sqrt(dx * dx + dy * dy)[order]
+    gaps = np.diff(np.append(a, a[0] + 2.0 * math.pi))
+    widest = float(gaps.max())
+    closed = widest < 0.5 * math.pi - _GAP_MARGIN
+    if widest >= math.pi - _OPEN_GAP:
+        return math.inf, False
+    di, dj = d, np.roll(d, -1)
+    c, half = np.cos(gaps), np.sin(0.5 * gaps)
+    # the far end of each ray (the other line, where it meets the ray, may come first)
+    with np.errstate(divide="ignore"):
+        ti = np.where(c > 0, np.minimum(di, dj / c), di)
+        tj = np.where(c > 0, np.minimum(dj, di / c), dj)
+    far = np.maximum(ti, tj)
+    # the lines' meeting point, where it lies between the two directions (loosely): its
+    # squared distance (d_i^2 + d_j^2 - 2 d_i d_j cos g) / sin^2 g without cancellation
+    loose = 1.0 - _GAP_MARGIN
+    between = (di >= c * dj * loose) & (dj >= c * di * loose) & (gaps > _GAP_MARGIN)
+    if between.any():
+        g, p, q, h2 = gaps[between], di[between], dj[between], half[between]
+        meet = np.sqrt((p - q) ** 2 + 4.0 * p * q * h2 * h2) / np.sin(g)
+        far[between] = np.maximum(far[between], meet)
+    bound = float(far.max())
+    if closed:
+        bound = min(bound, math.sqrt(2.0) * float(d.max()))
+    return bound * (1.0 + _GAP_MARGIN), closed

@@ -1,16 +1,19 @@
 """Rule delaunay's bridges skip the island vertices whose bridge surely has a vertex inside
-its diametral circle (the vertices around them leave no gap of 90 degrees); the sequences
-are those of the search without that shortcut, also on grids full of cocircular points."""
+its diametral circle, and stop each search where every farther target would have one (the
+vertices around h bound the targets whose circle may be empty); the sequences are those of
+the search without that shortcut, also on grids full of cocircular points and on clusters
+of islands beside open ground."""
 
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
 
 import bsp_triangulate.geometry.bridges as bridges
-from bsp_triangulate.geometry.bridges import bridge_islands
+from bsp_triangulate.geometry.bridges import _witness_bound, bridge_islands
 from bsp_triangulate.geometry.rings import normalise_rings, prepare
 from tests.core.geometry.test_bridge_plan import scattered_squares, square
 
@@ -56,12 +59,72 @@ def test_grid_of_square_islands_with_cocircular_corners_gets_the_same_delaunay_b
     assert np.array_equal(delaunay_bridged(rings, True, monkeypatch), expected)
 
 
-def test_a_vertex_ringed_by_close_neighbours_has_a_bound_and_a_wide_open_one_has_none():
+def test_a_vertex_ringed_by_close_neighbours_has_a_near_bound_and_a_wide_open_one_a_far_one():
     # h at the centre of a small octagon of vertices; far vertices elsewhere
     octagon = [(math.cos(a), math.sin(a)) for a in np.linspace(0.0, 2 * math.pi, 8, endpoint=False)]
     x = np.array([0.0, *(p[0] for p in octagon), 50.0, 60.0, 60.0])
     y = np.array([0.0, *(p[1] for p in octagon), 50.0, 50.0, 60.0])
     bridger = bridges._Bridger(x, y, [np.arange(1, 9), np.array([9, 10, 11])])
     reach, near = bridger._disk_never_empty_beyond(0)
-    assert math.sqrt(2.0) <= reach < 1.5 and len(near) == 8
-    assert bridger._disk_never_empty_beyond(9)[0] == math.inf  # nothing around on one side
+    # the octagon the eight leave: its corners are 1 / cos(22.5 degrees) away
+    assert 1.0 / math.cos(math.pi / 8.0) <= reach < 1.09 and len(near) == 8
+    # nearly nothing around on one side: a bound far beyond its neighbours
+    assert bridger._disk_never_empty_beyond(9)[0] > 1000.0
+
+
+def clustered_squares(seed: int, clusters: int = 4, per_cluster: int = 30) -> list[np.ndarray]:
+    """Small square islands packed in a few clusters, with open ground between them and the
+    shell: the searches from a cluster's edge look far across it."""
+    rng = np.random.default_rng(seed)
+    islands: list[np.ndarray] = []
+    for _ in range(clusters):
+        cx, cy = rng.uniform(15.0, 85.0, 2)
+        placed = 0
+        while placed < per_cluster:
+            x, y = cx + rng.uniform(-8.0, 8.0), cy + rng.uniform(-8.0, 8.0)
+            side = rng.uniform(0.2, 0.8)
+            if not 2.0 < x < 97.0 or not 2.0 < y < 97.0:
+                continue
+            if all(abs(x - i[0, 0]) > 1.2 or abs(y - i[0, 1]) > 1.2 for i in islands):
+                islands.append(square(x, y, side))
+                placed += 1
+    return [square(0.0, 0.0, 100.0), *islands]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_clustered_islands_beside_open_ground_get_the_same_delaunay_bridges(
+    seed: int, monkeypatch: pytest.MonkeyPatch
+):
+    rings = clustered_squares(seed)
+    expected = delaunay_bridged(rings, False, monkeypatch)
+    assert np.array_equal(delaunay_bridged(rings, True, monkeypatch), expected)
+
+
+def test_witnesses_around_h_bound_the_targets_with_an_empty_circle():
+    # four at distance 1 on the axes: the corner of the square they leave is sqrt(2) away
+    bound, closed = _witness_bound(np.array([1.0, 0.0, -1.0, 0.0]), np.array([0.0, 1.0, 0.0, -1.0]))
+    assert not closed and math.sqrt(2.0) <= bound < 1.415
+    # three at 120 degrees: an equilateral triangle of inradius 1, circumradius 2
+    angles = np.radians([90.0, 210.0, 330.0])
+    bound, _ = _witness_bound(np.cos(angles), np.sin(angles))
+    assert 2.0 <= bound < 2.001
+    # all on one side of h: targets on the other side may be as far as they like
+    assert _witness_bound(np.array([1.0, 1.0, 1.0]), np.array([-1.0, 0.0, 1.0]))[0] == math.inf
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_every_point_beyond_the_bound_has_a_witness_inside_its_circle(seed: int):
+    rng = np.random.default_rng(seed)
+    count = int(rng.integers(3, 12))
+    dx, dy = rng.normal(size=count), rng.normal(size=count)
+    bound, _ = _witness_bound(dx, dy)
+    if bound == math.inf:
+        return
+    for angle in rng.uniform(0.0, 2.0 * math.pi, 200):
+        r = bound * float(rng.uniform(1.0, 3.0))
+        vx, vy = Fraction(r * math.cos(angle)), Fraction(r * math.sin(angle))
+        # w strictly inside the circle on h-v (h at the origin): w . (w - v) < 0, exactly
+        assert any(
+            Fraction(wx) * (Fraction(wx) - vx) + Fraction(wy) * (Fraction(wy) - vy) < 0
+            for wx, wy in zip(dx.tolist(), dy.tolist())
+        )
