@@ -286,6 +286,12 @@ def nearest_vertices(
     return VertexGrid(x, y, ids).nearest(queries)[0]
 
 
+# VertexGrid: vertices per occupied cell above which the cells are made finer, and the cells
+# per vertex they may reach
+_PER_CELL = 8
+_CELLS_PER_VERTEX = 16
+
+
 class VertexGrid:
     """A uniform grid over the vertex ids ``ids``, built once for many nearest searches."""
 
@@ -303,11 +309,25 @@ class VertexGrid:
             return
         self.empty = False
         cell = max(np.sqrt(width * height / len(ids)), extent / len(ids), extent / 4096)
-        nx = int(width // cell) + 1
-        ny = int(height // cell) + 1
-        col = np.minimum((vx - x0) // cell, nx - 1).astype(np.int64)
-        row = np.minimum((vy - y0) // cell, ny - 1).astype(np.int64)
-        key = row * nx + col
+        # reaches (in cells) are those of this first cell size, whatever the cells become:
+        # nearest() covers the grid, or stops at its max_reach, at the same distances
+        self.finer = 1
+        self.cover_reach = max(int(width // cell) + 1, int(height // cell) + 1)
+        while True:
+            nx = int(width // cell) + 1
+            ny = int(height // cell) + 1
+            col = np.minimum((vx - x0) // cell, nx - 1).astype(np.int64)
+            row = np.minimum((vy - y0) // cell, ny - 1).astype(np.int64)
+            key = row * nx + col
+            # clustered vertices (a town in a wide frame): where the occupied cells hold
+            # many, cells of half the size (the searches from dense ones end sooner), within
+            # a bound on the cells per vertex
+            finer = 4 * nx * ny <= _CELLS_PER_VERTEX * len(ids) and cell / 2 > extent / 4096
+            if not finer or len(ids) <= _PER_CELL * len(np.unique(key)):
+                break
+            cell /= 2
+            self.finer *= 2
+        self.cover_reach *= self.finer
         order = np.argsort(key, kind="stable")
         self.sorted_ids = ids[order]
         self.starts = np.searchsorted(key[order], np.arange(nx * ny + 1))
@@ -364,7 +384,8 @@ class VertexGrid:
         -1 has no such vertex nearer (float) than ``bound`` (inf: none at all).
 
         Each query scans the block of cells around its own, the block (``first_reach`` cells
-        around) doubling up to ``max_reach`` cells until it holds the nearest vertex's circle.
+        around) doubling until it holds the nearest vertex's circle, or reaches ``max_reach``
+        cells of the grid's first cell size (see ``finer``).
         """
         result = np.full(len(queries), -1, dtype=np.int64)
         if len(queries) == 0 or self.empty:
@@ -378,7 +399,7 @@ class VertexGrid:
         todo = np.arange(len(queries), dtype=np.int64)
         reach = first_reach
         while len(todo):
-            covers = reach >= max(nx, ny)
+            covers = reach >= self.cover_reach
             lo_col = np.maximum(qcol[todo] - reach, 0)
             hi_col = np.minimum(qcol[todo] + reach, nx - 1)
             lo_row = np.maximum(qrow[todo] - reach, 0)
@@ -411,7 +432,7 @@ class VertexGrid:
             if covers:
                 return result, np.inf
             todo = todo[~done]
-            if max_reach is not None and reach >= max_reach and len(todo):
+            if max_reach is not None and reach >= max_reach * self.finer and len(todo):
                 return result, safe / (1 + _TIE_MARGIN)
             reach *= 2
         return result, np.inf

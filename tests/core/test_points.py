@@ -413,3 +413,27 @@ def test_nearest_vertices_on_near_tied_cell_centres(
         others = [v for v in range(len(xy)) if v != query]
         d2 = [exact_sq_distance(x[v], y[v], x[query], y[query]) for v in others]
         assert near == min(zip(d2, others))[1]
+
+
+@pytest.mark.parametrize("reach", [1, 2, 8, None])
+def test_nearest_vertices_in_a_town_in_a_wide_frame_reach_as_far_with_finer_cells(
+    reach: int | None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # a dense cluster of small rings and a few far vertices: the grid's cells are made finer
+    # where its occupied cells hold many, and a search stops at the same distance as before
+    rng = np.random.default_rng(3)
+    town = rng.uniform(0.0, 40.0, (3000, 2))
+    far = np.array([[5000.0, 0.0], [0.0, 3000.0], [5000.0, 3000.0], [2500.0, 1500.0]])
+    xy = np.concatenate([town, far])
+    x, y = xy[:, 0], xy[:, 1]
+    labels = np.arange(len(xy), dtype=np.int64) // 5  # rings of five vertices
+    ids = np.arange(len(xy), dtype=np.int64)
+    queries = np.arange(0, len(xy), 7, dtype=np.int64)
+    grid = points_module.VertexGrid(x, y, ids)
+    assert grid.finer > 1
+    got, bound = grid.nearest(queries, labels, max_reach=reach)
+    monkeypatch.setattr(points_module, "_PER_CELL", 10**9)
+    plain = points_module.VertexGrid(x, y, ids)
+    assert plain.finer == 1
+    expected, expected_bound = plain.nearest(queries, labels, max_reach=reach)
+    assert np.array_equal(got, expected) and bound == expected_bound
