@@ -7,6 +7,7 @@ y-range holds the point, with the exact signs of :mod:`.predicates`.
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 from typing import Protocol
 
@@ -290,6 +291,7 @@ def nearest_vertices(
 # per vertex they may reach
 _PER_CELL = 8
 _CELLS_PER_VERTEX = 16
+_MOST_FINER = 1 << 12
 
 
 class VertexGrid:
@@ -323,6 +325,7 @@ class VertexGrid:
             # many, cells of half the size (the searches from dense ones end sooner), within
             # a bound on the cells per vertex
             finer = 4 * nx * ny <= _CELLS_PER_VERTEX * len(ids) and cell / 2 > extent / 4096
+            finer = finer and math.isfinite(cell) and self.finer < _MOST_FINER
             if not finer or len(ids) <= _PER_CELL * len(np.unique(key)):
                 break
             cell /= 2
