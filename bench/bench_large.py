@@ -6,8 +6,10 @@ with an island), random radial polygons of 260-600 vertices (every radius +-45 %
 polygon of 100,000 vertices with 1,000 square islands, a long thin "river" shell with
 3,000 islands of varied size packed close to each other and to the shell, and a layer of 40
 wavy polygons of 2,000 vertices with 20 square islands each (too large for the batch path,
-their trees run side by side); plus the growth from
-the wavy polygon of 10,000 vertices and 100 islands to the one of 100,000 and 1,000.
+their trees run side by side); real data from ../shared/data (``real_data.py``): the ground
+around Swellendam's 4,708 buildings, every building an island, and the town's urban areas
+layer; plus the growth from the wavy polygon of 10,000 vertices and 100 islands to the one
+of 100,000 and 1,000.
 
 Ours is ``triangulate_many`` on lists of rings (``invalid="as_given"``, as earcut; z from the
 benchmark DEM's height function, so that rule elevation has something to choose by, draped:
@@ -35,6 +37,7 @@ from common import (
     within,
 )
 from generate import dem_height, mid_size_polygons, radial_polygons, river_polygon, wavy_polygon
+from real_data import ground_around_buildings, urban_areas
 
 from bsp_triangulate import Triangulation, triangulate_many
 
@@ -69,6 +72,15 @@ def cases(quick: bool) -> list[tuple[str, list[Rings]]]:
     if (FIXTURES / "water-huge3.json").exists():
         found.append(("earcut water-huge3", [fixture("water-huge3")]))
         found.append(("earcut water fixtures (7 others)", [fixture(name) for name in WATER]))
+    ground = ground_around_buildings()
+    if ground is not None:
+        name = f"ground around Swellendam's buildings, {len(ground) - 1:,} islands (real data)"
+        found.append((name, [ground]))
+    urban = urban_areas()
+    if urban is not None and not quick:
+        islands = sum(len(rings) - 1 for rings in urban)
+        name = f"Swellendam's urban areas, {len(urban)} polygons, {islands} islands (real data)"
+        found.append((name, urban))
     mid = 200 if quick else 1_000
     found.append((f"{mid:,} concave polygons of 260-600 vertices", mid_size_polygons(mid)))
     radial = 60 if quick else 300

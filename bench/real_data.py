@@ -1,0 +1,76 @@
+"""Real polygons with many islands, made from the Swellendam training data in ../shared/data.
+
+- :func:`ground_around_buildings`: one polygon, the ground around the town's buildings (the
+  convex hull of the 4,708 footprints, 50 m wider, with every footprint an island; footprints
+  that touch are merged into one), in EPSG:32733. A ring of touching buildings around a
+  courtyard cuts the ground's interior in two: the polygon is invalid, taken as given.
+- :func:`urban_areas`: the 550 polygons of the urban areas layer (434 islands, many of them
+  touching their shell or each other, as they come from a national data set).
+
+Both return None where the shared data is missing.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import shapely
+from common import SHARED_DATA
+from osgeo import ogr, osr
+
+SWELLENDAM = SHARED_DATA / "swellendam"
+GROUND_MARGIN = 50.0  # metres around the buildings' convex hull
+
+Rings = list[np.ndarray]
+
+ogr.UseExceptions()
+
+
+def _geometries(path: Path, layer_name: str | None = None, epsg: int | None = None) -> list:
+    """The layer's geometries as shapely ones, in 2D, reprojected to ``epsg`` if given."""
+    dataset = ogr.Open(str(path))
+    layer = dataset.GetLayerByName(layer_name) if layer_name else dataset.GetLayer(0)
+    transform = None
+    if epsg is not None:
+        target = osr.SpatialReference()
+        target.ImportFromEPSG(epsg)
+        target.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+        source = layer.GetSpatialRef()
+        source.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+        transform = osr.CoordinateTransformation(source, target)
+    wkbs = []
+    for feature in layer:
+        geometry = feature.GetGeometryRef()
+        if geometry is None:
+            continue
+        geometry = geometry.Clone()
+        if transform is not None:
+            geometry.Transform(transform)
+        wkbs.append(bytes(geometry.ExportToIsoWkb()))
+    return list(shapely.force_2d(shapely.from_wkb(wkbs)))
+
+
+def _rings(polygon: shapely.Polygon) -> Rings:
+    return [shapely.get_coordinates(ring)[:-1] for ring in (polygon.exterior, *polygon.interiors)]
+
+
+def ground_around_buildings() -> Rings | None:
+    """The ground around Swellendam's buildings, every building an island (see above)."""
+    path = SWELLENDAM / "training_data.gpkg"
+    if not path.exists():
+        return None
+    buildings = _geometries(path, "buildings", 32733)
+    merged = shapely.union_all(shapely.make_valid(np.array(buildings, dtype=object)))
+    islands = [p for p in shapely.get_parts(merged) if p.geom_type == "Polygon"]
+    shell = shapely.convex_hull(merged).buffer(GROUND_MARGIN)
+    return [_rings(shell)[0], *(_rings(island)[0] for island in islands)]
+
+
+def urban_areas() -> list[Rings] | None:
+    """Every polygon of Swellendam's urban areas layer, with its islands."""
+    path = SWELLENDAM / "urban_33S.shp"
+    if not path.exists():
+        return None
+    parts = [p for g in _geometries(path) for p in shapely.get_parts(g)]
+    return [_rings(p) for p in parts if p.geom_type == "Polygon"]
