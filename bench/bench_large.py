@@ -7,9 +7,10 @@ polygon of 100,000 vertices with 1,000 square islands, a long thin "river" shell
 3,000 islands of varied size packed close to each other and to the shell, and a layer of 40
 wavy polygons of 2,000 vertices with 20 square islands each (too large for the batch path,
 their trees run side by side); real data from ../shared/data (``real_data.py``): the ground
-around Swellendam's 4,708 buildings, every building an island, and the town's urban areas
-layer; plus the growth from the wavy polygon of 10,000 vertices and 100 islands to the one
-of 100,000 and 1,000.
+around Swellendam's 4,708 buildings, every building an island, its road network 10 m wide
+(the blocks between the roads are its islands) and the town's urban areas layer; plus the
+growth from the wavy polygon of 10,000 vertices and 100 islands to the one of 100,000 and
+1,000.
 
 Ours is ``triangulate_many`` on lists of rings (``invalid="as_given"``, as earcut; z from the
 benchmark DEM's height function, so that rule elevation has something to choose by, draped:
@@ -37,7 +38,7 @@ from common import (
     within,
 )
 from generate import dem_height, mid_size_polygons, radial_polygons, river_polygon, wavy_polygon
-from real_data import ground_around_buildings, urban_areas
+from real_data import ground_around_buildings, road_network, urban_areas
 
 from bsp_triangulate import Triangulation, triangulate_many
 
@@ -76,6 +77,10 @@ def cases(quick: bool) -> list[tuple[str, list[Rings]]]:
     if ground is not None:
         name = f"ground around Swellendam's buildings, {len(ground) - 1:,} islands (real data)"
         found.append((name, [ground]))
+    roads = road_network()
+    if roads is not None:
+        name = f"Swellendam's roads 10 m wide, {len(roads) - 1} blocks as islands (real data)"
+        found.append((name, [roads]))
     urban = urban_areas()
     if urban is not None and not quick:
         islands = sum(len(rings) - 1 for rings in urban)

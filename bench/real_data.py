@@ -6,6 +6,8 @@
   courtyard cuts the ground's interior in two: the polygon is invalid, taken as given.
 - :func:`urban_areas`: the 550 polygons of the urban areas layer (434 islands, many of them
   touching their shell or each other, as they come from a national data set).
+- :func:`road_network`: the roads buffered 10 m and merged, the largest part: one polygon of
+  long thin corridors whose islands are the blocks between the roads.
 
 Both return None where the shared data is missing.
 """
@@ -21,6 +23,7 @@ from osgeo import ogr, osr
 
 SWELLENDAM = SHARED_DATA / "swellendam"
 GROUND_MARGIN = 50.0  # metres around the buildings' convex hull
+ROAD_WIDTH = 10.0  # metres on either side of a road's centre line
 
 Rings = list[np.ndarray]
 
@@ -74,3 +77,14 @@ def urban_areas() -> list[Rings] | None:
         return None
     parts = [p for g in _geometries(path) for p in shapely.get_parts(g)]
     return [_rings(p) for p in parts if p.geom_type == "Polygon"]
+
+
+def road_network() -> Rings | None:
+    """Swellendam's roads buffered ``ROAD_WIDTH`` and merged: the part with the most islands."""
+    path = SWELLENDAM / "roads_33S.shp"
+    if not path.exists():
+        return None
+    roads = np.array(_geometries(path), dtype=object)
+    merged = shapely.union_all(shapely.buffer(roads, ROAD_WIDTH, quad_segs=2))
+    parts = [p for p in shapely.get_parts(merged) if p.geom_type == "Polygon"]
+    return _rings(max(parts, key=lambda part: len(part.interiors)))
