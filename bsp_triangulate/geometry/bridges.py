@@ -30,6 +30,8 @@ _GAP_ROUNDS = 3
 _GAP_MARGIN = 1e-6
 # witnesses that leave a gap this close to 180 degrees (radians) or wider bound nothing
 _OPEN_GAP = 1e-3
+# ... and witnesses nearer than this to h (subnormal products) are left out
+_LEAST_OFFSET = 2.0**-960
 # vertices near h tried as the one strictly inside a bridge's diametral circle
 _NEAREST_WITNESSES = 16
 # islands up to this many vertices are spliced element by element (no numpy calls)
@@ -663,7 +665,8 @@ class _Bridger:
         wx, wy = x[found], y[found]
         dot = (wx - hx) * (wx - vx) + (wy - hy) * (wy - vy)
         scale = np.abs(wx - hx) * np.abs(wx - vx) + np.abs(wy - hy) * np.abs(wy - vy)
-        unsure = np.abs(dot) <= 8.0 * 2.0**-53 * scale + 1e-300
+        # not surely beyond the error bound (nor an overflow's nan): decided exactly
+        unsure = ~(np.abs(dot) > 8.0 * 2.0**-53 * scale + 1e-300)
         if (dot[~unsure] < 0).any():
             return False
         for w in found[unsure].tolist():
@@ -1049,15 +1052,24 @@ def _witness_bound(dx: np.ndarray, dy: np.ndarray) -> tuple[float, bool]:
     between the directions) or on one of the two rays. Where no gap reaches 90 degrees,
     every v farther than sqrt(2) max d also lies within 45 degrees of some w, which bounds
     it too. Margins cover the float angles and distances."""
+    # witnesses nearer than the normal floats' range (imprecise angles and distances) left
+    # out: fewer witnesses only widen the corners
+    normal = np.hypot(dx, dy) >= _LEAST_OFFSET
+    if len(normal) - np.count_nonzero(normal):
+        dx, dy = dx[normal], dy[normal]
+        if len(dx) < 3:
+            return math.inf, False
     angles = np.arctan2(dy, dx)
     order = np.argsort(angles, kind="stable")
     a = angles[order]
-    d = np.sqrt(dx * dx + dy * dy)[order]
+    d = np.hypot(dx, dy)[order]
     gaps = np.diff(np.append(a, a[0] + 2.0 * math.pi))
     widest = float(gaps.max())
     closed = widest < 0.5 * math.pi - _GAP_MARGIN
-    if widest >= math.pi - _OPEN_GAP:
+    scale = float(d.max())
+    if widest >= math.pi - _OPEN_GAP or not 0.0 < scale < math.inf:
         return math.inf, False
+    d = d / scale  # no overflow or loss to subnormals in the products below
     di, dj = d, np.roll(d, -1)
     c, half = np.cos(gaps), np.sin(0.5 * gaps)
     # the far end of each ray (the other line, where it meets the ray, may come first)
@@ -1075,5 +1087,8 @@ def _witness_bound(dx: np.ndarray, dy: np.ndarray) -> tuple[float, bool]:
         far[between] = np.maximum(far[between], meet)
     bound = float(far.max())
     if closed:
-        bound = min(bound, math.sqrt(2.0) * float(d.max()))
-    return bound * (1.0 + _GAP_MARGIN), closed
+        bound = min(bound, math.sqrt(2.0))
+    bound *= scale * (1.0 + _GAP_MARGIN)
+    if not _LEAST_OFFSET <= bound < math.inf:  # nan, or so small that rounding may spoil it
+        return math.inf, closed
+    return bound, closed

@@ -112,11 +112,13 @@ def test_witnesses_around_h_bound_the_targets_with_an_empty_circle():
     assert _witness_bound(np.array([1.0, 1.0, 1.0]), np.array([-1.0, 0.0, 1.0]))[0] == math.inf
 
 
+@pytest.mark.parametrize("scale", [2.0**-530, 1.0, 2.0**520])
 @pytest.mark.parametrize("seed", range(20))
-def test_every_point_beyond_the_bound_has_a_witness_inside_its_circle(seed: int):
+def test_every_point_beyond_the_bound_has_a_witness_inside_its_circle(seed: int, scale: float):
+    # also where the squares of the offsets would be subnormal or overflow
     rng = np.random.default_rng(seed)
     count = int(rng.integers(3, 12))
-    dx, dy = rng.normal(size=count), rng.normal(size=count)
+    dx, dy = rng.normal(size=count) * scale, rng.normal(size=count) * scale
     bound, _ = _witness_bound(dx, dy)
     if bound == math.inf:
         return
@@ -128,3 +130,21 @@ def test_every_point_beyond_the_bound_has_a_witness_inside_its_circle(seed: int)
             Fraction(wx) * (Fraction(wx) - vx) + Fraction(wy) * (Fraction(wy) - vy) < 0
             for wx, wy in zip(dx.tolist(), dy.tolist())
         )
+
+
+def test_witnesses_in_the_subnormal_range_bound_nothing():
+    # rounding in the last products there exceeds any margin: no bound rather than a wrong one
+    s = 2.0**-1060
+    bound, _ = _witness_bound(np.array([s, 0.0, -s, 0.0]), np.array([0.0, s, 0.0, -s]))
+    assert bound == math.inf
+
+
+def test_a_vertex_inside_a_huge_circle_spoils_it_where_the_float_products_overflow():
+    # (w - h) . (w - v) overflows to nan in floats; exactly, w lies strictly inside
+    x = np.array([0.0, 0.0, 2e154, 3e201, 3e201])
+    y = np.array([0.0, 1e201, 1e200, 0.0, 1e201])
+    bridger = bridges._Bridger(x, y, [np.array([0, 3, 4, 1]), np.array([2])])
+    w = (Fraction(2e154), Fraction(1e200))
+    assert w[0] * (w[0] - 0) + w[1] * (w[1] - Fraction(1e201)) < 0
+    with np.errstate(over="ignore", invalid="ignore"):  # as the engine runs
+        assert not bridger.diametral_disk_empty(0, 1)
