@@ -33,7 +33,8 @@ import mapbox_earcut
 import numpy as np
 import shapely
 from common import SHARED_DATA, BudgetExceededError, Row, markdown_table, timed, within
-from osgeo import gdal, ogr, osr
+from osgeo import gdal, ogr
+from real_data import layer_geometries
 
 from bsp_triangulate import triangulate_many
 from bsp_triangulate.terrain.densify import densify_rings
@@ -122,31 +123,7 @@ def read_polygons(
     path: Path, buffer: float = 0.0, limit: int | None = None, clip: shapely.Polygon | None = None
 ) -> list:
     """Valid polygons of a layer in EPSG:32733 (lines buffered, clipped), multi-parts split."""
-    dataset = ogr.Open(str(path))
-    layer = dataset.GetLayer(0)
-    target = osr.SpatialReference()
-    target.ImportFromEPSG(32733)
-    target.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    source = layer.GetSpatialRef()
-    source.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    transform = None if source.IsSame(target) else osr.CoordinateTransformation(source, target)
-    geometries = []
-    # a corrupt record must not stop the layer (GDAL reports it and returns no geometry)
-    raised = ogr.GetUseExceptions()
-    ogr.DontUseExceptions()
-    try:
-        for feature in layer:
-            geometry = feature.GetGeometryRef()
-            if geometry is None:
-                continue
-            geometry = geometry.Clone()
-            if transform is not None:
-                geometry.Transform(transform)
-            geometries.append(shapely.from_wkb(bytes(geometry.ExportToIsoWkb())))
-    finally:
-        if raised:
-            ogr.UseExceptions()
-    geometries = shapely.force_2d(np.array(geometries))
+    geometries = layer_geometries(path)
     if buffer:
         geometries = shapely.buffer(geometries, buffer, quad_segs=4)
     if clip is not None:

@@ -9,7 +9,7 @@
 - :func:`road_network`: the roads buffered 10 m and merged, the largest part: one polygon of
   long thin corridors whose islands are the blocks between the roads.
 
-Both return None where the shared data is missing.
+Each returns None where the shared data is missing.
 """
 
 from __future__ import annotations
@@ -27,31 +27,36 @@ ROAD_WIDTH = 10.0  # metres on either side of a road's centre line
 
 Rings = list[np.ndarray]
 
-ogr.UseExceptions()
+EPSG = 32733  # the layers' own CRS, where the others are reprojected to
 
 
-def _geometries(path: Path, layer_name: str | None = None, epsg: int | None = None) -> list:
-    """The layer's geometries as shapely ones, in 2D, reprojected to ``epsg`` if given."""
+def layer_geometries(path: Path, layer_name: str | None = None) -> np.ndarray:
+    """The geometries of the layer (by name, or the first) as 2D shapely ones in ``EPSG``;
+    a corrupt record is left out (GDAL reports it and returns no geometry)."""
     dataset = ogr.Open(str(path))
     layer = dataset.GetLayerByName(layer_name) if layer_name else dataset.GetLayer(0)
-    transform = None
-    if epsg is not None:
-        target = osr.SpatialReference()
-        target.ImportFromEPSG(epsg)
-        target.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-        source = layer.GetSpatialRef()
-        source.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-        transform = osr.CoordinateTransformation(source, target)
-    wkbs = []
-    for feature in layer:
-        geometry = feature.GetGeometryRef()
-        if geometry is None:
-            continue
-        geometry = geometry.Clone()
-        if transform is not None:
-            geometry.Transform(transform)
-        wkbs.append(bytes(geometry.ExportToIsoWkb()))
-    return list(shapely.force_2d(shapely.from_wkb(wkbs)))
+    target = osr.SpatialReference()
+    target.ImportFromEPSG(EPSG)
+    target.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    source = layer.GetSpatialRef()
+    source.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    transform = None if source.IsSame(target) else osr.CoordinateTransformation(source, target)
+    geometries = []
+    raised = ogr.GetUseExceptions()
+    ogr.DontUseExceptions()
+    try:
+        for feature in layer:
+            geometry = feature.GetGeometryRef()
+            if geometry is None:
+                continue
+            geometry = geometry.Clone()
+            if transform is not None:
+                geometry.Transform(transform)
+            geometries.append(shapely.from_wkb(bytes(geometry.ExportToIsoWkb())))
+    finally:
+        if raised:
+            ogr.UseExceptions()
+    return shapely.force_2d(np.array(geometries))
 
 
 def _rings(polygon: shapely.Polygon) -> Rings:
@@ -63,8 +68,8 @@ def ground_around_buildings() -> Rings | None:
     path = SWELLENDAM / "training_data.gpkg"
     if not path.exists():
         return None
-    buildings = _geometries(path, "buildings", 32733)
-    merged = shapely.union_all(shapely.make_valid(np.array(buildings, dtype=object)))
+    buildings = layer_geometries(path, "buildings")
+    merged = shapely.union_all(shapely.make_valid(buildings))
     islands = [p for p in shapely.get_parts(merged) if p.geom_type == "Polygon"]
     shell = shapely.convex_hull(merged).buffer(GROUND_MARGIN)
     return [_rings(shell)[0], *(_rings(island)[0] for island in islands)]
@@ -75,7 +80,7 @@ def urban_areas() -> list[Rings] | None:
     path = SWELLENDAM / "urban_33S.shp"
     if not path.exists():
         return None
-    parts = [p for g in _geometries(path) for p in shapely.get_parts(g)]
+    parts = shapely.get_parts(layer_geometries(path))
     return [_rings(p) for p in parts if p.geom_type == "Polygon"]
 
 
@@ -84,7 +89,7 @@ def road_network() -> Rings | None:
     path = SWELLENDAM / "roads_33S.shp"
     if not path.exists():
         return None
-    roads = np.array(_geometries(path), dtype=object)
+    roads = layer_geometries(path)
     merged = shapely.union_all(shapely.buffer(roads, ROAD_WIDTH, quad_segs=2))
     parts = [p for p in shapely.get_parts(merged) if p.geom_type == "Polygon"]
     return _rings(max(parts, key=lambda part: len(part.interiors)))
