@@ -1054,15 +1054,16 @@ def _witness_bound(dx: np.ndarray, dy: np.ndarray) -> tuple[float, bool]:
     it too. Margins cover the float angles and distances."""
     # witnesses nearer than the normal floats' range (imprecise angles and distances) left
     # out: fewer witnesses only widen the corners
-    normal = np.hypot(dx, dy) >= _LEAST_OFFSET
+    distance = np.hypot(dx, dy)
+    normal = distance >= _LEAST_OFFSET
     if len(normal) - np.count_nonzero(normal):
-        dx, dy = dx[normal], dy[normal]
+        dx, dy, distance = dx[normal], dy[normal], distance[normal]
         if len(dx) < 3:
             return math.inf, False
     angles = np.arctan2(dy, dx)
     order = np.argsort(angles, kind="stable")
     a = angles[order]
-    d = np.hypot(dx, dy)[order]
+    d = distance[order]
     gaps = np.diff(np.append(a, a[0] + 2.0 * math.pi))
     widest = float(gaps.max())
     closed = widest < 0.5 * math.pi - _GAP_MARGIN
