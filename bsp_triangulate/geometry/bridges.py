@@ -34,6 +34,9 @@ _OPEN_GAP = 1e-3
 _LEAST_OFFSET = 2.0**-960
 # vertices near h tried as the one strictly inside a bridge's diametral circle
 _NEAREST_WITNESSES = 16
+# vertices within a witness bound whose diametral circles are tested exactly before a
+# search (find_delaunay_bridge)
+_FEW_DISKS = 64
 # islands up to this many vertices are spliced element by element (no numpy calls)
 _FEW = 32
 # bridge candidates tested together after the nearest: doubling from the first block size up to
@@ -174,6 +177,9 @@ class _Bridger:
         # per island vertex whose whole search found no valid target, the node count then
         # (see find_bridge)
         self._hopeless: dict[int, int] = {}
+        # per island vertex, :meth:`_disk_never_empty_beyond` (it reads every vertex of the
+        # rings, joined or not: it does not change)
+        self._disk_bounds: dict[int, tuple[float, np.ndarray]] = {}
         # the edges (vertex id pairs) that blocked segments to vertex _known_to
         self._known_to = -1
         self._known = np.zeros((0, 2), dtype=np.int64)
@@ -683,6 +689,9 @@ class _Bridger:
         of the bounds of up to ``_GAP_ROUNDS`` neighbourhoods of h, each twice as wide, until
         one leaves no angular gap of 90 degrees around h (a wider one then gains little).
         Margins cover the float angles and distances."""
+        known = self._disk_bounds.get(h)
+        if known is not None:
+            return known
         x, y = self.x, self.y
         hx, hy = float(x[h]), float(y[h])
         grid = self.points
@@ -702,12 +711,14 @@ class _Bridger:
                 if closed:
                     break
             radius *= 2.0
+        self._disk_bounds[h] = best, witnesses
         return best, witnesses
 
-    def _no_empty_disk(self, h: int, reach: float, near: np.ndarray) -> bool:
-        """Every vertex of the sequence within ``reach`` of h has a vertex of ``near``
-        strictly inside its diametral circle with h (float values beyond their error bound):
-        whichever of them is the nearest valid target, its bridge is no Delaunay edge."""
+    def _disks_left(self, h: int, reach: float, near: np.ndarray) -> np.ndarray:
+        """The vertices of the sequence within ``reach`` of h (in x and y), nearest first,
+        whose diametral circle with h holds no vertex of ``near`` found strictly inside
+        (float values beyond their error bound): the others' bridges from h are no Delaunay
+        edges."""
         x, y = self.x, self.y
         hx, hy = float(x[h]), float(y[h])
         found = self.point_ids[
@@ -724,19 +735,29 @@ class _Bridger:
         own = wx * wx + wy * wy
         size = np.abs(wx) * np.abs(vx[:, None]) + np.abs(wy) * np.abs(vy[:, None]) + own
         inside = dot - own > 16.0 * 2.0**-53 * size + 1e-300
-        return bool(inside.any(axis=1).all())
+        kept = np.flatnonzero(~inside.any(axis=1))
+        return found[kept[np.argsort(vx[kept] ** 2 + vy[kept] ** 2, kind="stable")]]
 
     def find_delaunay_bridge(self, island: np.ndarray, h_index: int) -> tuple[int, int, int] | None:
         """(node, vertex id, island index) of a bridge that is a constrained Delaunay edge, or
         None: from the island's vertices in ring order starting at ``h_index`` (its leftmost),
         the first whose nearest valid target (:meth:`find_bridge`) has an empty diametral
-        circle (:meth:`diametral_disk_empty`)."""
+        circle (:meth:`diametral_disk_empty`).
+
+        A vertex h is passed over without a search where no vertex within its witness bound
+        (:meth:`_disk_never_empty_beyond`) has an empty circle with it: its nearest valid
+        target, wherever it is, has none (within the bound the witnesses near h, or for up
+        to ``_FEW_DISKS`` vertices left the exact test, say so; beyond it the bound does)."""
         for step in range(len(island)):
             index = (h_index + step) % len(island)
             h = int(island[index])
             reach, near = self._disk_never_empty_beyond(h)
-            if reach < math.inf and self._no_empty_disk(h, reach, near):
-                continue  # this vertex's bridge, wherever it goes, is no Delaunay edge
+            if reach < math.inf:
+                left = self._disks_left(h, reach, near)
+                if len(left) <= _FEW_DISKS and not any(
+                    self.diametral_disk_empty(h, v) for v in left.tolist()
+                ):
+                    continue  # this vertex's bridge, wherever it goes, is no Delaunay edge
             target = self.find_bridge(island, index, reach)
             if target is not None and self.diametral_disk_empty(h, target[1]):
                 return target[0], target[1], index

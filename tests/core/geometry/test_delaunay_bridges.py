@@ -1,8 +1,9 @@
 """Rule delaunay's bridges skip the island vertices whose bridge surely has a vertex inside
-its diametral circle, and stop each search where every farther target would have one (the
-vertices around h bound the targets whose circle may be empty); the sequences are those of
-the search without that shortcut, also on grids full of cocircular points and on clusters
-of islands beside open ground."""
+its diametral circle (every target within the bound that the vertices around h set has one,
+by those vertices or, for the few they leave, by the exact test), and stop each search where
+every farther target would have one; the sequences are those of the search without that
+shortcut, also on grids full of cocircular points and on clusters of islands beside open
+ground."""
 
 from __future__ import annotations
 
@@ -148,3 +149,27 @@ def test_a_vertex_inside_a_huge_circle_spoils_it_where_the_float_products_overfl
     assert w[0] * (w[0] - 0) + w[1] * (w[1] - Fraction(1e201)) < 0
     with np.errstate(over="ignore", invalid="ignore"):  # as the engine runs
         assert not bridger.diametral_disk_empty(0, 1)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_vertices_whose_few_open_circles_are_all_spoilt_are_passed_over_without_a_search(
+    seed: int, monkeypatch: pytest.MonkeyPatch
+):
+    rings = clustered_squares(seed)
+    expected = delaunay_bridged(rings, False, monkeypatch)
+    searches = {}
+    for few in (0, bridges._FEW_DISKS):
+        calls = []
+        search = bridges._Bridger.find_bridge
+        with monkeypatch.context() as patch:
+            patch.setattr(bridges, "_FEW_DISKS", few)
+            patch.setattr(
+                bridges._Bridger,
+                "find_bridge",
+                lambda self, *args, search=search, calls=calls: (
+                    calls.append(1) or search(self, *args)
+                ),
+            )
+            assert np.array_equal(delaunay_bridged(rings, True, monkeypatch), expected)
+        searches[few] = len(calls)
+    assert searches[bridges._FEW_DISKS] < searches[0]
