@@ -4,7 +4,8 @@ report the polygon (``invalid="fail"``) or to triangulate it as given (with the 
 Such an island has no valid bridge, so every vertex of the sequence is tested before it is
 reported or joined to its nearest vertex; rule delaunay tries it again in each of its rounds.
 Cases: the river of 1,000 islands (29,746 vertices) as it is, with 1 and with 4 squares outside
-it, and with 5 of its islands moved onto the shell. One call each (the slow ones take
+it, with 5 of its islands moved onto the shell, and with 50 small triangles just outside its
+shell. One call each (the slow ones take
 seconds), in one process.
 
 Usage: python bench/bench_invalid.py [--rules first,elevation,delaunay]
@@ -52,6 +53,28 @@ def moved_onto_shell(rings: Rings, count: int, seed: int) -> Rings:
     return moved
 
 
+def triangles_just_outside(rings: Rings, count: int) -> list[np.ndarray]:
+    """``count`` small clockwise triangles just outside the shell, at evenly spaced vertices
+    (along the outward bisector, a fifth of the shorter edge there away, as long), each
+    clear of the shell."""
+    shell = rings[0]
+    outline = shapely.Polygon(shell)
+    found: list[np.ndarray] = []
+    for i in np.linspace(1, len(shell) - 2, 2 * count).astype(int).tolist():
+        before, after = shell[i] - shell[i - 1], shell[i + 1] - shell[i]
+        scale = 0.2 * min(np.hypot(*before), np.hypot(*after))
+        normal = np.array([before[1], -before[0]]) / np.hypot(*before)
+        normal += np.array([after[1], -after[0]]) / np.hypot(*after)
+        out = normal / np.hypot(*normal)  # right of a counter-clockwise shell: outside
+        side = np.array([-out[1], out[0]])
+        tip = shell[i] + out * scale
+        far = tip + out * scale
+        triangle = np.array([tip, far + side * scale / 2, far - side * scale / 2])
+        if not outline.intersects(shapely.Polygon(triangle)):
+            found.append(triangle)
+    return found[::2][:count]
+
+
 def cases() -> dict[str, Rings]:
     river = river_polygon(8_000, 1_000)
     return {
@@ -59,6 +82,7 @@ def cases() -> dict[str, Rings]:
         "the same, 1 square outside": river + squares_outside(river, 1, 1),
         "the same, 4 squares outside": river + squares_outside(river, 4, 2),
         "the same, 5 islands across the shell": moved_onto_shell(river, 5, 3),
+        "the same, 50 triangles just outside the shell": river + triangles_just_outside(river, 50),
     }
 
 

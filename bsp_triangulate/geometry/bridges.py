@@ -16,7 +16,7 @@ from ..triangulation import TriangulationError
 from .bridge_cells import BridgeCells
 from .bridge_plan import blocking_pairs, inside_open_angle, plan_targets
 from .delaunay_links import LINKED_ISLANDS, delaunay_links
-from .points import delaunay_point_bridge, nearest_point_bridge, point_order
+from .points import delaunay_point_bridge, nearest_point_bridge, point_order, strictly_outside
 from .predicates import exact_sq_distance, orient, orient_many, strictly_between
 from .rings import ring_label
 from .shared_points import point_numbers, touching_islands
@@ -177,6 +177,8 @@ class _Bridger:
         # per island vertex whose whole search found no valid target, the node count then
         # (see find_bridge)
         self._hopeless: dict[int, int] = {}
+        # some search has found no valid target among all the vertices of the sequence
+        self.hopeless = False
         # per island vertex, :meth:`_disk_never_empty_beyond` (it reads every vertex of the
         # rings, joined or not: it does not change)
         self._disk_bounds: dict[int, tuple[float, np.ndarray]] = {}
@@ -593,6 +595,7 @@ class _Bridger:
             fresh = fresh[self.first[fresh] >= since]
             if not len(fresh) or not any(self._valid_many(fresh, island, h_index)):
                 self._hopeless[h] = self.count
+                self.hopeless = True
                 return None
         grid = self.points
         radius = max(grid.size_x, grid.size_y)
@@ -635,6 +638,7 @@ class _Bridger:
                 return self._nearest_exact(tested, h, best)
             if radius >= full:
                 self._hopeless[h] = self.count
+                self.hopeless = True
                 return None
             if radius >= give_up:
                 return None
@@ -840,6 +844,16 @@ def bridge_islands(
     rings (:meth:`_Bridger.find_delaunay_bridge`); an island that has none to the sequence
     yet waits until the other islands are joined, and only then takes the usual bridge
     (docs/algorithm.md, "Rule delaunay"). Without it the bridges are those of section 2.
+
+    Once a search has found no valid target among all the vertices of the sequence (k islands
+    outside a ring of n vertices would cost k n tests), an island vertex strictly outside the
+    outer ring is not searched from: under rule delaunay an island with every vertex outside
+    waits for the last round, and with ``relaxed`` an island whose bridge vertex is outside
+    is joined to the nearest occurrence at once. Until an island has been joined so, that is
+    the search's own outcome where the outer ring is simple; a relaxed bridge may open the
+    angle at its end to the outside, and a ring that crosses itself may have a lobe wound the
+    other way, where the search could find a valid target that the nearest occurrence
+    replaces.
     """
     if len(rings) == 1:
         return rings[0]
@@ -875,7 +889,11 @@ def bridge_islands(
     pending = iter(leftmost)
     waiting: list[tuple[float, float, int, int]] = []  # delaunay: islands with no bridge yet
     progress = False
+    # once a whole search found nothing: per vertex, an island vertex strictly outside
+    outside: np.ndarray | None = None
     while True:
+        if outside is None and bridger.hopeless:
+            outside = _outside_vertices(x, y, rings)
         slot = touching.pop()
         if slot is not None:
             h_index = _touch_index(x, y, rings[slot], bridger)
@@ -912,6 +930,9 @@ def bridge_islands(
             slot, h_index = item[2], item[3]
             target = None
             if not final:
+                if outside is not None and outside[rings[slot]].all():
+                    waiting.append(item)
+                    continue
                 if len(rings[slot]) == 1:
                     point = delaunay_point_bridge(bridger, int(rings[slot][0]))
                     found = None if point is None else (*point, 0)
@@ -922,7 +943,7 @@ def bridge_islands(
                     continue
                 target, h_index = found[:2], found[2]
                 progress = True
-            else:
+            elif not (relaxed and outside is not None and outside[rings[slot][h_index]]):
                 planned = plan.get(slot)
                 if planned is not None:
                     target = bridger.planned(planned, rings[slot], h_index)
@@ -943,6 +964,14 @@ def bridge_islands(
         if links:
             linked.extend(links.ready(rings[slot].tolist()))
     return bridger.seq
+
+
+def _outside_vertices(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
+    """Per vertex id: a vertex of an island strictly outside the outer ring (exact)."""
+    outside = np.zeros(len(x), dtype=bool)
+    islands = np.unique(np.concatenate(rings[1:]))
+    outside[islands] = strictly_outside(x, y, rings[:1], x[islands], y[islands])
+    return outside
 
 
 class _TouchingQueue:

@@ -69,9 +69,27 @@ def strictly_inside(
     """Mask of the points (px, py) strictly inside the polygon of ``rings`` (vertex ids into
     ``x``, ``y``): an odd number of ring edges crosses the ray to their right, and none of
     the edges holds them (end points included). Exact."""
+    odd, boundary = _ray_parity(x, y, rings, px, py)
+    return odd & ~boundary
+
+
+def strictly_outside(
+    x: np.ndarray, y: np.ndarray, rings: list[np.ndarray], px: np.ndarray, py: np.ndarray
+) -> np.ndarray:
+    """Mask of the points (px, py) strictly outside the polygon of ``rings``: an even number
+    of ring edges crosses the ray to their right, and none holds them. Exact."""
+    odd, boundary = _ray_parity(x, y, rings, px, py)
+    return ~odd & ~boundary
+
+
+def _ray_parity(
+    x: np.ndarray, y: np.ndarray, rings: list[np.ndarray], px: np.ndarray, py: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per point (px, py): an odd number of the edges of ``rings`` crosses the ray to its
+    right (half-open in y), and an edge holds it (end points included). Exact."""
     count = len(px)
     if count == 0 or not rings:
-        return np.zeros(count, dtype=bool)
+        return np.zeros(count, dtype=bool), np.zeros(count, dtype=bool)
     starts = np.concatenate(rings)
     ends = np.concatenate([np.roll(r, -1) for r in rings])
     ax, ay, bx, by = x[starts], y[starts], x[ends], y[ends]
@@ -105,7 +123,7 @@ def strictly_inside(
         downward = (eby <= qy) & (eay > qy)
         crossing = (upward & (side > 0)) | (downward & (side < 0))
         crossings += np.bincount(point[crossing], minlength=count)
-    return (crossings % 2 == 1) & ~boundary
+    return crossings % 2 == 1, boundary
 
 
 class Bridging(Protocol):

@@ -8,7 +8,9 @@ ones.
   another ring's edge), and with the lock-step calls split into groups.
 - The bridge search that tests blocks of candidates at once (``_Bridger.find_bridge``) picks
   the bridge that testing one candidate at a time picks, and long segments tested first near
-  their far end give what segments looked up whole give.
+  their far end give what segments looked up whole give; islands outside the outer ring, as
+  given, are searched from once, and the others joined without a search as the searches
+  would join them.
 - Rule delaunay's outward search on long sub-polygons picks the apex that testing every
   candidate picks.
 """
@@ -577,3 +579,30 @@ def test_lockstep_subtrees_kept_where_others_are_built_one_step(
     )
     _same(plain, triangulate(rings, rule=rule, invalid="as_given"))
     assert 0 < sum(one_step) < sum(deferred)
+
+
+def test_islands_outside_the_shell_are_searched_from_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Islands outside the outer ring, as given: the first search finds no valid bridge (it
+    tests every vertex of the sequence); the other islands outside are joined to their
+    nearest occurrence without a search, as their searches would have done here."""
+    far = [(130.0 + 5.0 * k, 0.0) for k in range(4)] + [(0.0, -135.0 - 5.0 * k) for k in range(4)]
+    rings = [*_wavy(1500, 40, 6), *(_square(cx, cy) for cx, cy in far)]
+    searches: list[int] = []
+    search = bridges._Bridger.find_bridge
+
+    def counted(self: bridges._Bridger, *args: object) -> object:
+        searches.append(1)
+        return search(self, *args)
+
+    monkeypatch.setattr(bridges._Bridger, "find_bridge", counted)
+    skipped = _outcomes(rings, RULES, "first")
+    with_skips = len(searches)
+    searches.clear()
+    monkeypatch.setattr(
+        bridges, "_outside_vertices", lambda x, y, rings: np.zeros(len(x), dtype=bool)
+    )
+    searched = _outcomes(rings, RULES, "first")
+    assert with_skips < len(searches)
+    _same_outcomes(skipped, searched)
