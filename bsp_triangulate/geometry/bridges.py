@@ -37,6 +37,8 @@ _NEAREST_WITNESSES = 16
 # vertices within a witness bound whose diametral circles are tested exactly before a
 # search (find_delaunay_bridge)
 _FEW_DISKS = 64
+# island vertices whose witness bounds are kept for the later rounds (memory: a few MB)
+_BOUNDS_KEPT = 1 << 16
 # islands up to this many vertices are spliced element by element (no numpy calls)
 _FEW = 32
 # bridge candidates tested together after the nearest: doubling from the first block size up to
@@ -180,7 +182,7 @@ class _Bridger:
         # some search has found no valid target among all the vertices of the sequence
         self.hopeless = False
         # per island vertex, :meth:`_disk_never_empty_beyond` (it reads every vertex of the
-        # rings, joined or not: it does not change)
+        # rings, joined or not: it does not change), for at most _BOUNDS_KEPT of them
         self._disk_bounds: dict[int, tuple[float, np.ndarray]] = {}
         # the edges (vertex id pairs) that blocked segments to vertex _known_to
         self._known_to = -1
@@ -715,7 +717,11 @@ class _Bridger:
                 if closed:
                     break
             radius *= 2.0
-        self._disk_bounds[h] = best, witnesses
+        if len(witnesses) > _NEAREST_WITNESSES:  # the ones :meth:`_disks_left` takes
+            wx, wy = x[witnesses] - hx, y[witnesses] - hy
+            witnesses = witnesses[np.argsort(wx * wx + wy * wy)[:_NEAREST_WITNESSES]]
+        if len(self._disk_bounds) < _BOUNDS_KEPT:
+            self._disk_bounds[h] = best, witnesses
         return best, witnesses
 
     def _disks_left(self, h: int, reach: float, near: np.ndarray) -> np.ndarray:
