@@ -179,8 +179,9 @@ class _Bridger:
         # per island vertex whose whole search found no valid target, the node count then
         # (see find_bridge)
         self._hopeless: dict[int, int] = {}
-        # some search has found no valid target among all the vertices of the sequence
-        self.hopeless = False
+        # some search has found no valid target among all the vertices of the sequence (kept
+        # when _hopeless is forgotten)
+        self.searched_in_vain = False
         # per island vertex, :meth:`_disk_never_empty_beyond` (it reads every vertex of the
         # rings, joined or not: it does not change), for at most _BOUNDS_KEPT of them
         self._disk_bounds: dict[int, tuple[float, np.ndarray]] = {}
@@ -573,6 +574,11 @@ class _Bridger:
         return result
 
     # -- search ---------------------------------------------------------------------------
+    def _in_vain(self, h: int) -> None:
+        """Record that the search from h found no valid target in the whole sequence."""
+        self._hopeless[h] = self.count
+        self.searched_in_vain = True
+
     def find_bridge(
         self, island: np.ndarray, h_index: int, give_up: float = math.inf
     ) -> tuple[int, int] | None:
@@ -596,8 +602,7 @@ class _Bridger:
             fresh = np.unique(self.vid[since : self.count])
             fresh = fresh[self.first[fresh] >= since]
             if not len(fresh) or not any(self._valid_many(fresh, island, h_index)):
-                self._hopeless[h] = self.count
-                self.hopeless = True
+                self._in_vain(h)
                 return None
         grid = self.points
         radius = max(grid.size_x, grid.size_y)
@@ -639,8 +644,7 @@ class _Bridger:
             if best is not None and (best * (1 + _DISTANCE_MARGIN) <= limit or radius >= full):
                 return self._nearest_exact(tested, h, best)
             if radius >= full:
-                self._hopeless[h] = self.count
-                self.hopeless = True
+                self._in_vain(h)
                 return None
             if radius >= give_up:
                 return None
@@ -717,7 +721,7 @@ class _Bridger:
                 if closed:
                     break
             radius *= 2.0
-        if len(witnesses) > _NEAREST_WITNESSES:  # the ones :meth:`_disks_left` takes
+        if len(witnesses) > _NEAREST_WITNESSES:  # the nearest lie in the most circles
             wx, wy = x[witnesses] - hx, y[witnesses] - hy
             witnesses = witnesses[np.argsort(wx * wx + wy * wy)[:_NEAREST_WITNESSES]]
         if len(self._disk_bounds) < _BOUNDS_KEPT:
@@ -726,9 +730,9 @@ class _Bridger:
 
     def _disks_left(self, h: int, reach: float, near: np.ndarray) -> np.ndarray:
         """The vertices of the sequence within ``reach`` of h (in x and y), nearest first,
-        whose diametral circle with h holds no vertex of ``near`` found strictly inside
-        (float values beyond their error bound): the others' bridges from h are no Delaunay
-        edges."""
+        whose diametral circle with h holds no vertex of ``near`` (the nearest witnesses,
+        :meth:`_disk_never_empty_beyond`) found strictly inside (float values beyond their
+        error bound): the others' bridges from h are no Delaunay edges."""
         x, y = self.x, self.y
         hx, hy = float(x[h]), float(y[h])
         found = self.point_ids[
@@ -737,9 +741,6 @@ class _Bridger:
         found = found[self.in_seq[found]]
         vx, vy = x[found] - hx, y[found] - hy
         wx, wy = x[near] - hx, y[near] - hy
-        if len(near) > _NEAREST_WITNESSES:  # the nearest lie in the most circles
-            keep = np.argsort(wx * wx + wy * wy)[:_NEAREST_WITNESSES]
-            wx, wy = wx[keep], wy[keep]
         # (w - h) . (v - h) - |w - h|^2 > 0, per (v, w)
         dot = wx * vx[:, None] + wy * vy[:, None]
         own = wx * wx + wy * wy
@@ -898,7 +899,7 @@ def bridge_islands(
     # once a whole search found nothing: per vertex, an island vertex strictly outside
     outside: np.ndarray | None = None
     while True:
-        if outside is None and bridger.hopeless:
+        if outside is None and bridger.searched_in_vain:
             outside = _outside_vertices(x, y, rings)
         slot = touching.pop()
         if slot is not None:
