@@ -15,7 +15,7 @@ import numpy as np
 
 from ..triangulation import Triangulation, TriangulationError
 from .one_polygon import Steps, triangulate_steps
-from .subtrees import SubtreeRequest, Subtrees, built_if_worth
+from .subtrees import REFINE, Refine, SubtreeRequest, Subtrees, built_if_worth, worth_refining
 
 # points per chunk of polygons run side by side (every tree of a chunk is held until its
 # subtrees are built), and polygons per chunk
@@ -63,11 +63,13 @@ def _chunk_results(
 
 def drive_many(all_steps: list[Steps], started: Callable[[], None] | None = None) -> list[Result]:
     """The result of each polygon's ``steps`` (or the TriangulationError it raised), the
-    lock-step requests of all of them built together, those of one rule at a time."""
+    lock-step requests of all of them built together, those of one rule at a time (split
+    further first where that pays for all of them, ``subtrees.worth_refining``)."""
     results: list[Result | None] = [None] * len(all_steps)
     waiting: list[tuple[int, SubtreeRequest]] = []
+    refined: set[int] = set()
 
-    def advance(k: int, sent: Subtrees | None, first: bool = False) -> None:
+    def advance(k: int, sent: Subtrees | Refine | None, first: bool = False) -> None:
         try:
             request = next(all_steps[k]) if first else all_steps[k].send(sent)
         except StopIteration as done:
@@ -85,6 +87,13 @@ def drive_many(all_steps: list[Steps], started: Callable[[], None] | None = None
         asked, waiting = waiting, []
         for rule in dict.fromkeys(request[6] for _, request in asked):
             group = [(k, request) for k, request in asked if request[6] == rule]
+            if not refined.intersection(k for k, _ in group) and worth_refining(
+                [request for _, request in group]
+            ):
+                for k, _ in group:
+                    refined.add(k)  # once: a tree may keep its plan (invalid input)
+                    advance(k, REFINE)  # asked again, in the next pass
+                continue
             # the rounds are shared: worth it for all the sub-polygons together
             built = built_if_worth([request for _, request in group])
             for (k, _), subtrees in zip(group, built):

@@ -43,15 +43,20 @@ from .shadows import Shadows
 from .subtrees import (
     DELAUNAY_POSITIONS,
     MAX_POSITIONS,
+    REFINE,
+    REFINED_POSITIONS,
+    Refine,
     SubtreeRequest,
     Subtrees,
     built_if_worth,
+    worth_refining,
 )
 from .visible_apex import WIDE, visible_apex
 
 INVALID_MODES = ("fail", "as_given")
 # a tree built in steps: it yields its lock-step sub-polygons and gets their subtrees back
-Steps = Generator[SubtreeRequest, Subtrees, Triangulation]
+# (None: build them one step at a time; REFINE: split the larger ones further and ask again)
+Steps = Generator[SubtreeRequest, Subtrees | Refine | None, Triangulation]
 _FIRST = FirstRule()
 # Sub-polygons up to this many vertices test their candidates against all their edges at once;
 # larger sequences use a grid over the edges.
@@ -1257,14 +1262,17 @@ class _Tree:
             try:
                 self._restart_watch()
                 self._grow([(1, self.m, True, -1, 0, 0)], rows, deferred)
-                if deferred:
+                sub: Subtrees | Refine | None = REFINE
+                while deferred and isinstance(sub, Refine):
                     spans = np.array([(lo, hi) for _, lo, hi, *_ in deferred], dtype=np.int64)
                     request = (self.ids, self.sx, self.sy, self.sz, spans)
                     sub = yield (*request, self.prepared.mirrored, name)
-                    if sub is None:  # not worth the lock-step rounds: one step at a time
-                        rows = self._with_blocks(rows, deferred)
-                    else:
-                        rows = self._with_subtrees(rows, deferred, sub)
+                    if isinstance(sub, Refine):  # the larger ones split further, then again
+                        rows, deferred = self._refined(rows, deferred)
+                if deferred and sub is None:  # not worth the rounds: one step at a time
+                    rows = self._with_blocks(rows, deferred)
+                elif deferred:
+                    rows = self._with_subtrees(rows, deferred, sub)
             except TriangulationError:
                 rows = None
         if rows is None:  # one step at a time throughout (and the errors in pre-order)
@@ -1308,10 +1316,12 @@ class _Tree:
         work: list[tuple[int, int, bool, int, int, int]],
         rows: _Rows,
         deferred: list[tuple[int, int, int, bool, int, int, int]] | None,
+        limit: int | None = None,
     ) -> None:
         """Build the subtrees of the work items into ``rows``, in pre-order. With
-        ``deferred``, a sub-polygon of fewer than :meth:`_lockstep_positions` positions is not
-        built but listed there as (row it goes before, lo, hi, v1_at_hi, parent, depth, side)."""
+        ``deferred``, a sub-polygon of fewer than ``limit`` (:meth:`_lockstep_positions`)
+        positions is not built but listed there as (row it goes before, lo, hi, v1_at_hi,
+        parent, depth, side)."""
         ids, xs, ys = self.ids, self.xs, self.ys
         triangles, parent, depth, side = rows.triangles, rows.parent, rows.depth, rows.side
         # as given: loops cut off at a repeated vertex, each triangulated as a tree of its own
@@ -1319,7 +1329,7 @@ class _Tree:
         count = rows.count
         mirrored = self.prepared.mirrored
         tick = self.tick
-        limit = self._lockstep_positions()
+        limit = self._lockstep_positions() if limit is None else limit
         # rule first: fans in long sub-polygons decided in batches (their nodes never deferred)
         fans = type(self.rule) is FirstRule and self.m > SMALL_SEQUENCE
         fan_above = max(limit if deferred is not None else 0, SMALL_SEQUENCE)
@@ -1401,6 +1411,72 @@ class _Tree:
                 if chi - clo > 1:
                     work.append((clo, chi, flag, node, dep + 1, child_side))
         rows.count = count
+
+    def _refined(
+        self, rows: _Rows, deferred: list[tuple[int, int, int, bool, int, int, int]]
+    ) -> tuple[_Rows, list[tuple[int, int, int, bool, int, int, int]]]:
+        """``rows`` and ``deferred`` (from :meth:`_grow`) with each deferred sub-polygon of at
+        least ``REFINED_POSITIONS`` positions built by :meth:`_grow` down to sub-polygons of
+        fewer, which are deferred in its place (``subtrees.worth_refining``). The tree is the
+        same: a node's apex does not depend on the builder that finds it. Where a fallback
+        apex of invalid input turns up (or one did already), the plan stays as it was."""
+        big = [k for k, item in enumerate(deferred) if item[2] - item[1] >= REFINED_POSITIONS]
+        if not big or self.used_fallback:
+            return rows, deferred
+        # progress goes on with the rounds; a fallback's reversed area is counted where the
+        # plan builds it
+        tick, watch = self.tick, self.loss_watch
+        self.tick = self.loss_watch = None
+        blocks: dict[int, tuple[_Rows, list[tuple[int, int, int, bool, int, int, int]]]] = {}
+        try:
+            for k in big:
+                _, lo, hi, v1_at_hi, _, dep, sd = deferred[k]
+                block = _Rows(hi - lo - 1)
+                inner: list[tuple[int, int, int, bool, int, int, int]] = []
+                self._grow([(lo, hi, v1_at_hi, -1, dep, sd)], block, inner, REFINED_POSITIONS)
+                if self.used_fallback:
+                    break
+                blocks[k] = (block, inner)
+        finally:
+            self.tick, self.loss_watch = tick, watch
+        if self.used_fallback:  # its sub-polygons go to the rounds as planned
+            self.used_fallback = False
+            return rows, deferred
+        at = np.array([deferred[k][0] for k in blocks], dtype=np.int64)
+        sizes = np.array([block.count for block, _ in blocks.values()], dtype=np.int64)
+        out, moved, starts = _spread(rows, at, sizes)
+        start_of = dict(zip(blocks, starts.tolist()))
+        for k, (block, _) in blocks.items():
+            _, _, _, _, above, _, _ = deferred[k]
+            place = start_of[k] + np.arange(block.count, dtype=np.int64)
+            local = block.parent[: block.count]
+            top = -1 if above < 0 else int(moved[above])
+            out.triangles[place] = block.triangles[: block.count]
+            out.parent[place] = np.where(local < 0, top, start_of[k] + local)
+            out.depth[place] = block.depth[: block.count]
+            out.side[place] = block.side[: block.count]
+        # the others go just before the row that followed them: the top row they went
+        # before, or a block now in front of it
+        moved_list = moved.tolist()
+        follow: dict[int, int] = {}
+        new_at: dict[int, int] = {}
+        for k in range(len(deferred) - 1, -1, -1):
+            row = deferred[k][0]
+            if k in blocks:
+                follow[row] = start_of[k]
+            else:
+                ahead = moved_list[row] if row < rows.count else out.count
+                new_at[k] = follow.get(row, ahead)
+        refined: list[tuple[int, int, int, bool, int, int, int]] = []
+        for k, (_, lo, hi, v1_at_hi, above, dep, sd) in enumerate(deferred):
+            if k in blocks:
+                first = start_of[k]
+                for r, a, b, flag, p, d, side in blocks[k][1]:
+                    refined.append((first + r, a, b, flag, first + p, d, side))
+            else:
+                parent = -1 if above < 0 else moved_list[above]
+                refined.append((new_at[k], lo, hi, v1_at_hi, parent, dep, sd))
+        return out, refined
 
     def _with_subtrees(
         self, rows: _Rows, deferred: list[tuple[int, int, int, bool, int, int, int]], sub: Subtrees
@@ -1725,6 +1801,8 @@ def drive(steps: Steps) -> Triangulation:
     sub-polygons are worth the rounds (``subtrees.built_if_worth``)."""
     try:
         request = next(steps)
+        if worth_refining([request]):
+            request = steps.send(REFINE)
         while True:
             request = steps.send(built_if_worth([request])[0])
     except StopIteration as done:

@@ -29,9 +29,26 @@ GROUP_POSITIONS = 200_000
 LOCKSTEP_BREADTH = {"first": 16, "elevation": 8, "delaunay": 8}
 
 
+# rule first: where the sub-polygons of at least this many positions hold few nodes in all the
+# requests of one lock-step call, the trees split them further before asking (worth_refining)
+REFINED_POSITIONS = 128
+# ... at most this many nodes (a level of the deepest subtree costs a round of about 0.35 ms
+# whatever the number of sub-polygons; a node built by the one-step search instead of the
+# rounds, about 2 us more)
+REFINE_NODES = 16_000
+
+
 # what a polygon's tree asks the lock-step builder for: the arguments of build_subtrees
 # (its sequence's ids, x, y, z, the spans, whether mirrored, the rule)
 SubtreeRequest = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool, str]
+
+
+class Refine:
+    """Sent to a tree's steps instead of its subtrees: split the sub-polygons of at least
+    ``REFINED_POSITIONS`` positions further, down to smaller ones, and ask again."""
+
+
+REFINE = Refine()
 
 
 def worth_lockstep(sizes: list[int], rule: str) -> bool:
@@ -39,6 +56,22 @@ def worth_lockstep(sizes: list[int], rule: str) -> bool:
     bounds the lock-step rounds) to be built in lock-step under ``rule`` rather than one step
     at a time."""
     return bool(sizes) and sum(sizes) >= LOCKSTEP_BREADTH[rule] * max(sizes)
+
+
+def worth_refining(requests: list[SubtreeRequest]) -> bool:
+    """The rule first ``requests`` of one lock-step call hold sub-polygons of at least
+    ``REFINED_POSITIONS`` positions, with at most ``REFINE_NODES`` nodes in all: built
+    further by the trees' one-step search, they leave the rounds half as deep (a round per
+    level of the deepest subtree, whatever their number), which pays where the rounds are
+    shared by few sub-polygons (a large polygon alone: water-huge3, a wavy coast), not where
+    thousands share them (a long river's, a layer's)."""
+    if not requests or requests[0][6] != "first":
+        return False
+    moved = 0
+    for request in requests:
+        span = request[4][:, 1] - request[4][:, 0]
+        moved += int((span[span >= REFINED_POSITIONS] - 1).sum())
+    return 0 < moved <= REFINE_NODES
 
 
 @dataclass
