@@ -1415,11 +1415,12 @@ class _Tree:
     def _refined(
         self, rows: _Rows, deferred: list[tuple[int, int, int, bool, int, int, int]]
     ) -> tuple[_Rows, list[tuple[int, int, int, bool, int, int, int]]]:
-        """``rows`` and ``deferred`` (from :meth:`_grow`) with each deferred sub-polygon of at
-        least ``REFINED_POSITIONS`` positions built by :meth:`_grow` down to sub-polygons of
-        fewer, which are deferred in its place (``subtrees.worth_refining``). The tree is the
-        same: a node's apex does not depend on the builder that finds it. Where a fallback
-        apex of invalid input turns up (or one did already), the plan stays as it was."""
+        """``rows`` and ``deferred`` (from :meth:`_grow`) with each deferred sub-polygon of
+        more than ``REFINED_POSITIONS`` positions built by :meth:`_grow` down to sub-polygons
+        of at most that many, which are deferred in its place (``subtrees.worth_refining``).
+        The tree is the same: a node's apex does not depend on the builder that finds it.
+        Where a fallback apex of invalid input turns up (or one did already), the plan stays
+        as it was."""
         big = [k for k, item in enumerate(deferred) if item[2] - item[1] >= REFINED_POSITIONS]
         if not big or self.used_fallback:
             return rows, deferred

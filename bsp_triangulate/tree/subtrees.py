@@ -29,8 +29,9 @@ GROUP_POSITIONS = 200_000
 LOCKSTEP_BREADTH = {"first": 16, "elevation": 8, "delaunay": 8}
 
 
-# rule first: where the sub-polygons of at least this many positions hold few nodes in all the
-# requests of one lock-step call, the trees split them further before asking (worth_refining)
+# rule first: where the sub-polygons of more than this many positions hold few nodes in all the
+# requests of one lock-step call, the trees split them further, down to sub-polygons of at most
+# this many, before asking (worth_refining)
 REFINED_POSITIONS = 128
 # ... at most this many nodes (a level of the deepest subtree costs a round of about 0.35 ms
 # whatever the number of sub-polygons; a node built by the one-step search instead of the
@@ -44,8 +45,9 @@ SubtreeRequest = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarra
 
 
 class Refine:
-    """Sent to a tree's steps instead of its subtrees: split the sub-polygons of at least
-    ``REFINED_POSITIONS`` positions further, down to smaller ones, and ask again."""
+    """Sent to a tree's steps instead of its subtrees: split the sub-polygons of more than
+    ``REFINED_POSITIONS`` positions further, down to sub-polygons of at most that many, and
+    ask again."""
 
 
 REFINE = Refine()
@@ -59,9 +61,9 @@ def worth_lockstep(sizes: list[int], rule: str) -> bool:
 
 
 def worth_refining(requests: list[SubtreeRequest]) -> bool:
-    """The rule first ``requests`` of one lock-step call hold sub-polygons of at least
+    """The rule first ``requests`` of one lock-step call hold sub-polygons of more than
     ``REFINED_POSITIONS`` positions, with at most ``REFINE_NODES`` nodes in all: built
-    further by the trees' one-step search, they leave the rounds half as deep (a round per
+    further by the trees' one-step search, they leave the rounds shallower (a round per
     level of the deepest subtree, whatever their number), which pays where the rounds are
     shared by few sub-polygons (a large polygon alone: water-huge3, a wavy coast), not where
     thousands share them (a long river's, a layer's)."""
