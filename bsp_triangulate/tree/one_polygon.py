@@ -1424,56 +1424,51 @@ class _Tree:
         big = [k for k, item in enumerate(deferred) if item[2] - item[1] >= REFINED_POSITIONS]
         if not big or self.used_fallback:
             return rows, deferred
+        # one block per sub-polygon split, as :meth:`_one_step_blocks` makes them (local
+        # parents, depths from its root), with the sub-polygons deferred inside it
+        blocks = _Rows(sum(deferred[k][2] - deferred[k][1] - 1 for k in big))
+        starts: list[int] = []
+        inner: list[list[tuple[int, int, int, bool, int, int, int]]] = []
         # progress goes on with the rounds; a fallback's reversed area is counted where the
         # plan builds it
         tick, watch = self.tick, self.loss_watch
         self.tick = self.loss_watch = None
-        blocks: dict[int, tuple[_Rows, list[tuple[int, int, int, bool, int, int, int]]]] = {}
         try:
             for k in big:
-                _, lo, hi, v1_at_hi, _, dep, sd = deferred[k]
-                block = _Rows(hi - lo - 1)
-                inner: list[tuple[int, int, int, bool, int, int, int]] = []
-                self._grow([(lo, hi, v1_at_hi, -1, dep, sd)], block, inner, REFINED_POSITIONS)
+                _, lo, hi, v1_at_hi, *_ = deferred[k]
+                starts.append(blocks.count)
+                inner.append([])
+                self._grow([(lo, hi, v1_at_hi, -1, 0, 0)], blocks, inner[-1], REFINED_POSITIONS)
                 if self.used_fallback:
                     break
-                blocks[k] = (block, inner)
         finally:
             self.tick, self.loss_watch = tick, watch
         if self.used_fallback:  # its sub-polygons go to the rounds as planned
             self.used_fallback = False
             return rows, deferred
-        at = np.array([deferred[k][0] for k in blocks], dtype=np.int64)
-        sizes = np.array([block.count for block, _ in blocks.values()], dtype=np.int64)
-        out, moved, starts = _spread(rows, at, sizes)
-        start_of = dict(zip(blocks, starts.tolist()))
-        for k, (block, _) in blocks.items():
-            _, _, _, _, above, _, _ = deferred[k]
-            place = start_of[k] + np.arange(block.count, dtype=np.int64)
-            local = block.parent[: block.count]
-            top = -1 if above < 0 else int(moved[above])
-            out.triangles[place] = block.triangles[: block.count]
-            out.parent[place] = np.where(local < 0, top, start_of[k] + local)
-            out.depth[place] = block.depth[: block.count]
-            out.side[place] = block.side[: block.count]
+        table = np.array([deferred[k] for k in big], dtype=np.int64)
+        bounds = np.array([*starts, blocks.count], dtype=np.int64)
+        out, moved, placed = _spread(rows, table[:, 0], np.diff(bounds))
+        self._place_blocks(out, moved, placed, table, blocks, bounds)
         # the others go just before the row that followed them: the top row they went
         # before, or a block now in front of it
-        moved_list = moved.tolist()
+        moved_list, shift = moved.tolist(), (placed - bounds[:-1]).tolist()
+        block_of = {k: j for j, k in enumerate(big)}
         follow: dict[int, int] = {}
         new_at: dict[int, int] = {}
         for k in range(len(deferred) - 1, -1, -1):
             row = deferred[k][0]
-            if k in blocks:
-                follow[row] = start_of[k]
+            if k in block_of:
+                follow[row] = int(placed[block_of[k]])
             else:
                 ahead = moved_list[row] if row < rows.count else out.count
                 new_at[k] = follow.get(row, ahead)
         refined: list[tuple[int, int, int, bool, int, int, int]] = []
         for k, (_, lo, hi, v1_at_hi, above, dep, sd) in enumerate(deferred):
-            if k in blocks:
-                first = start_of[k]
-                for r, a, b, flag, p, d, side in blocks[k][1]:
-                    refined.append((first + r, a, b, flag, first + p, d, side))
+            j = block_of.get(k)
+            if j is not None:
+                for r, a, b, flag, p, d, side in inner[j]:
+                    refined.append((r + shift[j], a, b, flag, p + shift[j], d + dep, side))
             else:
                 parent = -1 if above < 0 else moved_list[above]
                 refined.append((new_at[k], lo, hi, v1_at_hi, parent, dep, sd))
