@@ -100,7 +100,7 @@ def _touching_pairs(
     x: np.ndarray, y: np.ndarray, starts: np.ndarray, ends: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """(edge, vertex) pairs of the vertices in the relative interior of edges (exact)."""
-    vertex_ids = np.unique(starts)
+    vertex_ids = _vertex_ids(starts, len(x))
     points = PointColumns(x[vertex_ids], y[vertex_ids])
     near_ids = vertex_ids[points.order]  # vertex ids in the order of the points' cells
     ax, ay, bx, by = x[starts], y[starts], x[ends], y[ends]
@@ -130,6 +130,11 @@ def _touching_pairs(
     if not edges_found:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     return np.concatenate(edges_found), np.concatenate(vertices_found)
+
+
+def _vertex_ids(ids: np.ndarray, count: int) -> np.ndarray:
+    """``np.unique(ids)`` of vertex ids below ``count``, by counting instead of sorting."""
+    return np.flatnonzero(np.bincount(ids, minlength=count))
 
 
 def _order_along(x: np.ndarray, y: np.ndarray, a: int, b: int, inside: list[int]) -> list[int]:
@@ -166,7 +171,7 @@ class _Bridger:
         self.edge_a, self.edge_b = starts, ends
         self.edges = SegmentGrid(x[starts], y[starts], x[ends], y[ends])
         # point grid (zero-length segments) over every vertex of the sequence-to-be
-        self.point_ids = np.unique(starts)
+        self.point_ids = _vertex_ids(starts, len(x))
         px, py = x[self.point_ids], y[self.point_ids]
         self.points = SegmentGrid(px, py, px, py)
         self.in_seq = np.zeros(len(x), dtype=bool)

@@ -16,7 +16,7 @@ import numpy as np
 from ..triangulation import TriangulationError
 from .predicates import compare_sq_distances_many, orient_many, sq_distance_exact
 from .rings_batch import ragged_index
-from .spatial_index import SegmentGrid, chunks
+from .spatial_index import SegmentGrid, bucket_starts, chunks
 
 # (edge, point) pairs tested at once: bounds the memory of the vectorised tests
 _PAIR_CHUNK = 1 << 18
@@ -351,7 +351,7 @@ class VertexGrid:
         self.cover_reach *= self.finer
         order = np.argsort(key, kind="stable")
         self.sorted_ids = ids[order]
-        self.starts = np.searchsorted(key[order], np.arange(nx * ny + 1))
+        self.starts = bucket_starts(key, nx * ny)
         self.x0, self.y0, self.cell, self.nx, self.ny = x0, y0, cell, nx, ny
         # the cell arithmetic's rounding: a few units in the last place of the coordinates
         self.pad = 2.0**-48 * max(abs(x0), abs(y0), abs(x0 + width), abs(y0 + height))

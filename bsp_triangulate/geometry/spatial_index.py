@@ -25,6 +25,14 @@ def _frame(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float, fl
     return x0, y0, max(width, extent * 1e-6), max(height, extent * 1e-6), extent
 
 
+def bucket_starts(cell: np.ndarray, cells: int) -> np.ndarray:
+    """Where each of ``cells`` buckets starts among the items sorted by ``cell`` (values in
+    [0, cells)), with ``cells + 1`` entries: counts added up, no search per bucket."""
+    starts = np.zeros(cells + 1, dtype=np.int64)
+    np.cumsum(np.bincount(cell, minlength=cells), out=starts[1:])
+    return starts
+
+
 def _cell_size(width: float, height: float, cells: float) -> float:
     """Side of a square cell so that about ``cells`` cover width x height (no underflow)."""
     return float(np.sqrt(width) * np.sqrt(height) / np.sqrt(cells))
@@ -75,7 +83,7 @@ class SegmentGrid:
         cell = row * self.nx + col
         order = np.argsort(cell, kind="stable")
         self.items = seg[order]
-        self.starts = np.searchsorted(cell[order], np.arange(self.nx * self.ny + 1))
+        self.starts = bucket_starts(cell, self.nx * self.ny)
 
     def _col(self, x: np.ndarray | float, pad: float = 0.0) -> np.ndarray:
         return np.clip(
@@ -228,7 +236,7 @@ class PointColumns:
         self.pad = 1e-9 * max(abs(self.x0), abs(self.y0), extent) + 1e-300
         cell = self._col(px) * self.ny + self._row(py)
         self.order = np.argsort(cell, kind="stable")
-        self.starts = np.searchsorted(cell[self.order], np.arange(self.nx * self.ny + 1))
+        self.starts = bucket_starts(cell, self.nx * self.ny)
 
     def _col(self, x: np.ndarray) -> np.ndarray:
         return np.clip(np.floor((x - self.x0) / self.size_x), 0, self.nx - 1).astype(np.int64)
