@@ -367,10 +367,11 @@ def _engine_result(
     mesh: object = None,
     ring_mesh: Triangulation | None = None,
     inserted_mesh: InsertedMesh | None = None,
+    alive: Callable[[], None] | None = None,
 ) -> Triangulation | TriangulationError:
     """:func:`triangulate` of one polygon of many: its error is returned (``on_error`` is
-    "return") or raised. ``tick``, ``ring_mesh``, ``inserted_mesh``: see
-    ``one_polygon._triangulate``."""
+    "return") or raised. ``tick``, ``ring_mesh``, ``inserted_mesh``, ``alive``: see
+    ``one_polygon.triangulate_steps``."""
     try:
         with np.errstate(over="ignore", invalid="ignore", under="ignore"):
             return _triangulate(
@@ -384,6 +385,7 @@ def _engine_result(
                 mesh=mesh,
                 ring_mesh=ring_mesh,
                 inserted_mesh=inserted_mesh,
+                alive=alive,
             )
     except TriangulationError as exc:
         if on_error == "raise":
@@ -512,7 +514,12 @@ def triangulate_packed(
     }
     # in the order of ``left``, as the loop below takes them
     side_by_side = engine_results(
-        [index for index in left if index not in alone], polygons.rings, options, report.one_more
+        [index for index in left if index not in alone],
+        polygons.rings,
+        options,
+        report.one_more,
+        report.heartbeat,
+        report.tick,
     )
     for index in left:
         if index not in alone:
@@ -544,6 +551,7 @@ def triangulate_packed(
             mesh,
             ring_meshes.get(index),
             inserted.get(index),
+            report.heartbeat,
         )
         if isinstance(result, TriangulationError):
             errors[index] = result
@@ -583,15 +591,27 @@ class _Reporter:
         self.last = time.monotonic()
         # what the one-polygon builder calls as it goes (None: nothing to tell)
         self.tick = None if progress is None else self.within
+        # what long steps call now and then, where no share is known (the last one is told
+        # again: a chance to stop the call)
+        self.heartbeat = None if progress is None else self.alive
+        self.shown = done / self.total
         if progress is not None:
-            progress(done / self.total)
+            progress(self.shown)
 
     def within(self, share: float) -> None:
         """The polygon under way is ``share`` done."""
         now = time.monotonic()
         if self.progress is not None and now - self.last >= _REPORT_SECONDS:
             self.last = now
-            self.progress((self.done - 1 + share) / self.total)
+            self.shown = (self.done - 1 + share) / self.total
+            self.progress(self.shown)
+
+    def alive(self) -> None:
+        """A long step goes on: the last share told is told again."""
+        now = time.monotonic()
+        if self.progress is not None and now - self.last >= _REPORT_SECONDS:
+            self.last = now
+            self.progress(self.shown)
 
     def one_more(self) -> None:
         """A polygon is about to start: the ones before it are done."""
@@ -600,7 +620,8 @@ class _Reporter:
         now = time.monotonic()
         if now - self.last >= _REPORT_SECONDS:
             self.last = now
-            self.progress(self.done / self.total)
+            self.shown = self.done / self.total
+            self.progress(self.shown)
         self.done += 1
 
 

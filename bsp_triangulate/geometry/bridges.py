@@ -8,6 +8,7 @@ from __future__ import annotations
 import heapq
 import math
 from collections import deque
+from collections.abc import Callable
 from fractions import Fraction
 
 import numpy as np
@@ -66,10 +67,16 @@ def ring_edges(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return starts, starts[following]
 
 
-def split_touching(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> list[np.ndarray]:
-    """Split every ring edge at the vertices (of any ring) lying in its relative interior."""
+def split_touching(
+    x: np.ndarray,
+    y: np.ndarray,
+    rings: list[np.ndarray],
+    alive: Callable[[], None] | None = None,
+) -> list[np.ndarray]:
+    """Split every ring edge at the vertices (of any ring) lying in its relative interior
+    (``alive``: called between the search's passes; it may raise to stop)."""
     starts, ends = ring_edges(rings)
-    edge, vertex = _touching_pairs(x, y, starts, ends)
+    edge, vertex = _touching_pairs(x, y, starts, ends, alive)
     if len(edge) == 0:
         return rings
     hits: dict[int, list[int]] = {}
@@ -97,7 +104,11 @@ _PAIR_CHUNK = 1 << 16
 
 
 def _touching_pairs(
-    x: np.ndarray, y: np.ndarray, starts: np.ndarray, ends: np.ndarray
+    x: np.ndarray,
+    y: np.ndarray,
+    starts: np.ndarray,
+    ends: np.ndarray,
+    alive: Callable[[], None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(edge, vertex) pairs of the vertices in the relative interior of edges (exact)."""
     vertex_ids = _vertex_ids(starts, len(x))
@@ -114,6 +125,8 @@ def _touching_pairs(
         keep = counts > 0
         segment, first, counts = segment[keep] + edge_lo, first[keep], counts[keep]
         for lo, hi in chunks(counts, _PAIR_CHUNK):
+            if alive is not None:
+                alive()
             part = counts[lo:hi]
             offsets = np.arange(int(part.sum()), dtype=np.int64) - np.repeat(
                 np.cumsum(part) - part, part
@@ -844,8 +857,10 @@ def bridge_islands(
     ring_numbers: list[int],
     relaxed: bool = False,
     delaunay: bool = False,
+    alive: Callable[[], None] | None = None,
 ) -> np.ndarray:
-    """The single vertex sequence of the outer ring with every island joined by a bridge.
+    """The single vertex sequence of the outer ring with every island joined by a bridge
+    (``alive``: called every ``_ALIVE_EVERY`` islands joined; it may raise to stop).
 
     Islands that share a point with the sequence are joined there (zero-length bridge) before
     any other island is bridged, so that touching rings never enclose an extra face. An island
@@ -870,6 +885,8 @@ def bridge_islands(
     if len(rings) == 1:
         return rings[0]
     bridger = _Bridger(x, y, rings)
+    if alive is not None:
+        alive()
     leftmost: list[tuple[float, float, int, int]] = []
     for slot in range(1, len(rings)):
         ring = rings[slot]
@@ -885,6 +902,8 @@ def bridge_islands(
         joins = _join_order(len(rings), leftmost, partners, rank)
         grids = (bridger.points, bridger.point_ids, bridger.edges, bridger.edge_a, bridger.edge_b)
         plan = plan_targets(x, y, rings, joins, grids, bridger.point_of)
+        if alive is not None:
+            alive()
     joined = [False] * len(rings)
     touching = _TouchingQueue(partners, rank, joined)
     touching.mark(0)
@@ -903,6 +922,7 @@ def bridge_islands(
     progress = False
     # once a whole search found nothing: per vertex, an island vertex strictly outside
     outside: np.ndarray | None = None
+    done = 0  # islands joined
     while True:
         if outside is None and bridger.searched_in_vain:
             outside = _outside_vertices(x, y, rings)
@@ -970,12 +990,19 @@ def bridge_islands(
             )
         bridger.splice(target[0], rings[slot], h_index)
         joined[slot] = True
+        done += 1
+        if alive is not None and done % _ALIVE_EVERY == 0:
+            alive()
         touching.mark(slot)
         if order:
             ready.extend(order.ready(rings[slot].tolist()))
         if links:
             linked.extend(links.ready(rings[slot].tolist()))
     return bridger.seq
+
+
+# bridge_islands calls ``alive`` after this many islands
+_ALIVE_EVERY = 64
 
 
 def _outside_vertices(x: np.ndarray, y: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:

@@ -30,22 +30,26 @@ def engine_results(
     rings_of: Callable[[int], Sequence[object]],
     options: dict[str, object],
     started: Callable[[], None] | None = None,
+    alive: Callable[[], None] | None = None,
+    tick: Callable[[float], None] | None = None,
 ) -> Iterator[tuple[int, Result]]:
     """(number, result) of the polygons ``numbers`` (rings ``rings_of(number)``), in that
     order: ``one_polygon._triangulate`` with the keyword ``options``, or the
     TriangulationError it raises. Run in chunks of up to ``CHUNK_POINTS`` points;
-    ``started`` is called as each polygon starts."""
+    ``started`` is called as each polygon starts, ``alive`` now and then as they go (their
+    steps interleave, so no share is told), and ``tick`` with the share of its tree built
+    where a chunk holds one polygon (both may raise to stop)."""
     chunk: list[int] = []
     size = 0
     for number in numbers:
         points = _point_count(rings_of(number))
         if chunk and (size + points > CHUNK_POINTS or len(chunk) >= CHUNK_POLYGONS):
-            yield from _chunk_results(chunk, rings_of, options, started)
+            yield from _chunk_results(chunk, rings_of, options, started, alive, tick)
             chunk, size = [], 0
         chunk.append(number)
         size += points
     if chunk:
-        yield from _chunk_results(chunk, rings_of, options, started)
+        yield from _chunk_results(chunk, rings_of, options, started, alive, tick)
 
 
 def _chunk_results(
@@ -53,18 +57,30 @@ def _chunk_results(
     rings_of: Callable[[int], Sequence[object]],
     options: dict[str, object],
     started: Callable[[], None] | None,
+    alive: Callable[[], None] | None,
+    tick: Callable[[float], None] | None,
 ) -> Iterator[tuple[int, Result]]:
+    if alive is not None:
+        # several polygons' steps interleave: their trees' ticks tell no share
+        if len(chunk) > 1 or tick is None:
+            tick = lambda _share: alive()  # noqa: E731
+        options = {**options, "alive": alive, "tick": tick}
     steps = [triangulate_steps(rings_of(number), **options) for number in chunk]
     # the whole chunk under the engine's floating-point settings (not across the yields)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        results = drive_many(steps, started)
+        results = drive_many(steps, started, alive)
     yield from zip(chunk, results)
 
 
-def drive_many(all_steps: list[Steps], started: Callable[[], None] | None = None) -> list[Result]:
+def drive_many(
+    all_steps: list[Steps],
+    started: Callable[[], None] | None = None,
+    alive: Callable[[], None] | None = None,
+) -> list[Result]:
     """The result of each polygon's ``steps`` (or the TriangulationError it raised), the
     lock-step requests of all of them built together, those of one rule at a time (split
-    further first where that pays for all of them, ``subtrees.worth_refining``)."""
+    further first where that pays for all of them, ``subtrees.worth_refining``; ``alive``
+    called every round)."""
     results: list[Result | None] = [None] * len(all_steps)
     waiting: list[tuple[int, SubtreeRequest]] = []
     refined: set[int] = set()
@@ -95,7 +111,7 @@ def drive_many(all_steps: list[Steps], started: Callable[[], None] | None = None
                     advance(k, REFINE)  # asked again, in the next pass
                 continue
             # the rounds are shared: worth it for all the sub-polygons together
-            built = built_if_worth([request for _, request in group])
+            built = built_if_worth([request for _, request in group], alive)
             for (k, _), subtrees in zip(group, built):
                 advance(k, subtrees)
     return results  # type: ignore[return-value]

@@ -22,6 +22,7 @@ take exact tries (``_delaunay_tries``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -2023,6 +2024,7 @@ def build_trees(
     mirrored: np.ndarray,
     rule: str,
     proven: np.ndarray | None = None,
+    alive: Callable[[], None] | None = None,
 ) -> Trees:
     """BSP trees of sequences laid out with their closing repeat (length ``seq_len + 1``) at
     ``seq_start``; ``ids`` are the output vertex indices of every position, ``twin`` the other
@@ -2032,7 +2034,8 @@ def build_trees(
     (:func:`_bent_in_triangle`; where a node of such a tree finds no candidate, the subtree
     of the wrong ancestor is built again in place with every table (:func:`_reopened`), and
     where that fails the polygon is marked ``again``, for the caller to build with every
-    table, with the trees of other groups)."""
+    table, with the trees of other groups). ``alive``: called every round (it may raise to
+    stop)."""
     count = len(seq_start)
     # a sample that is not grid-exact rules out the whole (cheap for float data)
     exact = grid_exact(sx[:1024], sy[:1024]) and grid_exact(sx, sy)
@@ -2058,6 +2061,8 @@ def build_trees(
     # sequences whose nodes stay in the rounds
     one_off = np.zeros(count, dtype=bool)
     while state.shape[1]:
+        if alive is not None:
+            alive()
         if rule == "first" and state.shape[1] < _ONE_BY_ONE and _few_positions(seqs, state):
             built = _one_by_one(seqs, state, record, one_off)
             if built.any():
@@ -2096,9 +2101,9 @@ def build_trees(
             # a failed tree's other nodes leave: none is emitted or tried again
             seq = state[_SEQ]
             ok[seq[hopeless]] = False
-            alive = ok[seq]
-            found &= alive
-            retry = retry[alive[retry]]
+            kept = ok[seq]
+            found &= kept
+            retry = retry[kept[retry]]
         emit = np.flatnonzero(found)
         done = np.take(state[: _AT_HI + 1], emit, axis=1)
         done[_CAND] = apex[emit]

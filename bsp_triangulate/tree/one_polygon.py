@@ -428,6 +428,8 @@ class _Tree:
         self._bends: tuple[list[int], list[int]] | None = None  # see _straight_runs
         self._seen = [0, 0]  # nodes asked of visible_apex, and of them found too wide
         self._z_steps: list[int] | None = None  # rule "elevation": see _level
+        # called now and then in a node's long search, which tells no share (it may raise)
+        self.alive: Callable[[], None] | None = None
 
     @property
     def zs(self) -> list[float]:
@@ -595,6 +597,8 @@ class _Tree:
         looked = 0  # candidates given the facing test one by one
         ax, ay, bx, by = xs[hi], ys[hi], xs[lo], ys[lo]
         for band, floor in windows.bands(lo, hi, z1 + z2):
+            if self.alive is not None:
+                self.alive()
             if area is not None:
                 xmin, ymin, xmax, ymax = area
                 x, y = self.sx[band], self.sy[band]
@@ -762,6 +766,8 @@ class _Tree:
             sure = np.concatenate([sure, side[keep] > 0])
             size = 1
             while len(untested):
+                if self.alive is not None:
+                    self.alive()
                 if best >= 0:
                     # strictly outside the best circle: never better (the circles' parts on
                     # this side of the base shrink as the best improves). Those beyond its
@@ -1792,15 +1798,16 @@ def _snap(clean: list[np.ndarray], tolerance: float) -> list[np.ndarray]:
     return [np.asarray(r, dtype=np.float64) for r in snap_to_plane(clean, tolerance)]
 
 
-def drive(steps: Steps) -> Triangulation:
+def drive(steps: Steps, alive: Callable[[], None] | None = None) -> Triangulation:
     """The result of ``steps``, each lock-step request built as it comes where its
-    sub-polygons are worth the rounds (``subtrees.built_if_worth``)."""
+    sub-polygons are worth the rounds (``subtrees.built_if_worth``, which calls ``alive``
+    every round)."""
     try:
         request = next(steps)
         if worth_refining([request]):
             request = steps.send(REFINE)
         while True:
-            request = steps.send(built_if_worth([request])[0])
+            request = steps.send(built_if_worth([request], alive)[0])
     except StopIteration as done:
         return done.value
 
@@ -1808,7 +1815,7 @@ def drive(steps: Steps) -> Triangulation:
 def _triangulate(rings: Sequence[object], **options: object) -> Triangulation:
     """:func:`~bsp_triangulate.api.triangulate` of one polygon (:func:`triangulate_steps`
     run through)."""
-    return drive(triangulate_steps(rings, **options))
+    return drive(triangulate_steps(rings, **options), options.get("alive"))
 
 
 def triangulate_steps(
@@ -1824,6 +1831,7 @@ def triangulate_steps(
     mesh: object = None,
     ring_mesh: Triangulation | None = None,
     inserted_mesh: InsertedMesh | None = None,
+    alive: Callable[[], None] | None = None,
 ) -> Steps:
     """:func:`~bsp_triangulate.api.triangulate` of one polygon, as steps (:data:`Steps`:
     the tree's lock-step sub-polygons are yielded, their subtrees sent back); ``repair``: a
@@ -1833,7 +1841,9 @@ def triangulate_steps(
     delaunay with points, the constrained Delaunay triangulation if known (see
     :func:`_known_mesh`); ``ring_mesh``: the rings' own triangulation without the points, if
     known (the points go into it); ``inserted_mesh``: the points already inserted into it
-    (``points_batch``), used where its points are the rows this polygon gives them."""
+    (``points_batch``), used where its points are the rows this polygon gives them;
+    ``alive``: called now and then in the steps that tell no share (the touching search,
+    the bridges, the lock-step rounds; it may raise to stop)."""
     apex_rule = get_rule(rule)
     as_given = _as_given(invalid)
     clean, axes = normalise_rings(rings, plane)
@@ -1864,10 +1874,12 @@ def triangulate_steps(
     batch_inserted = inserted_mesh is not None and np.array_equal(
         inserted_mesh.point_ids, point_ids
     )
+    if alive is not None:
+        alive()
     if batch_inserted:
         ring_ids = prepared.rings
     else:
-        ring_ids = split_touching(prepared.x, prepared.y, prepared.rings)
+        ring_ids = split_touching(prepared.x, prepared.y, prepared.rings, alive)
 
     # rule delaunay with points: the points inserted into the rings' triangulation, whose
     # tree is read off it (section 5b)
@@ -1901,10 +1913,14 @@ def triangulate_steps(
         apex_rule,
         as_given,
         np.arange(len(prepared.vertices)) >= ring_count if has_points else None,
+        alive,
     )
     if len(sequence) < 3:
         return Triangulation(vertices=prepared.vertices, point_ids=point_ids)
+    if alive is not None:
+        alive()
     tree = _Tree(prepared, sequence, prepared.vertices[:, 2], apex_rule, as_given, tick)
+    tree.alive = alive
     repaired: list[Triangulation | None] = []  # the repair, once tried
 
     def repair_now() -> Triangulation | None:
@@ -1961,10 +1977,11 @@ def _bridged(
     apex_rule: ApexRule,
     as_given: bool,
     is_point: np.ndarray | None = None,
+    alive: Callable[[], None] | None = None,
 ) -> np.ndarray:
     """The bridged sequence of ``rings`` (vertex ids of ``prepared``; ``numbers`` their
     input ring numbers, one-point islands negative), spikes removed (``is_point``: per
-    vertex, a given interior point, which stays)."""
+    vertex, a given interior point, which stays; ``alive``: see ``bridge_islands``)."""
     sequence = bridge_islands(
         prepared.x,
         prepared.y,
@@ -1972,6 +1989,7 @@ def _bridged(
         numbers,
         relaxed=as_given,
         delaunay=getattr(apex_rule, "in_plane", False),
+        alive=alive,
     )
     return remove_spikes(prepared.x, prepared.y, sequence, is_point)
 

@@ -10,6 +10,7 @@ numpy rounds instead of one Python step per triangle.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,24 +110,29 @@ def _twins(ext: np.ndarray, owner: np.ndarray, ext_start: np.ndarray) -> np.ndar
     return twin
 
 
-def built_if_worth(requests: list[SubtreeRequest]) -> list[Subtrees | None]:
+def built_if_worth(
+    requests: list[SubtreeRequest], alive: Callable[[], None] | None = None
+) -> list[Subtrees | None]:
     """The subtrees of each request (of one rule), built in shared lock-step calls
-    (:func:`build_subtrees_many`) where all their sub-polygons together are worth the rounds
-    (:func:`worth_lockstep`); else None for each (to be built one step at a time)."""
+    (:func:`build_subtrees_many`, ``alive`` called every round) where all their
+    sub-polygons together are worth the rounds (:func:`worth_lockstep`); else None for each
+    (to be built one step at a time)."""
     spans = np.concatenate([request[4] for request in requests])
     if worth_lockstep((spans[:, 1] - spans[:, 0]).tolist(), requests[0][6]):
-        return build_subtrees_many(requests)
+        return build_subtrees_many(requests, alive)
     return [None] * len(requests)
 
 
-def build_subtrees_many(requests: list[SubtreeRequest]) -> list[Subtrees]:
+def build_subtrees_many(
+    requests: list[SubtreeRequest], alive: Callable[[], None] | None = None
+) -> list[Subtrees]:
     """:func:`build_subtrees` of each request (of one rule), in shared lock-step calls: the
     sequences laid end to end (their vertex ids apart), each request's spans moved with its
     sequence. A sub-polygon's tree depends on its positions alone, so each request gets the
     subtrees it would get alone; the rounds, whose fixed cost is most of a polygon's
     subtrees', are shared."""
     if len(requests) < 2:
-        return [build_subtrees(*request) for request in requests]
+        return [build_subtrees(*request, alive=alive) for request in requests]
     rule = requests[0][6]
     lengths = [len(request[1]) for request in requests]
     offsets = np.cumsum([0, *lengths[:-1]])
@@ -142,6 +148,7 @@ def build_subtrees_many(requests: list[SubtreeRequest]) -> list[Subtrees]:
         np.concatenate(spans),
         np.repeat([request[5] for request in requests], counts),
         rule,
+        alive,
     )
     found = []
     first = 0
@@ -171,6 +178,7 @@ def build_subtrees(
     spans: np.ndarray,
     mirrored: bool | np.ndarray,
     rule: str,
+    alive: Callable[[], None] | None = None,
 ) -> Subtrees:
     """The subtrees of the sub-polygons ``spans`` (rows (lo, hi) of positions) of one bridged
     sequence: ``ids`` its output vertex ids per position, ``sx``, ``sy``, ``sz`` its working
@@ -183,7 +191,7 @@ def build_subtrees(
     cuts = np.flatnonzero(np.diff(group)) + 1
     flags = np.broadcast_to(np.asarray(mirrored, dtype=bool), (len(spans),))
     parts = [
-        _build_group(ids, sx, sy, sz, part, flag, rule)
+        _build_group(ids, sx, sy, sz, part, flag, rule, alive)
         for part, flag in zip(np.split(spans, cuts), np.split(flags, cuts))
         if len(part)
     ]
@@ -207,9 +215,10 @@ def _build_group(
     spans: np.ndarray,
     mirrored: np.ndarray,
     rule: str,
+    alive: Callable[[], None] | None = None,
 ) -> Subtrees:
     """:func:`build_subtrees` of one group of spans (``mirrored`` per span), in one
-    lock-step call."""
+    lock-step call (``alive`` called every round)."""
     lo, hi = spans[:, 0], spans[:, 1]
     length = hi - lo + 1  # positions of the sub-polygon
     ext_len = length + 1  # with the closing repeat of s_hi
@@ -232,6 +241,7 @@ def _build_group(
         mirrored,
         rule,
         None,
+        alive,
     )
     return Subtrees(
         trees.triangles,

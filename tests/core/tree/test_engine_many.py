@@ -52,9 +52,9 @@ def test_polygons_side_by_side_equal_each_alone(
     shared = []
     original = subtrees.build_subtrees_many
 
-    def counted(requests: list) -> list:
+    def counted(requests: list, alive: object = None) -> list:
         shared.append(len(requests))
-        return original(requests)
+        return original(requests, alive)
 
     monkeypatch.setattr(subtrees, "build_subtrees_many", counted)
     many = triangulate_many(polygons, rule=rule, invalid=invalid, on_error="return")

@@ -66,7 +66,9 @@ def _grow_alone(xs, ys, lo, hi, top, at_hi, exact, budget, runs=None):
 @pytest.mark.parametrize("invalid", ["fail", "as_given"])
 def test_trees_equal_grow_alone(monkeypatch: pytest.MonkeyPatch, invalid: str) -> None:
     # sub-polygons one step at a time rather than in the lock-step rounds
-    monkeypatch.setattr(one_polygon, "built_if_worth", lambda requests: [None] * len(requests))
+    monkeypatch.setattr(
+        one_polygon, "built_if_worth", lambda requests, _alive=None: [None] * len(requests)
+    )
     with monkeypatch.context() as patch:
         patch.setattr(one_polygon, "first_nodes", _grow_alone)
         wanted = [engine_or_error(rings, "first", invalid) for rings in POLYGONS]
