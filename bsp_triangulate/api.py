@@ -421,13 +421,16 @@ def triangulate_packed(
     # polygons with interior points go to the one-polygon builder
     plain = None if counts is None or not counts.any() else np.flatnonzero(counts == 0)
     pieces: list[Piece] = []
+    report = _Reporter(progress, len(polygons), 0)
     if planar_tolerance <= 0 and len(polygons if plain is None else plain) > 1:
         from .tree.batch import triangulate_batch_packed
 
         batch = polygons if plain is None else polygons.take(plain)
         flags = proven if plain is None or proven is None else [proven[i] for i in plain]
         try:
-            pieces = triangulate_batch_packed(batch, rule, proven=flags, plane=plane)
+            pieces = triangulate_batch_packed(
+                batch, rule, proven=flags, plane=plane, alive=report.heartbeat
+            )
         except (ArithmeticError, ValueError, TypeError):
             pieces = []  # the engine takes every polygon and names what is wrong
         if plain is not None:
@@ -437,7 +440,7 @@ def triangulate_packed(
     for piece in pieces:
         decided[piece.index] = True
     errors: dict[int, TriangulationError] = {}
-    report = _Reporter(progress, len(polygons), int(decided.sum()))
+    report.passed(int(decided.sum()))
     starts = None if counts is None else np.cumsum(counts) - counts
     mesh_rows, mesh_counts = (None, None) if meshes is None else meshes
     mesh_starts = None if mesh_counts is None else np.cumsum(mesh_counts) - mesh_counts
@@ -604,6 +607,14 @@ class _Reporter:
         if self.progress is not None and now - self.last >= _REPORT_SECONDS:
             self.last = now
             self.shown = (self.done - 1 + share) / self.total
+            self.progress(self.shown)
+
+    def passed(self, count: int) -> None:
+        """``count`` polygons are done at once (the batch path)."""
+        self.done = count
+        if self.progress is not None:
+            self.last = time.monotonic()
+            self.shown = count / self.total
             self.progress(self.shown)
 
     def alive(self) -> None:

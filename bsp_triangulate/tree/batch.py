@@ -106,9 +106,11 @@ def triangulate_batch_packed(
     max_vertices: int = MAX_VERTICES,
     proven: Sequence[bool] | None = None,
     plane: str = "auto",
+    alive: Callable[[], None] | None = None,
 ) -> list[Piece]:
     """:func:`triangulate_batch` of packed polygons: the results of the polygons it decides,
-    as pieces (the others are left to the engine)."""
+    as pieces (the others are left to the engine); ``alive``: called every lock-step round
+    (it may raise to stop)."""
     ring_start = polygons.ring_start
     first_ring = polygons.first_ring
     # a polygon with an empty ring or no ring at all is left to the engine
@@ -134,7 +136,7 @@ def triangulate_batch_packed(
     def point_counts(index: np.ndarray) -> np.ndarray:
         return np.where(usable_counts[index] > 0, sizes[index].astype(np.int64), -1)
 
-    return batch_pieces(len(polygons), flatten, point_counts, rule, max_vertices, proven)
+    return batch_pieces(len(polygons), flatten, point_counts, rule, max_vertices, proven, alive)
 
 
 def batch_pieces(
@@ -144,6 +146,7 @@ def batch_pieces(
     rule: str,
     max_vertices: int,
     proven: Sequence[bool] | None,
+    alive: Callable[[], None] | None = None,
 ) -> list[Piece]:
     """The batch path over ``count`` polygons: ``flatten(index, max_vertices)`` normalises
     the polygons ``index`` (increasing), ``point_counts(index)`` gives their points as given
@@ -175,7 +178,7 @@ def batch_pieces(
 
     def run(index: np.ndarray, limit: int) -> None:
         for part, rings, name in parts(index, limit):
-            group = _triangulate(rings, name, known[part])
+            group = _triangulate(rings, name, known[part], alive=alive)
             # a tree to build again keeps its place (and its incomplete rows) in the piece
             pieces.append(_globalised(group.piece(), part))
             decided[pieces[-1].index] = True
@@ -195,7 +198,8 @@ def batch_pieces(
             # as a whole group)
             for part, rings, name in parts(redo, MID_VERTICES):
                 valid = np.ones(len(part), dtype=bool)
-                fixed = _globalised(_triangulate(rings, name, valid, False).piece(), part)
+                fixed = _triangulate(rings, name, valid, False, alive).piece()
+                fixed = _globalised(fixed, part)
                 for k, wanted in enumerate(again):
                     mine = wanted[np.isin(wanted, part)]
                     if len(mine):
@@ -323,10 +327,17 @@ class _Group:
         return _piece(self.flat, self.empties, self.polys[kept], trees, kept)
 
 
-def _triangulate(flat: FlatRings, rule: str, known: np.ndarray, shortcut: bool = True) -> _Group:
+def _triangulate(
+    flat: FlatRings,
+    rule: str,
+    known: np.ndarray,
+    shortcut: bool = True,
+    alive: Callable[[], None] | None = None,
+) -> _Group:
     """The polygons of ``flat`` that the batch path decides; the trees of proven-valid
     polygons that did not complete with the shortcut are marked ``again`` (built with every
-    table later); ``shortcut=False`` builds every tree with every table."""
+    table later); ``shortcut=False`` builds every tree with every table; ``alive``: called
+    every lock-step round."""
     wx = np.where(np.repeat(flat.mirrored[flat.ring_poly], flat.ring_len), -flat.vx, flat.vx)
     wy = flat.vy
     handled = flat.handled.copy()
@@ -375,6 +386,7 @@ def _triangulate(flat: FlatRings, rule: str, known: np.ndarray, shortcut: bool =
         flat.mirrored[polys_ok],
         rule,
         proven[polys_ok] if shortcut else None,
+        alive,
     )
     # a tree whose triangles do not cover its polygon exactly is left to the engine, which
     # reports it (none is expected: every triangle passed exact tests)

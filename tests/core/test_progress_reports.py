@@ -114,3 +114,23 @@ def test_invalid_polygons_as_given_get_the_same_trees_with_progress(name: str, r
     assert shares == sorted(shares) and len(shares) > 1
     for field in ("vertices", "triangles", "parent", "depth", "side"):
         assert np.array_equal(getattr(runs[0], field), getattr(runs[1], field))
+
+
+def test_the_batch_path_reports_every_round_and_stops_there() -> None:
+    angles = 2.0 * np.pi * np.arange(40) / 40
+    star = (
+        np.column_stack([np.cos(angles), np.sin(angles)])
+        * np.where(np.arange(40) % 2 == 0, 10.0, 4.0)[:, None]
+    )
+    polygons = PackedPolygons.of([[star + np.array([30.0 * k, 0.0])] for k in range(500)])
+    seen: list[set[str]] = []
+    result = triangulate_packed(polygons, progress=lambda _s: seen.append(names_calling()))
+    assert not result.errors and len(result.triangles) == 500 * 38
+    assert sum("batch_pieces" in names and "build_trees" in names for names in seen) > 5
+
+    def progress(_share: float) -> None:
+        if "batch_pieces" in names_calling():
+            raise StopError("batch")
+
+    with pytest.raises(StopError, match="batch"):
+        triangulate_packed(polygons, progress=progress)
