@@ -290,6 +290,10 @@ def box_distance2(box: tuple[float, ...], x: float, y: float) -> float:
     return du * du + dv * dv
 
 
+# ChainBoxes.leaves_near: discs of a radius of at most this many grid cells use the grid
+_GRID_DISC = 4.0
+
+
 class ChainBoxes:
     """Bounding boxes over runs of consecutive segments of a chain of points.
 
@@ -315,6 +319,8 @@ class ChainBoxes:
         self.pad = 1e-9 * scale + 1e-300
         self.levels: list[list[tuple[float, ...]]] = []
         self.sizes: list[int] = []
+        self._leaf_grid: SegmentGrid | None = None  # see leaves_near
+        self._leaf_cells: tuple[list[int], list[int]] = ([], [])
         size = leaf
         px, py = x[:m], y[:m]
         while m > 0:
@@ -341,8 +347,55 @@ class ChainBoxes:
     ) -> Iterator[tuple[int, int]]:
         """The runs [start, end) of segment positions in [lo, hi) of the leaf boxes within
         the ``disc`` (centre x, centre y, squared radius). Every point of the chain in the
-        disc then starts a segment of these runs or ends the last one before ``hi``."""
-        return self._leaves(lo, hi, -1, None, disc)
+        disc then starts a segment of these runs or ends the last one before ``hi``.
+
+        A small disc takes the leaves from a grid over their boxes (the cells its square
+        meets) instead of a descent from the top: each leaf is tested as the descent tests it
+        at its own level, in order, so the runs hold every leaf the descent yields (and
+        perhaps one whose larger box it ruled out: the runs are conservative either way)."""
+        limit = disc[2]
+        if not limit <= _GRID_DISC * _GRID_DISC * self._grid_cell2():
+            return self._leaves(lo, hi, -1, None, disc)
+        return self._leaves_in_grid(lo, hi, disc)
+
+    def _grid_cell2(self) -> float:
+        """The squared cell side of the grid over the leaf boxes, built on first use (with
+        its buckets as Python lists: a query reads a few cells)."""
+        if self._leaf_grid is None:
+            x0, x1, y0, y1 = (np.array([box[i] for box in self.levels[0]]) for i in range(4))
+            self._leaf_grid = SegmentGrid(x0, y0, x1, y1)
+            self._leaf_cells = (self._leaf_grid.starts.tolist(), self._leaf_grid.items.tolist())
+        grid = self._leaf_grid
+        return min(grid.size_x, grid.size_y) ** 2
+
+    def _leaves_in_grid(
+        self, lo: int, hi: int, disc: tuple[float, float, float]
+    ) -> Iterator[tuple[int, int]]:
+        """:meth:`leaves_near` of a disc a few grid cells across."""
+        ox, oy, limit = disc
+        reach = math.sqrt(limit) * (1.0 + 1e-9) + self.pad
+        grid = self._leaf_grid
+        starts, items = self._leaf_cells
+        pad = grid.pad
+        c0, c1 = grid._cell_x(ox - reach - pad), grid._cell_x(ox + reach + pad)
+        r0, r1 = grid._cell_y(oy - reach - pad), grid._cell_y(oy + reach + pad)
+        found: set[int] = set()
+        nx = grid.nx
+        for row in range(r0, r1 + 1):
+            base = row * nx
+            found.update(items[starts[base + c0] : starts[base + c1 + 1]])
+        leaf, boxes = self.leaf, self.levels[0]
+        first, last = lo // leaf, (hi - 1) // leaf
+        for k in sorted(found):
+            if k < first or k > last:
+                continue
+            box = boxes[k]
+            x0, x1, y0, y1 = box[:4]
+            dx, dy = max(x0 - ox, ox - x1, 0.0), max(y0 - oy, oy - y1, 0.0)
+            if dx * dx + dy * dy > limit or box_distance2(box, ox, oy) > limit:
+                continue
+            start = k * leaf
+            yield max(start, lo), min(start + leaf, hi)
 
     def _leaves(
         self,

@@ -4,7 +4,12 @@ every cell in the sorted cell numbers."""
 import numpy as np
 import pytest
 
-from bsp_triangulate.geometry.spatial_index import PointColumns, SegmentGrid, bucket_starts
+from bsp_triangulate.geometry.spatial_index import (
+    ChainBoxes,
+    PointColumns,
+    SegmentGrid,
+    bucket_starts,
+)
 
 
 @pytest.mark.parametrize("items, cells", [(0, 1), (1, 1), (5, 40), (1_000, 37), (3_000, 20_000)])
@@ -30,3 +35,34 @@ def test_grids_find_their_items_by_the_counted_starts() -> None:
     # every segment is found in the cell of its first end
     for s in range(0, len(x) - 1, 37):
         assert s in grid.query_box(x[s], y[s], x[s], y[s]).tolist()
+
+
+def _descent_near(boxes: ChainBoxes, lo: int, hi: int, disc: tuple) -> list[tuple[int, int]]:
+    return list(boxes._leaves(lo, hi, -1, None, disc))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_chain_leaves_near_a_small_disc_hold_every_leaf_of_the_descent(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, 4000))
+    radii = 1000.0 * (1.0 + 0.1 * np.sin(40 * angles)) + rng.uniform(-5, 5, 4000)
+    x, y = radii * np.cos(angles), radii * np.sin(angles)
+    x, y = np.append(x, x[0]), np.append(y, y[0])
+    boxes = ChainBoxes(x, y)
+    gridded = 0
+    for _ in range(300):
+        lo = int(rng.integers(0, 3000))
+        hi = int(rng.integers(lo + 2, 4001))
+        p = int(rng.integers(0, 4000))
+        disc = (float(x[p]), float(y[p]), float(rng.uniform(0.0, 60.0)) ** 2)
+        runs = list(boxes.leaves_near(lo, hi, disc))
+        gridded += disc[2] <= 16.0 * boxes._grid_cell2()
+        assert runs == sorted(runs)
+        assert set(_descent_near(boxes, lo, hi, disc)) <= set(runs)
+        # every point of the range in the disc starts a segment of the runs
+        inside = [
+            q for q in range(lo, hi) if (x[q] - disc[0]) ** 2 + (y[q] - disc[1]) ** 2 <= disc[2]
+        ]
+        covered = {q for start, end in runs for q in range(start, end)}
+        assert set(inside) <= covered
+    assert gridded > 100  # most discs took the grid
