@@ -427,11 +427,14 @@ def triangulate_packed(
 
         batch = polygons if plain is None else polygons.take(plain)
         flags = proven if plain is None or proven is None else [proven[i] for i in plain]
+        stopped: list[BaseException] = []  # what the progress callback raised
         try:
             pieces = triangulate_batch_packed(
-                batch, rule, proven=flags, plane=plane, alive=report.heartbeat
+                batch, rule, proven=flags, plane=plane, alive=_noting(report.heartbeat, stopped)
             )
         except (ArithmeticError, ValueError, TypeError):
+            if stopped:
+                raise  # the caller's progress stopped the call: not a failure of the batch
             pieces = []  # the engine takes every polygon and names what is wrong
         if plain is not None:
             for piece in pieces:
@@ -606,16 +609,20 @@ class _Reporter:
         now = time.monotonic()
         if self.progress is not None and now - self.last >= _REPORT_SECONDS:
             self.last = now
-            self.shown = (self.done - 1 + share) / self.total
-            self.progress(self.shown)
+            self._tell((self.done - 1 + share) / self.total)
+
+    def _tell(self, share: float) -> None:
+        """Report ``share``, never below one told before (a tree built again starts its
+        share over) nor above 1."""
+        self.shown = max(self.shown, min(share, 1.0))
+        self.progress(self.shown)
 
     def passed(self, count: int) -> None:
         """``count`` polygons are done at once (the batch path)."""
         self.done = count
         if self.progress is not None:
             self.last = time.monotonic()
-            self.shown = count / self.total
-            self.progress(self.shown)
+            self._tell(count / self.total)
 
     def alive(self) -> None:
         """A long step goes on: the last share told is told again."""
@@ -631,12 +638,28 @@ class _Reporter:
         now = time.monotonic()
         if now - self.last >= _REPORT_SECONDS:
             self.last = now
-            self.shown = self.done / self.total
-            self.progress(self.shown)
+            self._tell(self.done / self.total)
         self.done += 1
 
 
 _REPORT_SECONDS = 0.2
+
+
+def _noting(
+    call: Callable[[], None] | None, raised: list[BaseException]
+) -> Callable[[], None] | None:
+    """``call``, noting in ``raised`` what it raises (before raising it on)."""
+    if call is None:
+        return None
+
+    def noted() -> None:
+        try:
+            call()
+        except BaseException as error:
+            raised.append(error)
+            raise
+
+    return noted
 
 
 def _check_plane(plane: str) -> None:

@@ -353,8 +353,9 @@ class ChainBoxes:
         meets) instead of a descent from the top: each leaf is tested as the descent tests it
         at its own level, in order, so the runs hold every leaf the descent yields (and
         perhaps one whose larger box it ruled out: the runs are conservative either way)."""
-        limit = disc[2]
-        if not limit <= _GRID_DISC * _GRID_DISC * self._grid_cell2():
+        ox, oy, limit = disc
+        small = 0.0 <= limit <= _GRID_DISC * _GRID_DISC * self._grid_cell2()
+        if not (small and math.isfinite(ox) and math.isfinite(oy)):
             return self._leaves(lo, hi, -1, None, disc)
         return self._leaves_in_grid(lo, hi, disc)
 

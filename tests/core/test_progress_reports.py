@@ -116,13 +116,16 @@ def test_invalid_polygons_as_given_get_the_same_trees_with_progress(name: str, r
         assert np.array_equal(getattr(runs[0], field), getattr(runs[1], field))
 
 
-def test_the_batch_path_reports_every_round_and_stops_there() -> None:
+def stars(count: int) -> list[np.ndarray]:
+    """Stars of 40 vertices in a row."""
     angles = 2.0 * np.pi * np.arange(40) / 40
-    star = (
-        np.column_stack([np.cos(angles), np.sin(angles)])
-        * np.where(np.arange(40) % 2 == 0, 10.0, 4.0)[:, None]
-    )
-    polygons = PackedPolygons.of([[star + np.array([30.0 * k, 0.0])] for k in range(500)])
+    radii = np.where(np.arange(40) % 2 == 0, 10.0, 4.0)[:, None]
+    star = np.column_stack([np.cos(angles), np.sin(angles)]) * radii
+    return [star + np.array([30.0 * k, 0.0]) for k in range(count)]
+
+
+def test_the_batch_path_reports_every_round_and_stops_there() -> None:
+    polygons = PackedPolygons.of([[star] for star in stars(500)])
     seen: list[set[str]] = []
     result = triangulate_packed(polygons, progress=lambda _s: seen.append(names_calling()))
     assert not result.errors and len(result.triangles) == 500 * 38
@@ -133,4 +136,29 @@ def test_the_batch_path_reports_every_round_and_stops_there() -> None:
             raise StopError("batch")
 
     with pytest.raises(StopError, match="batch"):
+        triangulate_packed(polygons, progress=progress)
+
+
+def test_a_tree_built_again_does_not_take_the_shares_back() -> None:
+    # a self-crossing ring that is not taken as given: its lock-step tree fails and is
+    # built again from its root, whose share starts over
+    rings = wavy_with_islands(4000, 0)
+    rings[0][[100, 140]] = rings[0][[140, 100]]
+    polygons = PackedPolygons.of([rings])
+    shares: list[float] = []
+    result = triangulate_packed(polygons, on_error="return", progress=shares.append)
+    assert len(result.errors) == 1
+    assert len(shares) > 3 and shares == sorted(shares) and shares[-1] <= 1.0
+
+
+@pytest.mark.parametrize("kind", [ValueError, TypeError, ArithmeticError])
+def test_a_progress_raising_a_value_error_in_the_batch_path_stops_the_call(kind: type) -> None:
+    # the batch path's own errors of these kinds leave its polygons to the engine
+    polygons = PackedPolygons.of([[star] for star in stars(300)])
+
+    def progress(_share: float) -> None:
+        if "batch_pieces" in names_calling():
+            raise kind("stop")
+
+    with pytest.raises(kind, match="stop"):
         triangulate_packed(polygons, progress=progress)

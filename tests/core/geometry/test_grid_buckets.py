@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from bsp_triangulate.geometry.spatial_index import (
+    _GRID_DISC,
     ChainBoxes,
     PointColumns,
     SegmentGrid,
@@ -44,25 +45,37 @@ def _descent_near(boxes: ChainBoxes, lo: int, hi: int, disc: tuple) -> list[tupl
 @pytest.mark.parametrize("seed", range(4))
 def test_chain_leaves_near_a_small_disc_hold_every_leaf_of_the_descent(seed: int) -> None:
     rng = np.random.default_rng(seed)
-    angles = np.sort(rng.uniform(0, 2 * np.pi, 4000))
-    radii = 1000.0 * (1.0 + 0.1 * np.sin(40 * angles)) + rng.uniform(-5, 5, 4000)
+    count = 4001 + seed  # the last leaf shorter than the others
+    angles = np.sort(rng.uniform(0, 2 * np.pi, count))
+    radii = 1000.0 * (1.0 + 0.1 * np.sin(40 * angles)) + rng.uniform(-5, 5, count)
     x, y = radii * np.cos(angles), radii * np.sin(angles)
     x, y = np.append(x, x[0]), np.append(y, y[0])
     boxes = ChainBoxes(x, y)
     gridded = 0
-    for _ in range(300):
-        lo = int(rng.integers(0, 3000))
-        hi = int(rng.integers(lo + 2, 4001))
-        p = int(rng.integers(0, 4000))
-        disc = (float(x[p]), float(y[p]), float(rng.uniform(0.0, 60.0)) ** 2)
+    for trial in range(300):
+        lo = int(rng.integers(0, count - 1000))
+        hi = int(rng.integers(lo + 2, count + 1))
+        p = int(rng.integers(0, count))
+        # some centres off the chain, a few off the grid's frame
+        ox, oy = float(x[p]), float(y[p])
+        if trial % 3 == 0:
+            ox, oy = ox + rng.uniform(-80, 80), oy + rng.uniform(-80, 80)
+        if trial % 50 == 0:
+            ox += 3000.0
+        disc = (ox, oy, float(rng.uniform(0.0, 60.0)) ** 2)
         runs = list(boxes.leaves_near(lo, hi, disc))
-        gridded += disc[2] <= 16.0 * boxes._grid_cell2()
+        gridded += disc[2] <= _GRID_DISC**2 * boxes._grid_cell2()
         assert runs == sorted(runs)
+        assert all(lo <= start < end <= hi for start, end in runs)
         assert set(_descent_near(boxes, lo, hi, disc)) <= set(runs)
         # every point of the range in the disc starts a segment of the runs
-        inside = [
-            q for q in range(lo, hi) if (x[q] - disc[0]) ** 2 + (y[q] - disc[1]) ** 2 <= disc[2]
-        ]
-        covered = {q for start, end in runs for q in range(start, end)}
-        assert set(inside) <= covered
+        inside = {q for q in range(lo, hi) if (x[q] - ox) ** 2 + (y[q] - oy) ** 2 <= disc[2]}
+        assert inside <= {q for start, end in runs for q in range(start, end)}
     assert gridded > 100  # most discs took the grid
+
+
+def test_chain_leaves_near_a_disc_the_grid_cannot_place_come_from_the_descent() -> None:
+    x = np.linspace(0.0, 100.0, 50)
+    boxes = ChainBoxes(x, np.sin(x))
+    for disc in ((np.nan, 0.0, 4.0), (np.inf, 0.0, 4.0), (10.0, 0.0, -1.0)):
+        assert list(boxes.leaves_near(0, 49, disc)) == _descent_near(boxes, 0, 49, disc)
