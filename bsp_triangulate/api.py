@@ -427,13 +427,12 @@ def triangulate_packed(
 
         batch = polygons if plain is None else polygons.take(plain)
         flags = proven if plain is None or proven is None else [proven[i] for i in plain]
-        stopped: list[BaseException] = []  # what the progress callback raised
         try:
             pieces = triangulate_batch_packed(
-                batch, rule, proven=flags, plane=plane, alive=_noting(report.heartbeat, stopped)
+                batch, rule, proven=flags, plane=plane, alive=report.heartbeat
             )
         except (ArithmeticError, ValueError, TypeError):
-            if stopped:
+            if report.stopped:
                 raise  # the caller's progress stopped the call: not a failure of the batch
             pieces = []  # the engine takes every polygon and names what is wrong
         if plain is not None:
@@ -600,22 +599,33 @@ class _Reporter:
         # what long steps call now and then, where no share is known (the last one is told
         # again: a chance to stop the call)
         self.heartbeat = None if progress is None else self.alive
-        self.shown = done / self.total
+        self.shown = 0.0
+        self.stopped = False  # the progress callback raised (a cancelled run)
         if progress is not None:
-            progress(self.shown)
+            self._tell(done / self.total)
 
-    def within(self, share: float) -> None:
-        """The polygon under way is ``share`` done."""
+    def _due(self) -> bool:
+        """A report is wanted and the last one is old enough (then it counts as made)."""
         now = time.monotonic()
-        if self.progress is not None and now - self.last >= _REPORT_SECONDS:
-            self.last = now
-            self._tell((self.done - 1 + share) / self.total)
+        if self.progress is None or now - self.last < _REPORT_SECONDS:
+            return False
+        self.last = now
+        return True
 
     def _tell(self, share: float) -> None:
         """Report ``share``, never below one told before (a tree built again starts its
-        share over) nor above 1."""
+        share over) nor above 1; what the callback raises is noted, then raised on."""
         self.shown = max(self.shown, min(share, 1.0))
-        self.progress(self.shown)
+        try:
+            self.progress(self.shown)
+        except BaseException:
+            self.stopped = True
+            raise
+
+    def within(self, share: float) -> None:
+        """The polygon under way is ``share`` done."""
+        if self._due():
+            self._tell((self.done - 1 + share) / self.total)
 
     def passed(self, count: int) -> None:
         """``count`` polygons are done at once (the batch path)."""
@@ -626,40 +636,19 @@ class _Reporter:
 
     def alive(self) -> None:
         """A long step goes on: the last share told is told again."""
-        now = time.monotonic()
-        if self.progress is not None and now - self.last >= _REPORT_SECONDS:
-            self.last = now
-            self.progress(self.shown)
+        if self._due():
+            self._tell(self.shown)
 
     def one_more(self) -> None:
         """A polygon is about to start: the ones before it are done."""
         if self.progress is None:
             return
-        now = time.monotonic()
-        if now - self.last >= _REPORT_SECONDS:
-            self.last = now
+        if self._due():
             self._tell(self.done / self.total)
         self.done += 1
 
 
 _REPORT_SECONDS = 0.2
-
-
-def _noting(
-    call: Callable[[], None] | None, raised: list[BaseException]
-) -> Callable[[], None] | None:
-    """``call``, noting in ``raised`` what it raises (before raising it on)."""
-    if call is None:
-        return None
-
-    def noted() -> None:
-        try:
-            call()
-        except BaseException as error:
-            raised.append(error)
-            raise
-
-    return noted
 
 
 def _check_plane(plane: str) -> None:

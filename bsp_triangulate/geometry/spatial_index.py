@@ -290,6 +290,14 @@ def box_distance2(box: tuple[float, ...], x: float, y: float) -> float:
     return du * du + dv * dv
 
 
+def _beyond(box: tuple[float, ...], ox: float, oy: float, limit: float) -> bool:
+    """A :class:`ChainBoxes` box lies surely beyond the squared distance ``limit`` from
+    (ox, oy): its axis-aligned box, then its rectangle."""
+    x0, x1, y0, y1 = box[:4]
+    dx, dy = max(x0 - ox, ox - x1, 0.0), max(y0 - oy, oy - y1, 0.0)
+    return dx * dx + dy * dy > limit or box_distance2(box, ox, oy) > limit
+
+
 # ChainBoxes.leaves_near: discs of a radius of at most this many grid cells use the grid
 _GRID_DISC = 4.0
 
@@ -390,10 +398,7 @@ class ChainBoxes:
         for k in sorted(found):
             if k < first or k > last:
                 continue
-            box = boxes[k]
-            x0, x1, y0, y1 = box[:4]
-            dx, dy = max(x0 - ox, ox - x1, 0.0), max(y0 - oy, oy - y1, 0.0)
-            if dx * dx + dy * dy > limit or box_distance2(box, ox, oy) > limit:
+            if _beyond(boxes[k], ox, oy, limit):
                 continue
             start = k * leaf
             yield max(start, lo), min(start + leaf, hi)
@@ -437,11 +442,7 @@ class ChainBoxes:
             if end <= lo or start >= hi:
                 continue
             if disc is not None:
-                x0, x1, y0, y1 = levels[level][k][:4]
-                dx, dy = max(x0 - ox, ox - x1, 0.0), max(y0 - oy, oy - y1, 0.0)
-                if dx * dx + dy * dy > limit:
-                    continue
-                if box_distance2(levels[level][k], ox, oy) > limit:
+                if _beyond(levels[level][k], ox, oy, limit):
                     continue
             elif not (level and (start <= c <= end or start <= lo or end >= hi)):
                 x0, x1, y0, y1, px, py, ux, uy, hu, hv = levels[level][k]
